@@ -1,0 +1,62 @@
+//! The GPU-free reference: point-tessellated voxelization (Fei et al. 2012, section 3) and what it is
+//! measured against, in plain Rust on [`glam`] with no Bevy types, usable and testable on its own.
+//!
+//! * [`grid`]: the voxel grid ([`VoxelGrid`]: world bounds to cubic cells, per-axis dimensions, world/grid
+//!   transforms) and its bit-packed occupancy with per-voxel point counts ([`VoxelOccupancy`]).
+//! * [`tessellation`]: equation 1 ([`tessellation_factors`]), the subdivision pattern and its indexing
+//!   ([`sub_triangle`]), the centroids of equation 2 ([`sub_triangle_centroid`]), equation 5
+//!   ([`expected_point_count`]) and the clipping of triangles that cross the grid boundary.
+//! * [`voxelize`]: the voxelizer itself, in [`InjectionMode::Centroid`] (the paper's) and
+//!   [`InjectionMode::Conservative`] (every overlapped cell, by exact tests on at most 8 candidates per
+//!   sub-triangle).
+//! * [`overlap`] and [`ground_truth`]: the exact triangle/box test and the conservative voxelizer that is the
+//!   ground truth.
+//! * [`metrics`]: bias, excess voxels and the six-direction watertight ray test; [`bias_model`]: equation 3.
+//! * [`binvox`]: export and import of the widely used binvox format.
+//!
+//! The GPU passes (`src/render/*.wgsl`) implement the same algorithm with the same function names; the
+//! render tests hold the GPU's grids against these.
+//!
+//! ```
+//! use bevy_hao::cpu::*;
+//! use glam::Vec3;
+//!
+//! // One triangle spanning a 16-cell grid.
+//! let mesh = TriangleMesh::new(vec![Vec3::ZERO, Vec3::new(16.0, 0.0, 3.0), Vec3::new(2.0, 16.0, 9.0)], vec![[0, 1, 2]]);
+//! let grid = VoxelGrid::fit_to_bounds(Vec3::ZERO, Vec3::splat(16.0), 16).unwrap();
+//! let (voxels, stats) = voxelize(&mesh, &grid, &VoxelizeSettings::default());
+//! let truth = VoxelOccupancy::new(grid, false);
+//! ground_truth_mesh(&mesh, grid.grid_from_world(), &truth);
+//! let cmp = compare(&voxels, &truth);
+//! assert_eq!(cmp.excess, 0);
+//! assert!(cmp.bias() < 0.5 && stats.sub_triangles >= 256);
+//! ```
+
+pub mod bias_model;
+pub mod binvox;
+pub mod grid;
+pub mod ground_truth;
+pub mod mesh;
+pub mod metrics;
+pub mod overlap;
+pub mod tessellation;
+pub mod voxelize;
+
+pub use bias_model::BiasModel;
+pub use binvox::{Binvox, read_binvox, write_binvox};
+pub use grid::{GridError, VoxelGrid, VoxelOccupancy, cell_of_point};
+pub use ground_truth::{GroundTruthStats, ground_truth_mesh, ground_truth_mesh_with_cuts, ground_truth_triangle};
+pub use mesh::{MeshStats, TriangleMesh};
+pub use metrics::{Comparison, GrazeSplit, WatertightReport, compare, enclosed_voxels, graze_split, watertight};
+pub use overlap::{OverlapKind, OverlapTriangle, triangle_box_overlap};
+pub use tessellation::{
+    LatticeRange, SubTriangle, TessellationFactors, expected_point_count, sub_triangle, sub_triangle_centroid,
+    subdivision_count, tessellation_factors,
+};
+pub use voxelize::{
+    InjectionMode, VoxelizeSettings, VoxelizeStats, grid_space_position, triangle_is_degenerate, voxelize,
+    voxelize_mesh, voxelize_triangle,
+};
+
+#[cfg(test)]
+mod tests;

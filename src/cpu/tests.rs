@@ -1,0 +1,365 @@
+//! Tests of the voxelizers against each other and against the ground truth.
+
+use super::*;
+use crate::meshes::{CLOSED_BUILTINS, builtin};
+use glam::{Affine3A, UVec3, Vec3};
+
+/// A small deterministic generator (splitmix64), so that failures reproduce.
+pub(crate) struct Rng(u64);
+
+impl Rng {
+    pub(crate) fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+    pub(crate) fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in `[lo, hi)`.
+    pub(crate) fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * ((self.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
+    }
+    pub(crate) fn vec3(&mut self, lo: f32, hi: f32) -> Vec3 {
+        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
+    }
+}
+
+/// Random triangles of every size class in and around a `dims` grid: sub-voxel, a few cells, grid-spanning
+/// and sticking out of the grid.
+pub(crate) fn random_triangles(rng: &mut Rng, count: usize, dims: f32) -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    for k in 0..count {
+        let size = match k % 4 {
+            0 => 0.3,
+            1 => 2.5,
+            2 => dims * 0.6,
+            _ => dims * 1.5,
+        };
+        let c = rng.vec3(-0.1 * dims, 1.1 * dims);
+        let b = m.positions.len() as u32;
+        for _ in 0..3 {
+            m.positions.push(c + rng.vec3(-size, size));
+        }
+        m.triangles.push([b, b + 1, b + 2]);
+    }
+    m
+}
+
+fn grid(dims: UVec3) -> VoxelGrid {
+    VoxelGrid::new(Vec3::ZERO, 1.0, dims).unwrap()
+}
+
+fn truth_of(mesh: &TriangleMesh, g: &VoxelGrid) -> VoxelOccupancy {
+    let t = VoxelOccupancy::new(*g, false);
+    ground_truth_mesh(mesh, g.grid_from_world(), &t);
+    t
+}
+
+fn run(mesh: &TriangleMesh, g: &VoxelGrid, mode: InjectionMode, gamma: f32) -> (VoxelOccupancy, VoxelizeStats) {
+    voxelize(mesh, g, &VoxelizeSettings { gamma, mode })
+}
+
+#[test]
+fn every_voxel_set_is_overlapped_by_a_triangle_and_conservative_mode_equals_the_ground_truth() {
+    let mut rng = Rng::new(7);
+    for round in 0..6 {
+        let dims = UVec3::new(24 + 5 * round, 17, 31);
+        let mesh = random_triangles(&mut rng, 400, 24.0);
+        let g = grid(dims);
+        let truth = truth_of(&mesh, &g);
+        for gamma in [1.0, 2.5] {
+            let (centroid, stats) = run(&mesh, &g, InjectionMode::Centroid, gamma);
+            let c = compare(&centroid, &truth);
+            // Ties: a centroid computed a few ulp off a cell face can land in a cell the triangle does not
+            // reach. None are expected at these magnitudes; allow one in 10^4 set voxels before failing.
+            assert!(c.excess * 10_000 <= c.result_voxels, "round {round}: {c:?}");
+            assert!(stats.injected > 0);
+            let (cons, _) = run(&mesh, &g, InjectionMode::Conservative, gamma);
+            let k = compare(&cons, &truth);
+            assert_eq!((k.missing, k.excess), (0, 0), "round {round}, gamma {gamma}: {k:?}");
+            // Centroid mode finds a subset of conservative mode.
+            assert_eq!(centroid.count_not_in(&cons), c.excess);
+        }
+    }
+}
+
+#[test]
+fn bias_falls_as_gamma_grows() {
+    // Large triangles over a fine grid, where centroid injection misses the most.
+    let mesh = builtin("sphere").unwrap();
+    let (lo, hi) = mesh.bounds().unwrap();
+    let g = VoxelGrid::fit_to_bounds(lo, hi, 96).unwrap();
+    let truth = truth_of(&mesh, &g);
+    let bias: Vec<f64> = [1.0, 2.0, 4.0]
+        .iter()
+        .map(|&gamma| compare(&voxelize(&mesh, &g, &VoxelizeSettings { gamma, ..Default::default() }).0, &truth).bias())
+        .collect();
+    assert!(bias[0] > bias[1] && bias[1] > bias[2], "{bias:?}");
+    assert!(bias[0] > 0.0);
+}
+
+/// Bias bounds at gamma = 1 for the built-in meshes at 64^3. The paper's 1.7-4.4 % is for meshes of up to 7
+/// million triangles, mostly smaller than a voxel; these meshes have few, large triangles, so every cell
+/// the surface only clips is at stake and the measured bias is 10-25 % (1 % for the cathedral's boxes).
+/// Each bound sits between the bias measured at gamma = 1 and at gamma = 0.7 (a pattern 30 % coarser than
+/// equation 1 asks, which this test also runs to show the bound can fail): it catches a subdivision that
+/// is coarser than it should be or a pattern with gaps, and leaves room for harmless changes of rounding.
+#[test]
+fn bias_at_gamma_one_is_bounded_for_every_builtin_mesh() {
+    for (name, bound) in [
+        ("windmill", 0.21),
+        ("pyramid", 0.25),
+        ("chamfer-box", 0.22),
+        ("star", 0.13),
+        ("tetrahedron", 0.25),
+        ("sphere", 0.28),
+        ("torus", 0.20),
+        ("cathedral", 0.015),
+    ] {
+        let mesh = builtin(name).unwrap();
+        let (lo, hi) = mesh.bounds().unwrap();
+        let g = VoxelGrid::fit_to_bounds(lo, hi, 64).unwrap();
+        let truth = truth_of(&mesh, &g);
+        let (result, _) = run(&mesh, &g, InjectionMode::Centroid, 1.0);
+        let c = compare(&result, &truth);
+        let coarse = compare(&run(&mesh, &g, InjectionMode::Centroid, 0.7).0, &truth);
+        println!(
+            "{name}: bias {:.2}% (gamma 0.7: {:.2}%) excess {}",
+            100.0 * c.bias(),
+            100.0 * coarse.bias(),
+            c.excess
+        );
+        assert!(c.bias() < bound, "{name}: bias {:.3} over {bound}", c.bias());
+        assert!(coarse.bias() > bound, "{name}: the bound does not tell gamma 0.7 from 1");
+        assert_eq!(c.excess, 0, "{name}");
+    }
+}
+
+#[test]
+fn grazed_voxels_explain_the_bias_that_gamma_cannot_remove() {
+    let split_at = |name: &str, gamma: f32| {
+        let mesh = builtin(name).unwrap();
+        let (lo, hi) = mesh.bounds().unwrap();
+        let g = VoxelGrid::fit_to_bounds(lo, hi, 64).unwrap();
+        let truth = VoxelOccupancy::new(g, false);
+        let cut = VoxelOccupancy::new(g, false);
+        ground_truth::ground_truth_mesh_with_cuts(&mesh, g.grid_from_world(), &truth, Some(&cut));
+        let (result, _) = run(&mesh, &g, InjectionMode::Centroid, gamma);
+        (compare(&result, &truth), graze_split(&result, &truth, &cut))
+    };
+    // The chamfer box's chamfers run (within rounding) through the cell edges of its fitted grid: what
+    // centroid injection misses at any gamma is only voxels that the surface grazes.
+    for gamma in [1.0, 2.0, 4.0] {
+        let (c, split) = split_at("chamfer-box", gamma);
+        assert!(c.missing > 0);
+        assert_eq!(split.missing_grazed, c.missing, "gamma {gamma}");
+    }
+    // A sphere's misses at gamma = 1 are mostly cells its surface cuts through, and those go as gamma grows.
+    let cut_missing = |gamma| {
+        let (c, split) = split_at("sphere", gamma);
+        c.missing - split.missing_grazed
+    };
+    assert!(cut_missing(1.0) > 2 * cut_missing(4.0));
+}
+
+#[test]
+fn closed_builtin_meshes_voxelize_watertight() {
+    for name in CLOSED_BUILTINS {
+        let mesh = builtin(name).unwrap();
+        let (lo, hi) = mesh.bounds().unwrap();
+        for res in [32, 100] {
+            let g = VoxelGrid::fit_to_bounds(lo, hi, res).unwrap();
+            let truth = truth_of(&mesh, &g);
+            let (result, _) = run(&mesh, &g, InjectionMode::Centroid, 1.0);
+            let w = watertight(&result, &truth);
+            assert!(w.rays > 0);
+            assert!(w.applies() && w.is_watertight(), "{name} at {res}: {w:?}");
+        }
+    }
+}
+
+#[test]
+fn the_watertight_test_catches_a_hole() {
+    let mesh = builtin("sphere").unwrap();
+    let (lo, hi) = mesh.bounds().unwrap();
+    let g = VoxelGrid::fit_to_bounds(lo, hi, 32).unwrap();
+    let truth = truth_of(&mesh, &g);
+    // Drop the triangles around the north pole: rays along -y then pass through to the far side.
+    let mut holed = mesh.clone();
+    holed.triangles.retain(|t| t.iter().all(|&i| mesh.positions[i as usize].y < 0.9));
+    let (result, _) = run(&holed, &g, InjectionMode::Centroid, 1.0);
+    assert!(!watertight(&result, &truth).is_watertight());
+}
+
+#[test]
+fn builtin_closed_meshes_are_closed_and_outward() {
+    for name in CLOSED_BUILTINS.iter().chain(["cathedral"].iter()) {
+        let parts: Vec<TriangleMesh> = if *name == "cathedral" {
+            crate::meshes::cathedral_parts().into_iter().map(|p| p.1).collect()
+        } else {
+            vec![builtin(name).unwrap()]
+        };
+        for mesh in parts {
+            // (Solids are appended without welding, so index-based edges stay within each solid.)
+            // Every directed edge appears once and its reverse once.
+            let mut edges = std::collections::HashMap::new();
+            for t in &mesh.triangles {
+                for k in 0..3 {
+                    *edges.entry((t[k], t[(k + 1) % 3])).or_insert(0) += 1;
+                }
+            }
+            for (&(a, b), &n) in &edges {
+                assert_eq!(n, 1, "{name}: edge {a}-{b} used {n} times in one direction");
+                assert_eq!(edges.get(&(b, a)), Some(&1), "{name}: edge {a}-{b} has no twin");
+            }
+            let volume: f32 = mesh
+                .triangles
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+                    a.dot(b.cross(c)) / 6.0
+                })
+                .sum();
+            assert!(volume > 0.0, "{name}: signed volume {volume}");
+        }
+    }
+}
+
+#[test]
+fn bad_triangles_are_skipped_and_counted_without_panics() {
+    let g = grid(UVec3::splat(8));
+    let nan = f32::NAN;
+    let inf = f32::INFINITY;
+    let mesh = TriangleMesh::new(
+        vec![
+            Vec3::new(1.0, 1.0, 1.0),
+            Vec3::new(5.0, 1.0, 1.0),
+            Vec3::new(1.0, 5.0, 1.0),
+            Vec3::new(nan, 1.0, 1.0),
+            Vec3::new(inf, 1.0, 1.0),
+            Vec3::new(3.0, 1.0, 1.0), // collinear with 0 and 1
+        ],
+        vec![
+            [0, 1, 2],  // fine
+            [0, 1, 3],  // NaN vertex
+            [0, 4, 2],  // inf vertex
+            [0, 1, 5],  // zero area (collinear)
+            [2, 2, 2],  // zero area (one point)
+            [0, 1, 99], // index out of range
+        ],
+    );
+    for mode in [InjectionMode::Centroid, InjectionMode::Conservative] {
+        let (occ, stats) = run(&mesh, &g, mode, 1.0);
+        assert_eq!(stats.triangles, 6);
+        assert_eq!(stats.invalid, 3, "{mode}");
+        assert_eq!(stats.degenerate, 2, "{mode}");
+        let only_good = TriangleMesh::new(mesh.positions[..3].to_vec(), vec![[0, 1, 2]]);
+        assert_eq!(occ.words(), run(&only_good, &g, mode, 1.0).0.words(), "{mode}");
+    }
+    let t = VoxelOccupancy::new(g, false);
+    let gt = ground_truth_mesh(&mesh, g.grid_from_world(), &t);
+    assert_eq!(gt.skipped, 5);
+}
+
+#[test]
+fn huge_and_outside_triangles_are_clipped_to_the_grid() {
+    let g = grid(UVec3::new(16, 8, 16));
+    // A floor triangle 40 km across at y = 3.5 covering the grid, and one wholly outside.
+    let mesh = TriangleMesh::new(
+        vec![
+            Vec3::new(-1.0e4, 3.5, -1.0e4),
+            Vec3::new(3.0e4, 3.5, -1.0e4),
+            Vec3::new(-1.0e4, 3.5, 3.0e4),
+            Vec3::new(100.0, 1.0, 1.0),
+            Vec3::new(101.0, 1.0, 1.0),
+            Vec3::new(100.0, 2.0, 1.0),
+        ],
+        vec![[0, 1, 2], [3, 4, 5]],
+    );
+    for mode in [InjectionMode::Centroid, InjectionMode::Conservative] {
+        let (occ, stats) = run(&mesh, &g, mode, 1.0);
+        assert_eq!(stats.outside, 1);
+        assert_eq!(stats.oversize, 0);
+        // n = 40000: the full lattice would be 1.6 * 10^9 sub-triangles; clipping keeps a few hundred.
+        assert!(stats.sub_triangles < 2_000, "{stats:?}");
+        // The whole y = 3 layer is set, nothing else.
+        assert_eq!(occ.set_voxel_count(), 16 * 16, "{mode}");
+        assert!(occ.is_set(UVec3::new(15, 3, 15)) && occ.is_set(UVec3::new(0, 3, 0)));
+        let truth = truth_of(&mesh, &g);
+        assert_eq!(compare(&occ, &truth).missing, 0);
+    }
+}
+
+#[test]
+fn clipping_does_not_change_what_lands_inside() {
+    // The same random triangles voxelized in a small grid and in a larger one that contains them whole,
+    // offset by whole cells: inside the small grid the results must agree.
+    let mut rng = Rng::new(11);
+    let mesh = random_triangles(&mut rng, 300, 16.0);
+    let small = grid(UVec3::splat(16));
+    let big = VoxelGrid::new(Vec3::splat(-64.0), 1.0, UVec3::splat(160)).unwrap();
+    for mode in [InjectionMode::Centroid, InjectionMode::Conservative] {
+        let (a, _) = run(&mesh, &small, mode, 1.0);
+        let (b, _) = run(&mesh, &big, mode, 1.0);
+        let mut differ = 0;
+        for cell in ground_truth::cells_in(UVec3::ZERO, UVec3::splat(15)) {
+            differ += u32::from(a.is_set(cell) != b.is_set(cell + UVec3::splat(64)));
+        }
+        // Grid-space coordinates differ by 64 between the two, which changes rounding: allow a handful.
+        assert!(differ <= 3, "{mode}: {differ} voxels differ");
+    }
+}
+
+#[test]
+fn point_counts_add_up() {
+    let mesh = builtin("torus").unwrap();
+    let (lo, hi) = mesh.bounds().unwrap();
+    let g = VoxelGrid::fit_to_bounds(lo, hi, 48).unwrap();
+    let (occ, stats) = run(&mesh, &g, InjectionMode::Centroid, 1.0);
+    assert_eq!(occ.total_count(), stats.injected);
+    assert_eq!(stats.injected, stats.sub_triangles);
+    // Every set voxel has a point, every voxel with a point is set.
+    occ.for_each_set_index(|i| assert!(occ.count(g.cell_of_index(i)) > 0));
+    assert!(occ.max_count() >= 1);
+}
+
+#[test]
+fn transforms_are_applied_before_voxelizing() {
+    let mesh = builtin("tetrahedron").unwrap();
+    let g = VoxelGrid::new(Vec3::splat(-4.0), 0.25, UVec3::splat(32)).unwrap();
+    let world = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(1.5),
+        glam::Quat::from_rotation_y(0.7),
+        Vec3::new(0.5, 0.2, -0.3),
+    );
+    let a = VoxelOccupancy::new(g, false);
+    voxelize_mesh(&mesh, g.grid_from_world() * world, &VoxelizeSettings::default(), &a);
+    let (b, _) = voxelize(&mesh.transformed(world), &g, &VoxelizeSettings::default());
+    let diff = a.count_not_in(&b) + b.count_not_in(&a);
+    assert!(diff <= 2, "{diff}");
+    assert!(a.set_voxel_count() > 100);
+}
+
+#[test]
+fn binvox_round_trips() {
+    let mesh = builtin("star").unwrap();
+    let (lo, hi) = mesh.bounds().unwrap();
+    let g = VoxelGrid::fit_to_bounds(lo, hi, 40).unwrap();
+    let (occ, _) = voxelize(&mesh, &g, &VoxelizeSettings::default());
+    assert!(g.dims.y < g.dims.x, "non-cubic on purpose");
+    let mut bytes = Vec::new();
+    write_binvox(&occ, &mut bytes).unwrap();
+    let read = read_binvox(&mut std::io::Cursor::new(bytes)).unwrap();
+    assert_eq!(read.dim, UVec3::splat(40));
+    assert_eq!(read.translate, g.origin);
+    assert!((read.scale - 40.0 * g.cell_size).abs() < 1e-6);
+    assert_eq!(read.set_count() as u64, occ.set_voxel_count());
+    let back = read.to_occupancy().unwrap();
+    for cell in occ.set_cells() {
+        assert!(back.is_set(cell));
+    }
+    assert!(read_binvox(&mut std::io::Cursor::new(b"#binvox 1\ndim 2 2 2\ndata\n\x00\x07".to_vec())).is_err());
+}

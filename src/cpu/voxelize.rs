@@ -1,0 +1,303 @@
+//! The point-tessellated voxelizer (the CPU reference of the GPU passes): per triangle, equation 1 picks the
+//! subdivision, the lattice pattern of [`super::tessellation`] cuts it into sub-triangles smaller than a cell,
+//! and each sub-triangle is injected, in one of two modes:
+//!
+//! * [`InjectionMode::Centroid`], the paper's: the sub-triangle's centroid (equation 2) sets its cell and adds
+//!   one to the cell's point count. Gap-free in practice, not conservative: a cell that a sub-triangle only
+//!   grazes can be missed (the paper's Figure 9), which is the *bias*.
+//! * [`InjectionMode::Conservative`], the paper's future work: a sub-triangle spans at most one cell per axis,
+//!   so it touches at most the 8 cells of its (slightly padded) bounding box; each of those candidates is
+//!   tested with the exact overlap test against the parent triangle and set if it overlaps. In exact arithmetic
+//!   testing the parent is the same as testing the sub-triangle (the sub-triangles tile the parent, so every
+//!   cell the parent overlaps is a candidate of a sub-triangle that overlaps it); in floating point it makes
+//!   the result match the ground truth exactly, since both use the same test. The point count of a cell is
+//!   then the number of sub-triangles that set it. The factor is computed with `max(gamma, 1)` in this mode,
+//!   since the 8-cell bound needs it.
+//!
+//! Triangles with a non-finite vertex or zero area ([`triangle_is_degenerate`]) are skipped and counted;
+//! so are triangles wholly outside the grid, and the ones needing more than
+//! [`MAX_SUB_TRIANGLES_PER_TRIANGLE`] sub-triangles. Parts of a triangle outside the grid are clipped away
+//! before enumeration ([`clipped_lattice_range`]), so a huge triangle costs only what lies inside.
+
+use super::grid::{VoxelGrid, VoxelOccupancy, cell_of_point};
+use super::mesh::TriangleMesh;
+use super::overlap::OverlapTriangle;
+use super::tessellation::*;
+use glam::{Affine3A, IVec3, UVec3, Vec3};
+use std::ops::AddAssign;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// How sub-triangles mark voxels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub enum InjectionMode {
+    /// One point per sub-triangle at its centroid (the paper).
+    #[default]
+    Centroid,
+    /// Every cell a sub-triangle's bounds touch is tested exactly (no voxel of the ground truth is missed).
+    Conservative,
+}
+
+impl std::str::FromStr for InjectionMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "centroid" => Ok(Self::Centroid),
+            "conservative" => Ok(Self::Conservative),
+            _ => Err(format!("unknown injection mode '{s}' (expected centroid or conservative)")),
+        }
+    }
+}
+
+impl std::fmt::Display for InjectionMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Centroid => "centroid",
+            Self::Conservative => "conservative",
+        })
+    }
+}
+
+/// The smallest and largest safety factor accepted; others are clamped into this range.
+pub const GAMMA_RANGE: (f32, f32) = (1.0 / 16.0, 16.0);
+
+/// Padding, in cells, of a sub-triangle's bounds when collecting conservative candidates; it absorbs the
+/// rounding of the lattice points (a few ulp of coordinates up to 4096). WGSL: `CONSERVATIVE_PAD`.
+pub const CONSERVATIVE_PAD: f32 = 1.0 / 256.0;
+
+/// Settings of the point-tessellated voxelizer.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VoxelizeSettings {
+    /// The safety factor gamma of equation 1 (clamped to [`GAMMA_RANGE`]).
+    pub gamma: f32,
+    /// Centroid or conservative injection.
+    pub mode: InjectionMode,
+}
+
+impl Default for VoxelizeSettings {
+    fn default() -> Self {
+        Self { gamma: 1.0, mode: InjectionMode::Centroid }
+    }
+}
+
+impl VoxelizeSettings {
+    /// The gamma actually used for the factors: clamped, and at least 1 in conservative mode.
+    pub fn effective_gamma(&self) -> f32 {
+        let g = if self.gamma.is_finite() { self.gamma } else { 1.0 };
+        let g = g.clamp(GAMMA_RANGE.0, GAMMA_RANGE.1);
+        match self.mode {
+            InjectionMode::Centroid => g,
+            InjectionMode::Conservative => g.max(1.0),
+        }
+    }
+}
+
+/// What a voxelization run did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct VoxelizeStats {
+    /// Triangles read.
+    pub triangles: u64,
+    /// Triangles skipped for a non-finite vertex or an index out of range.
+    pub invalid: u64,
+    /// Triangles skipped for zero area.
+    pub degenerate: u64,
+    /// Triangles wholly outside the grid.
+    pub outside: u64,
+    /// Triangles skipped for needing more than [`MAX_SUB_TRIANGLES_PER_TRIANGLE`] sub-triangles.
+    pub oversize: u64,
+    /// Triangles with `n = 1` wholly inside the grid (the GPU injects these at once).
+    pub small: u64,
+    /// Sub-triangles generated (centroid mode: points generated).
+    pub sub_triangles: u64,
+    /// Injections that landed in the grid: points (centroid) or sub-triangle/cell overlaps (conservative).
+    pub injected: u64,
+    /// Exact overlap tests run (conservative mode).
+    pub overlap_tests: u64,
+}
+
+impl AddAssign for VoxelizeStats {
+    fn add_assign(&mut self, o: Self) {
+        self.triangles += o.triangles;
+        self.invalid += o.invalid;
+        self.degenerate += o.degenerate;
+        self.outside += o.outside;
+        self.oversize += o.oversize;
+        self.small += o.small;
+        self.sub_triangles += o.sub_triangles;
+        self.injected += o.injected;
+        self.overlap_tests += o.overlap_tests;
+    }
+}
+
+/// Whether a grid-space triangle has zero area: its edge cross product, in `f64` on the `f32` vertices (so
+/// nearly exact), is zero. WGSL: `triangle_is_degenerate`, the same test in `f32`, which can also call a
+/// sliver of area below `f32` precision degenerate.
+#[inline]
+pub fn triangle_is_degenerate(v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
+    let (a, b, c) = (v0.as_dvec3(), v1.as_dvec3(), v2.as_dvec3());
+    (b - a).cross(c - a) == glam::DVec3::ZERO
+}
+
+/// Transforms a triangle to grid space with `grid_from_local` (WGSL: `grid_space_position`, which spells
+/// out the same sum `x_axis * p.x + y_axis * p.y + z_axis * p.z + translation`).
+#[inline]
+pub fn grid_space_position(grid_from_local: &Affine3A, p: Vec3) -> Vec3 {
+    let m = &grid_from_local.matrix3;
+    Vec3::from(m.x_axis * p.x + m.y_axis * p.y + m.z_axis * p.z + grid_from_local.translation)
+}
+
+/// Voxelizes one grid-space triangle into `out`. Returns what it did.
+pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelOccupancy) -> VoxelizeStats {
+    let mut stats = VoxelizeStats { triangles: 1, ..Default::default() };
+    let [v0, v1, v2] = v;
+    if !(v0.is_finite() && v1.is_finite() && v2.is_finite()) {
+        stats.invalid = 1;
+        return stats;
+    }
+    if triangle_is_degenerate(v0, v1, v2) {
+        stats.degenerate = 1;
+        return stats;
+    }
+    let dims = out.grid().dims;
+    let placement = grid_placement(v0, v1, v2, dims);
+    if placement == GridPlacement::Outside {
+        stats.outside = 1;
+        return stats;
+    }
+    let factors = tessellation_factors(v0, v1, v2, settings.effective_gamma());
+    let n = subdivision_count(&factors);
+    let (e1, e2) = (v1 - v0, v2 - v0);
+    let range = match placement {
+        GridPlacement::Inside if n <= MAX_SUBDIVISION => LatticeRange::full(n),
+        _ if n > MAX_SUBDIVISION => {
+            stats.oversize = 1;
+            return stats;
+        }
+        _ => match clipped_lattice_range(v0, e1, e2, n, dims) {
+            Some(r) => r,
+            None => {
+                stats.outside = 1;
+                return stats;
+            }
+        },
+    };
+    let count = range.sub_triangle_count();
+    if count > MAX_SUB_TRIANGLES_PER_TRIANGLE {
+        stats.oversize = 1;
+        return stats;
+    }
+    if n == 1 && placement == GridPlacement::Inside {
+        stats.small = 1;
+    }
+    match settings.mode {
+        InjectionMode::Centroid => {
+            let inv_3n = 1.0 / (3.0 * n as f32);
+            for s in 0..count as u32 {
+                let Some(sub) = sub_triangle(&range, s) else { continue };
+                stats.sub_triangles += 1;
+                let p = sub_triangle_centroid(v0, e1, e2, inv_3n, sub);
+                if let Some(cell) = cell_of_point(p, dims) {
+                    out.inject_voxel(linear_index(cell, dims));
+                    stats.injected += 1;
+                }
+            }
+        }
+        InjectionMode::Conservative => {
+            let parent = OverlapTriangle::new(v0, v1, v2);
+            let inv_n = 1.0 / n as f32;
+            for s in 0..count as u32 {
+                let Some(sub) = sub_triangle(&range, s) else { continue };
+                stats.sub_triangles += 1;
+                let [a, b, c] = sub_triangle_vertices(v0, e1, e2, inv_n, sub);
+                let (lo, hi) = conservative_candidate_cells(a, b, c, dims);
+                for z in lo.z..=hi.z {
+                    for y in lo.y..=hi.y {
+                        for x in lo.x..=hi.x {
+                            let cell = UVec3::new(x as u32, y as u32, z as u32);
+                            stats.overlap_tests += 1;
+                            if parent.overlaps_cell(cell) {
+                                out.inject_voxel(linear_index(cell, dims));
+                                stats.injected += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    stats
+}
+
+/// The inclusive cell range a sub-triangle can touch: its bounds padded by [`CONSERVATIVE_PAD`], clamped to
+/// the grid (empty, `lo > hi`, if it misses the grid). WGSL: `conservative_candidate_cells`.
+#[inline]
+pub fn conservative_candidate_cells(a: Vec3, b: Vec3, c: Vec3, dims: UVec3) -> (IVec3, IVec3) {
+    let lo = (a.min(b).min(c) - Vec3::splat(CONSERVATIVE_PAD)).floor().as_ivec3().max(IVec3::ZERO);
+    let hi = (a.max(b).max(c) + Vec3::splat(CONSERVATIVE_PAD)).floor().as_ivec3().min(dims.as_ivec3() - IVec3::ONE);
+    (lo, hi)
+}
+
+#[inline]
+fn linear_index(c: UVec3, dims: UVec3) -> u32 {
+    c.x + dims.x * (c.y + dims.y * c.z)
+}
+
+/// Triangles handed to a thread at a time.
+const CHUNK: usize = 512;
+
+/// Runs `per_triangle` over every triangle of `mesh` (transformed to grid space by `grid_from_local`) on all
+/// available cores, summing the stats. Shared by the voxelizer and the ground truth.
+pub(crate) fn for_each_grid_triangle<S: Default + AddAssign + Send>(
+    mesh: &TriangleMesh,
+    grid_from_local: Affine3A,
+    per_triangle: impl Fn(Option<[Vec3; 3]>) -> S + Sync,
+) -> S {
+    let next = AtomicUsize::new(0);
+    let total = mesh.triangles.len();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(total.div_ceil(CHUNK)).max(1);
+    let work = || {
+        let mut stats = S::default();
+        loop {
+            let start = next.fetch_add(CHUNK, Ordering::Relaxed);
+            if start >= total {
+                break;
+            }
+            for t in start..(start + CHUNK).min(total) {
+                let v = mesh.triangle(t).map(|v| v.map(|p| grid_space_position(&grid_from_local, p)));
+                stats += per_triangle(v);
+            }
+        }
+        stats
+    };
+    if threads == 1 {
+        return work();
+    }
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads).map(|_| scope.spawn(work)).collect();
+        let mut sum = S::default();
+        for h in handles {
+            sum += h.join().expect("voxelizer thread panicked");
+        }
+        sum
+    })
+}
+
+/// Voxelizes a mesh into `out` (which is not cleared first), on all cores. `grid_from_local` maps the
+/// mesh's positions to grid space, e.g. `grid.grid_from_world() * world_from_local`.
+pub fn voxelize_mesh(
+    mesh: &TriangleMesh,
+    grid_from_local: Affine3A,
+    settings: &VoxelizeSettings,
+    out: &VoxelOccupancy,
+) -> VoxelizeStats {
+    for_each_grid_triangle(mesh, grid_from_local, |v| match v {
+        Some(v) => voxelize_triangle(v, settings, out),
+        None => VoxelizeStats { triangles: 1, invalid: 1, ..Default::default() },
+    })
+}
+
+/// Convenience: voxelizes a world-space mesh into a fresh occupancy grid (with point counts).
+pub fn voxelize(mesh: &TriangleMesh, grid: &VoxelGrid, settings: &VoxelizeSettings) -> (VoxelOccupancy, VoxelizeStats) {
+    let out = VoxelOccupancy::new(*grid, true);
+    let stats = voxelize_mesh(mesh, grid.grid_from_world(), settings, &out);
+    (out, stats)
+}

@@ -1,0 +1,511 @@
+//! Meshes the project makes itself: the shapes of Fei et al.'s Figure 8 (windmill, pyramid, chamfer box,
+//! star), a tetrahedron, a sphere, a torus, and a procedural cathedral interior, the default scene of the
+//! examples. All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
+//! tests check it).
+
+use crate::cpu::TriangleMesh;
+use glam::{Vec2, Vec3};
+use std::f32::consts::{PI, TAU};
+
+/// Names accepted by [`builtin`] (and by the examples as `builtin:NAME`).
+pub const BUILTIN_NAMES: [&str; 8] =
+    ["windmill", "pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "torus", "cathedral"];
+
+/// The names of the closed shapes among [`BUILTIN_NAMES`] (all but the windmill, whose blades are open
+/// sheets, and the cathedral, which is a union of closed solids with openings).
+pub const CLOSED_BUILTINS: [&str; 6] = ["pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "torus"];
+
+/// A built-in mesh by name, or `None`.
+pub fn builtin(name: &str) -> Option<TriangleMesh> {
+    Some(match name {
+        "windmill" => windmill(),
+        "pyramid" => pyramid(),
+        "chamfer-box" => chamfer_box(0.25),
+        "star" => star(12),
+        "tetrahedron" => tetrahedron(),
+        "sphere" => sphere(1.0, 32, 16),
+        "torus" => torus(1.0, 0.35, 48, 24),
+        "cathedral" => cathedral(),
+        _ => return None,
+    })
+}
+
+/// Flips triangles so that each faces away from `center`: right for shapes that are star-shaped around it.
+fn orient_outward(mut mesh: TriangleMesh, center: Vec3) -> TriangleMesh {
+    for t in &mut mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        if (b - a).cross(c - a).dot((a + b + c) / 3.0 - center) < 0.0 {
+            t.swap(1, 2);
+        }
+    }
+    mesh
+}
+
+/// A regular tetrahedron with edge 2, centered at the origin (4 triangles).
+pub fn tetrahedron() -> TriangleMesh {
+    let s = 1.0 / 2.0f32.sqrt();
+    let p = vec![Vec3::new(1.0, 0.0, -s), Vec3::new(-1.0, 0.0, -s), Vec3::new(0.0, 1.0, s), Vec3::new(0.0, -1.0, s)];
+    orient_outward(TriangleMesh::new(p, vec![[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]), Vec3::ZERO)
+}
+
+/// A square pyramid, base 2 x 2 on y = 0, apex at height 1.5 (6 triangles: Figure 8b).
+pub fn pyramid() -> TriangleMesh {
+    let p = vec![
+        Vec3::new(-1.0, 0.0, -1.0),
+        Vec3::new(1.0, 0.0, -1.0),
+        Vec3::new(1.0, 0.0, 1.0),
+        Vec3::new(-1.0, 0.0, 1.0),
+        Vec3::new(0.0, 1.5, 0.0),
+    ];
+    let t = vec![[0, 1, 2], [0, 2, 3], [0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]];
+    orient_outward(TriangleMesh::new(p, t), Vec3::new(0.0, 0.4, 0.0))
+}
+
+/// A windmill of four flat blades around a hub in the xy plane (8 triangles: Figure 8a). Open sheets.
+pub fn windmill() -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    for k in 0..4 {
+        let a = k as f32 * PI / 2.0;
+        let (dir, side) = (Vec3::new(a.cos(), a.sin(), 0.0), Vec3::new(-a.sin(), a.cos(), 0.0));
+        let base = m.positions.len() as u32;
+        // A blade: a quad from the hub out to radius 2, twisted by a slight z offset at its tip.
+        m.positions.extend([
+            dir * 0.1,
+            dir * 2.0 + Vec3::Z * 0.3,
+            dir * 2.0 + side * 0.7 - Vec3::Z * 0.3,
+            dir * 0.3 + side * 0.5,
+        ]);
+        m.triangles.extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+    }
+    m
+}
+
+/// A cube of side 2 with chamfered edges and corners (44 triangles: Figure 8c's shape, with one chamfer
+/// face per edge).
+pub fn chamfer_box(chamfer: f32) -> TriangleMesh {
+    let k = 1.0 - chamfer;
+    let mut m = TriangleMesh::default();
+    // Face vertex (axis a, sign s, signs of the other two axes).
+    let vertex = |a: usize, s: f32, su: f32, sv: f32| {
+        let mut p = Vec3::ZERO;
+        p[a] = s;
+        p[(a + 1) % 3] = su * k;
+        p[(a + 2) % 3] = sv * k;
+        p
+    };
+    let quad = |m: &mut TriangleMesh, q: [Vec3; 4]| {
+        let b = m.positions.len() as u32;
+        m.positions.extend(q);
+        m.triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+    };
+    for a in 0..3 {
+        for s in [-1.0, 1.0] {
+            quad(
+                &mut m,
+                [vertex(a, s, -1.0, -1.0), vertex(a, s, 1.0, -1.0), vertex(a, s, 1.0, 1.0), vertex(a, s, -1.0, 1.0)],
+            );
+        }
+    }
+    // Edge faces between face (a, sa) and face (b, sb) with b = a + 1: the third axis w runs along the edge.
+    for a in 0..3 {
+        let (b, w) = ((a + 1) % 3, (a + 2) % 3);
+        for sa in [-1.0, 1.0] {
+            for sb in [-1.0, 1.0] {
+                let on_a = |sw: f32| {
+                    let mut p = Vec3::ZERO;
+                    p[a] = sa;
+                    p[b] = sb * k;
+                    p[w] = sw * k;
+                    p
+                };
+                let on_b = |sw: f32| {
+                    let mut p = Vec3::ZERO;
+                    p[b] = sb;
+                    p[a] = sa * k;
+                    p[w] = sw * k;
+                    p
+                };
+                quad(&mut m, [on_a(-1.0), on_a(1.0), on_b(1.0), on_b(-1.0)]);
+            }
+        }
+    }
+    for sx in [-1.0, 1.0] {
+        for sy in [-1.0, 1.0] {
+            for sz in [-1.0, 1.0] {
+                let b = m.positions.len() as u32;
+                m.positions.extend([
+                    Vec3::new(sx, sy * k, sz * k),
+                    Vec3::new(sx * k, sy, sz * k),
+                    Vec3::new(sx * k, sy * k, sz),
+                ]);
+                m.triangles.push([b, b + 1, b + 2]);
+            }
+        }
+    }
+    weld(orient_outward(m, Vec3::ZERO))
+}
+
+/// A star prism: a `points`-pointed star outline extruded 0.3 high, caps fanned from the center
+/// (`8 * points` triangles; 96 for 12 points, as Figure 8d).
+pub fn star(points: u32) -> TriangleMesh {
+    let n = 2 * points;
+    let outline: Vec<Vec2> = (0..n)
+        .map(|k| {
+            let a = k as f32 / n as f32 * TAU;
+            let r = if k % 2 == 0 { 1.0 } else { 0.45 };
+            Vec2::new(a.cos(), a.sin()) * r
+        })
+        .collect();
+    let mut m = TriangleMesh::default();
+    for y in [-0.15, 0.15] {
+        m.positions.extend(outline.iter().map(|p| Vec3::new(p.x, y, p.y)));
+    }
+    m.positions.extend([Vec3::new(0.0, -0.15, 0.0), Vec3::new(0.0, 0.15, 0.0)]);
+    let (bottom_c, top_c) = (2 * n, 2 * n + 1);
+    for k in 0..n {
+        let k1 = (k + 1) % n;
+        m.triangles.push([bottom_c, k, k1]);
+        m.triangles.push([top_c, n + k, n + k1]);
+        m.triangles.push([k, k1, n + k1]);
+        m.triangles.push([k, n + k1, n + k]);
+    }
+    orient_outward(m, Vec3::ZERO)
+}
+
+/// A UV sphere (`2 * segments * (rings - 1)` triangles).
+pub fn sphere(radius: f32, segments: u32, rings: u32) -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    m.positions.push(Vec3::Y * radius);
+    for r in 1..rings {
+        let phi = r as f32 / rings as f32 * PI;
+        for s in 0..segments {
+            let theta = s as f32 / segments as f32 * TAU;
+            m.positions.push(Vec3::new(phi.sin() * theta.cos(), phi.cos(), phi.sin() * theta.sin()) * radius);
+        }
+    }
+    m.positions.push(-Vec3::Y * radius);
+    let ring = |r: u32, s: u32| 1 + (r - 1) * segments + s % segments;
+    let bottom = m.positions.len() as u32 - 1;
+    for s in 0..segments {
+        m.triangles.push([0, ring(1, s), ring(1, s + 1)]);
+        m.triangles.push([bottom, ring(rings - 1, s), ring(rings - 1, s + 1)]);
+        for r in 1..rings - 1 {
+            m.triangles.push([ring(r, s), ring(r + 1, s), ring(r + 1, s + 1)]);
+            m.triangles.push([ring(r, s), ring(r + 1, s + 1), ring(r, s + 1)]);
+        }
+    }
+    orient_outward(m, Vec3::ZERO)
+}
+
+/// A torus around the y axis (`2 * major * minor` triangles).
+pub fn torus(major_radius: f32, minor_radius: f32, major: u32, minor: u32) -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    for i in 0..major {
+        let u = i as f32 / major as f32 * TAU;
+        let (dir, up) = (Vec3::new(u.cos(), 0.0, u.sin()), Vec3::Y);
+        for j in 0..minor {
+            let v = j as f32 / minor as f32 * TAU;
+            m.positions.push(dir * (major_radius + minor_radius * v.cos()) + up * minor_radius * v.sin());
+        }
+    }
+    let idx = |i: u32, j: u32| (i % major) * minor + j % minor;
+    for i in 0..major {
+        for j in 0..minor {
+            // Winding chosen so that normals point away from the tube's center line.
+            m.triangles.push([idx(i, j), idx(i, j + 1), idx(i + 1, j + 1)]);
+            m.triangles.push([idx(i, j), idx(i + 1, j + 1), idx(i + 1, j)]);
+        }
+    }
+    m
+}
+
+/// Merges vertices with identical positions (used where shapes are built from separate faces).
+pub fn weld(mesh: TriangleMesh) -> TriangleMesh {
+    let mut map = std::collections::HashMap::new();
+    let mut out = TriangleMesh::default();
+    let remap: Vec<u32> = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            *map.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
+                out.positions.push(*p);
+                out.positions.len() as u32 - 1
+            })
+        })
+        .collect();
+    out.triangles = mesh.triangles.iter().map(|t| t.map(|i| remap[i as usize])).collect();
+    out
+}
+
+/// An extruded 2D polygon: `outline` counter-clockwise in the plane spanned by `a_axis` and `b_axis`, its
+/// cap triangulated by `cap` (counter-clockwise index triples), swept along `a_axis x b_axis` from `d0` to
+/// `d1` (`d0 < d1`) in `segments` equal rings (so that long sides are not cut into long slivers),
+/// everything offset by `origin`. Closed and outward-wound.
+#[allow(clippy::too_many_arguments)]
+pub fn prism(
+    outline: &[Vec2],
+    cap: &[[u32; 3]],
+    origin: Vec3,
+    a_axis: Vec3,
+    b_axis: Vec3,
+    d0: f32,
+    d1: f32,
+    segments: u32,
+) -> TriangleMesh {
+    let d_axis = a_axis.cross(b_axis);
+    let n = outline.len() as u32;
+    let segments = segments.max(1);
+    let mut m = TriangleMesh::default();
+    for s in 0..=segments {
+        let d = d0 + (d1 - d0) * s as f32 / segments as f32;
+        m.positions.extend(outline.iter().map(|p| origin + a_axis * p.x + b_axis * p.y + d_axis * d));
+    }
+    let top = segments * n;
+    for t in cap {
+        m.triangles.push([t[0] + top, t[1] + top, t[2] + top]);
+        m.triangles.push([t[0], t[2], t[1]]);
+    }
+    for s in 0..segments {
+        let (lo, hi) = (s * n, (s + 1) * n);
+        for k in 0..n {
+            let k1 = (k + 1) % n;
+            m.triangles.push([lo + k, lo + k1, hi + k1]);
+            m.triangles.push([lo + k, hi + k1, hi + k]);
+        }
+    }
+    m
+}
+
+/// The number of equal segments that keeps pieces of a length at most `max_piece` long.
+fn segments_for(length: f32, max_piece: f32) -> u32 {
+    ((length / max_piece).ceil() as u32).max(1)
+}
+
+/// Longest side of a piece the cathedral's solids are cut into, in meters.
+const MAX_PIECE: f32 = 4.0;
+
+/// An axis-aligned box (12 triangles), swept along its longest axis in pieces of at most 4 m.
+pub fn cuboid(min: Vec3, max: Vec3) -> TriangleMesh {
+    let size = max - min;
+    // (a, b, sweep) right-handed, with the sweep along the longest axis.
+    let (a, b, w) = match size.max_position() {
+        0 => (1, 2, 0),
+        1 => (2, 0, 1),
+        _ => (0, 1, 2),
+    };
+    let unit = |k: usize| Vec3::AXES[k];
+    let outline =
+        [Vec2::new(min[a], min[b]), Vec2::new(max[a], min[b]), Vec2::new(max[a], max[b]), Vec2::new(min[a], max[b])];
+    prism(
+        &outline,
+        &[[0, 1, 2], [0, 2, 3]],
+        Vec3::ZERO,
+        unit(a),
+        unit(b),
+        min[w],
+        max[w],
+        segments_for(size[w], MAX_PIECE),
+    )
+}
+
+/// A vertical cylinder standing on `base` (a `segments`-gon prism, `4 * segments - 4` triangles).
+pub fn cylinder(base: Vec3, radius: f32, height: f32, segments: u32) -> TriangleMesh {
+    // (a, b) = (z, x) so that the sweep axis z x x is +y.
+    let outline: Vec<Vec2> =
+        (0..segments).map(|k| k as f32 / segments as f32 * TAU).map(|a| Vec2::new(a.cos(), a.sin()) * radius).collect();
+    let cap: Vec<[u32; 3]> = (1..segments - 1).map(|k| [0, k, k + 1]).collect();
+    prism(
+        &outline,
+        &cap,
+        Vec3::new(base.x, 0.0, base.z),
+        Vec3::Z,
+        Vec3::X,
+        base.y,
+        base.y + height,
+        segments_for(height, MAX_PIECE),
+    )
+}
+
+/// A half annulus (inner radius `r_in`, outer `r_out`, angles 0 to pi) in the plane spanned by `a_axis` and
+/// `b_axis` around `center`, swept from `d0` to `d1`: a barrel vault shell or an arch rib.
+pub fn half_annulus(
+    center: Vec3,
+    a_axis: Vec3,
+    b_axis: Vec3,
+    r_in: f32,
+    r_out: f32,
+    d0: f32,
+    d1: f32,
+    segments: u32,
+) -> TriangleMesh {
+    let k = segments;
+    let mut outline = Vec::with_capacity(2 * k as usize + 2);
+    for s in 0..=k {
+        let a = s as f32 / k as f32 * PI;
+        outline.push(Vec2::new(a.cos(), a.sin()) * r_out);
+    }
+    for s in (0..=k).rev() {
+        let a = s as f32 / k as f32 * PI;
+        outline.push(Vec2::new(a.cos(), a.sin()) * r_in);
+    }
+    let inner = |s: u32| 2 * k + 1 - s;
+    let cap: Vec<[u32; 3]> = (0..k).flat_map(|s| [[s, s + 1, inner(s + 1)], [s, inner(s + 1), inner(s)]]).collect();
+    prism(&outline, &cap, center, a_axis, b_axis, d0, d1, segments_for(d1 - d0, MAX_PIECE))
+}
+
+/// The wall above one arch of an arcade: the region between a semicircle of radius `(z1 - z0) / 2` springing
+/// at height `spring` and the horizontal line `top`, in the zy plane, `thickness` thick around `x`.
+pub fn spandrel(x: f32, z0: f32, z1: f32, spring: f32, top: f32, thickness: f32, segments: u32) -> TriangleMesh {
+    let (zc, r) = ((z0 + z1) / 2.0, (z1 - z0) / 2.0);
+    let k = segments;
+    let mut outline = Vec::with_capacity(2 * k as usize + 2);
+    let arc_z = |s: u32| zc - r * (s as f32 / k as f32 * PI).cos();
+    for s in 0..=k {
+        let a = s as f32 / k as f32 * PI;
+        outline.push(Vec2::new(zc - r * a.cos(), spring + r * a.sin()));
+    }
+    for s in (0..=k).rev() {
+        outline.push(Vec2::new(arc_z(s), top));
+    }
+    let upper = |s: u32| 2 * k + 1 - s;
+    let cap: Vec<[u32; 3]> = (0..k).flat_map(|s| [[s, s + 1, upper(s + 1)], [s, upper(s + 1), upper(s)]]).collect();
+    // (a, b) = (z, y): the sweep axis z x y is -x, so d runs from -(x + t/2) to -(x - t/2).
+    prism(&outline, &cap, Vec3::ZERO, Vec3::Z, Vec3::Y, -x - thickness / 2.0, -x + thickness / 2.0, 1)
+}
+
+/// A wall slab `x0..x1 (or z), y0..y1`, with rectangular openings (windows, doors) cut out, built from boxes.
+/// `along_z`: the wall runs along z at `x` (`thickness` thick), else along x at `z`. Openings are
+/// `(center along the wall, bottom, width, height)`.
+fn wall_with_openings(
+    mesh: &mut TriangleMesh,
+    along_z: bool,
+    at: f32,
+    thickness: f32,
+    from: f32,
+    to: f32,
+    y0: f32,
+    y1: f32,
+    openings: &[(f32, f32, f32, f32)],
+) {
+    let mut add = |s0: f32, s1: f32, b0: f32, b1: f32| {
+        if s1 - s0 > 1e-4 && b1 - b0 > 1e-4 {
+            let (min, max) = if along_z {
+                (Vec3::new(at - thickness / 2.0, b0, s0), Vec3::new(at + thickness / 2.0, b1, s1))
+            } else {
+                (Vec3::new(s0, b0, at - thickness / 2.0), Vec3::new(s1, b1, at + thickness / 2.0))
+            };
+            mesh.append(&cuboid(min, max), glam::Affine3A::IDENTITY);
+        }
+    };
+    let mut cursor = from;
+    for &(c, bottom, w, h) in openings {
+        let (o0, o1) = (c - w / 2.0, c + w / 2.0);
+        add(cursor, o0, y0, y1); // solid pier before the opening
+        add(o0, o1, y0, bottom); // below the opening
+        add(o0, o1, bottom + h, y1); // above it
+        cursor = o1;
+    }
+    add(cursor, to, y0, y1);
+}
+
+/// The parts of the procedural cathedral, each a union of closed solids, named for materials.
+pub fn cathedral_parts() -> Vec<(&'static str, TriangleMesh)> {
+    use glam::Affine3A as A;
+    let id = A::IDENTITY;
+    // Layout (meters): nave x in -6..6 between two arcades, aisles out to the outer walls at x = +-12.5,
+    // length z in -24..24; columns every 4 m from z = -20 to 20.
+    let bays: Vec<f32> = (0..11).map(|k| -20.0 + 4.0 * k as f32).collect();
+    let (col_r, col_h, spring, arcade_top, clerestory_top) = (0.45, 7.0, 7.8, 11.0, 16.0);
+
+    let floor = cuboid(Vec3::new(-13.0, -0.4, -25.0), Vec3::new(13.0, 0.0, 25.0));
+
+    let mut columns = TriangleMesh::default();
+    for &z in &bays {
+        for x in [-6.0, 6.0] {
+            columns.append(&cuboid(Vec3::new(x - 0.7, 0.0, z - 0.7), Vec3::new(x + 0.7, 0.5, z + 0.7)), id);
+            columns.append(&cylinder(Vec3::new(x, 0.5, z), col_r, col_h - 0.5, 16), id);
+            columns.append(&cuboid(Vec3::new(x - 0.65, col_h, z - 0.65), Vec3::new(x + 0.65, spring, z + 0.65)), id);
+        }
+    }
+
+    let mut arcades = TriangleMesh::default();
+    for x in [-6.0f32, 6.0] {
+        for w in bays.windows(2) {
+            arcades.append(&spandrel(x, w[0], w[1], spring, arcade_top, 1.0, 16), id);
+        }
+    }
+
+    let mut walls = TriangleMesh::default();
+    // Clerestory over each arcade, with a window per bay.
+    let bay_centers: Vec<f32> = bays.windows(2).map(|w| (w[0] + w[1]) / 2.0).collect();
+    let clerestory_windows: Vec<_> = bay_centers.iter().map(|&c| (c, 12.2, 1.6, 2.6)).collect();
+    for x in [-6.0, 6.0] {
+        wall_with_openings(&mut walls, true, x, 1.0, -24.0, 24.0, arcade_top, clerestory_top, &clerestory_windows);
+        // Short solid walls closing the arcades between the last column and the end walls.
+        for (z0, z1) in [(-24.0, -20.0), (20.0, 24.0)] {
+            walls.append(&cuboid(Vec3::new(x - 0.5, 0.0, z0), Vec3::new(x + 0.5, arcade_top, z1)), id);
+        }
+    }
+    // Outer aisle walls with tall windows.
+    let aisle_windows: Vec<_> = bay_centers.iter().map(|&c| (c, 2.5, 1.4, 4.0)).collect();
+    for x in [-12.5, 12.5] {
+        wall_with_openings(&mut walls, true, x, 1.0, -25.0, 25.0, 0.0, 9.0, &aisle_windows);
+    }
+    // End walls: a door in the west (z = 24) front, a tall window in the east.
+    wall_with_openings(&mut walls, false, 24.5, 1.0, -13.0, 13.0, 0.0, 22.5, &[(0.0, 0.0, 3.0, 5.0)]);
+    wall_with_openings(&mut walls, false, -24.5, 1.0, -13.0, 13.0, 0.0, 22.5, &[(0.0, 6.0, 2.0, 7.0)]);
+
+    // Barrel vault over the nave (inner radius 5.5 springing at the clerestory top), ribs under it per bay,
+    // and flat coffered ceilings over the aisles.
+    let vaults = half_annulus(Vec3::new(0.0, clerestory_top, 0.0), Vec3::X, Vec3::Y, 5.5, 6.3, -24.0, 24.0, 48);
+    let mut ribs = TriangleMesh::default();
+    for &z in &bays {
+        ribs.append(
+            &half_annulus(Vec3::new(0.0, clerestory_top, 0.0), Vec3::X, Vec3::Y, 5.0, 5.5, z - 0.25, z + 0.25, 32),
+            id,
+        );
+    }
+    let mut ceilings = TriangleMesh::default();
+    for (x0, x1) in [(-12.0, -6.5), (6.5, 12.0)] {
+        ceilings.append(&cuboid(Vec3::new(x0, 9.0, -24.0), Vec3::new(x1, 9.4, 24.0)), id);
+        for &z in &bays {
+            ceilings.append(&cuboid(Vec3::new(x0, 8.4, z - 0.2), Vec3::new(x1, 9.0, z + 0.2)), id);
+        }
+    }
+
+    // Pews in the nave, an altar on a step at the east end.
+    let mut furniture = TriangleMesh::default();
+    for k in 0..8 {
+        let z = -6.0 + 2.2 * k as f32;
+        for (x0, x1) in [(-4.8, -0.8), (0.8, 4.8)] {
+            furniture.append(&cuboid(Vec3::new(x0, 0.0, z), Vec3::new(x0 + 0.15, 0.9, z + 0.6)), id);
+            furniture.append(&cuboid(Vec3::new(x1 - 0.15, 0.0, z), Vec3::new(x1, 0.9, z + 0.6)), id);
+            furniture.append(&cuboid(Vec3::new(x0, 0.42, z), Vec3::new(x1, 0.5, z + 0.5)), id);
+            furniture.append(&cuboid(Vec3::new(x0, 0.5, z + 0.5), Vec3::new(x1, 1.0, z + 0.6)), id);
+        }
+    }
+    furniture.append(&cuboid(Vec3::new(-5.0, 0.0, -23.5), Vec3::new(5.0, 0.4, -18.0)), id);
+    furniture.append(&cuboid(Vec3::new(-1.5, 0.4, -21.5), Vec3::new(1.5, 1.4, -20.5)), id);
+
+    vec![
+        ("floor", floor),
+        ("columns", columns),
+        ("arcades", arcades),
+        ("walls", walls),
+        ("vaults", vaults),
+        ("ribs", ribs),
+        ("ceilings", ceilings),
+        ("furniture", furniture),
+    ]
+}
+
+/// The procedural cathedral interior as one mesh: a floor, a nave between two arcades of columns and round
+/// arches, side aisles with windows and beamed ceilings, a clerestory, a ribbed barrel vault, end walls with
+/// a door and a window, pews and an altar.
+pub fn cathedral() -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    for (_, part) in cathedral_parts() {
+        m.append(&part, glam::Affine3A::IDENTITY);
+    }
+    m
+}

@@ -1,0 +1,43 @@
+//! Meshes for examples, tests and tools, with no Bevy types: the built-in shapes and the procedural
+//! cathedral ([`builtin`]), and OBJ and glTF files read from disk ([`obj`], [`gltf_file`]).
+
+pub mod builtin;
+pub mod gltf_file;
+pub mod obj;
+
+pub use builtin::{BUILTIN_NAMES, CLOSED_BUILTINS, builtin, cathedral, cathedral_parts};
+
+use crate::cpu::TriangleMesh;
+use std::path::Path;
+
+/// A mesh loaded by [`load_mesh`], with a short name for reports.
+#[derive(Debug, Clone)]
+pub struct LoadedMesh {
+    /// `builtin:NAME` or the file's stem.
+    pub name: String,
+    /// The triangles, in the file's units and axes (node transforms applied for glTF).
+    pub mesh: TriangleMesh,
+    /// Problems met while loading.
+    pub warnings: Vec<String>,
+}
+
+/// Loads `builtin:NAME` or an `.obj`, `.gltf` or `.glb` file.
+pub fn load_mesh(source: &str) -> Result<LoadedMesh, String> {
+    if let Some(name) = source.strip_prefix("builtin:") {
+        let mesh = builtin(name)
+            .ok_or_else(|| format!("unknown built-in mesh '{name}' (known: {})", BUILTIN_NAMES.join(", ")))?;
+        return Ok(LoadedMesh { name: name.to_string(), mesh, warnings: Vec::new() });
+    }
+    let path = Path::new(source);
+    let name = path.file_stem().map_or_else(|| source.to_string(), |s| s.to_string_lossy().into_owned());
+    let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    let (mesh, warnings) = match ext.as_str() {
+        "obj" => {
+            let model = obj::ObjModel::load(path).map_err(|e| format!("{source}: {e}"))?;
+            (model.to_triangle_mesh(), model.warnings)
+        }
+        "gltf" | "glb" => gltf_file::load_gltf(path)?,
+        _ => return Err(format!("{source}: unknown mesh format (expected .obj, .gltf, .glb or builtin:NAME)")),
+    };
+    Ok(LoadedMesh { name, mesh, warnings })
+}
