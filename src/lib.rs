@@ -1,5 +1,30 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
+pub mod components;
 pub mod cpu;
 pub mod meshes;
+pub mod voxel;
+
+#[cfg(test)]
+mod wgsl_tests;
+
+pub use components::*;
+
+use bevy::prelude::*;
+
+/// Voxel-based hybrid ambient occlusion: add this plugin, put a `HybridAmbientOcclusion` on a camera.
+#[derive(Default)]
+pub struct HaoPlugin;
+
+impl Plugin for HaoPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_plugins(voxel::VoxelizationPlugin);
+    }
+}
+
+/// The components and plugin most apps need.
+pub mod prelude {
+    pub use crate::HaoPlugin;
+    pub use crate::components::*;
+}

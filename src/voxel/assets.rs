@@ -1,0 +1,371 @@
+//! Main world: the voxel grid's GPU assets, created and replaced as the [`VoxelVolume`] asks, and the
+//! statistics shared with the render world.
+
+use crate::components::*;
+use crate::cpu::{self, VoxelGrid};
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::primitives::Aabb;
+use bevy::image::ImageSampler;
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::render_resource::{Extent3d, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages};
+use bevy::render::renderer::{RenderAdapter, RenderDevice};
+use bevy::render::storage::ShaderBuffer;
+use std::sync::{Arc, Mutex};
+
+use super::stats::{COUNTER_WORDS, VoxelizeCounters};
+
+/// Mip levels of the voxel texture at most (level `l` covers `2^l` cells per axis per texel).
+pub const MAX_VOXEL_MIPS: u32 = 5;
+
+/// The GPU side of the current voxel grid: handles to the buffers the voxelization passes write and the 3D
+/// texture the sampling passes read. Present in the main world (and mirrored in the render world) while a
+/// valid grid exists.
+///
+/// All buffers hold the grid in linear order `x + dims.x * (y + dims.y * z)`; occupancy is bit-packed,
+/// 32 voxels per `u32` word. Read them back with Bevy's `Readback::buffer`.
+#[derive(Resource, Clone, Debug)]
+pub struct VoxelGridAssets {
+    /// The grid: origin, cell size, dimensions.
+    pub grid: VoxelGrid,
+    /// Gamma and injection mode.
+    pub settings: cpu::VoxelizeSettings,
+    /// Most points per frame.
+    pub point_budget: u32,
+    /// This frame's occupancy: the static grid plus this frame's dynamic geometry.
+    pub occupancy: Handle<ShaderBuffer>,
+    /// The cached occupancy of static geometry alone.
+    pub static_occupancy: Handle<ShaderBuffer>,
+    /// This frame's per-voxel point counts (`u32` per voxel), if kept.
+    pub point_counts: Option<Handle<ShaderBuffer>>,
+    /// The static geometry's point counts, if kept.
+    pub static_point_counts: Option<Handle<ShaderBuffer>>,
+    /// The voxel texture: 1 where occupied, 0 where empty, with a max-reduced mip chain.
+    pub texture: Handle<Image>,
+    /// Its format (`R8Unorm` where the adapter can write it from a shader, else `R32Float`).
+    pub texture_format: TextureFormat,
+    /// Its mip level count.
+    pub mip_levels: u32,
+    /// The voxelization statistics counters (see [`VoxelizeCounters`]).
+    pub counters: Handle<ShaderBuffer>,
+    /// Bumped whenever the assets are replaced (the render world then rebuilds the static grid).
+    pub generation: u64,
+}
+
+/// What the plugin knows about voxelization, shared by the main and render worlds: counters of CPU-side
+/// work (static rebuilds, instances) and the GPU's own counters, read back a few frames late.
+#[derive(Resource, Clone, Default, Debug)]
+pub struct VoxelizationStats(pub(crate) Arc<Mutex<VoxelizationStatsData>>);
+
+/// The figures behind [`VoxelizationStats`].
+#[derive(Clone, Default, Debug, PartialEq)]
+pub struct VoxelizationStatsData {
+    /// The grid in use, if any.
+    pub grid: Option<VoxelGrid>,
+    /// Times the static grid has been voxelized (a new grid, or a change to the static set).
+    pub static_rebuilds: u64,
+    /// Frames in which the voxelization passes ran (static, dynamic or resolve).
+    pub frames_voxelized: u64,
+    /// Static instances in the last static build, and their triangles.
+    pub static_instances: u64,
+    /// Triangles of those.
+    pub static_triangles: u64,
+    /// Dynamic instances voxelized in the last frame.
+    pub dynamic_instances: u64,
+    /// Triangles of those.
+    pub dynamic_triangles: u64,
+    /// Occluders skipped because their mesh cannot be voxelized (not a triangle list, not bindable).
+    pub skipped_instances: u64,
+    /// The GPU counters of the last static build.
+    pub static_counters: VoxelizeCounters,
+    /// The GPU counters of the last frame's dynamic pass.
+    pub dynamic_counters: VoxelizeCounters,
+    /// Readbacks of the counters received so far.
+    pub counter_readbacks: u64,
+}
+
+impl VoxelizationStats {
+    /// A copy of the current figures.
+    pub fn get(&self) -> VoxelizationStatsData {
+        self.0.lock().map(|d| d.clone()).unwrap_or_default()
+    }
+
+    pub(crate) fn update(&self, f: impl FnOnce(&mut VoxelizationStatsData)) {
+        if let Ok(mut d) = self.0.lock() {
+            f(&mut d);
+        }
+    }
+}
+
+/// The texture format of the voxel texture on this adapter: `R8Unorm` if shaders can write it, else
+/// `R32Float` (a WebGPU core storage format).
+pub fn voxel_texture_format(adapter: &RenderAdapter) -> TextureFormat {
+    if adapter
+        .get_texture_format_features(TextureFormat::R8Unorm)
+        .allowed_usages
+        .contains(TextureUsages::STORAGE_BINDING)
+    {
+        TextureFormat::R8Unorm
+    } else {
+        TextureFormat::R32Float
+    }
+}
+
+/// Whether an occluder entity is dynamic, from its markers (`None`: not an occluder).
+pub(crate) fn occluder_is_dynamic(is_static: bool, is_dynamic: bool, promoted: bool) -> bool {
+    is_dynamic || (promoted && !is_static)
+}
+
+/// The world-space bounds of an entity's mesh.
+pub(crate) fn world_aabb(aabb: &Aabb, transform: &GlobalTransform) -> (Vec3, Vec3) {
+    let m = transform.affine();
+    let center = m.transform_point3a(aabb.center);
+    let m3 = m.matrix3;
+    let half = m3.x_axis.abs() * aabb.half_extents.x
+        + m3.y_axis.abs() * aabb.half_extents.y
+        + m3.z_axis.abs() * aabb.half_extents.z;
+    (Vec3::from(center - half), Vec3::from(center + half))
+}
+
+/// Remembers which configuration an error was reported for, so each is reported once.
+#[derive(Default)]
+pub(crate) struct ReportedVolume(Option<String>);
+
+/// The entity whose `Readback` brings the counters back.
+#[derive(Component)]
+pub(crate) struct VoxelCountersReadback;
+
+/// Promotes unmarked mesh entities that move to dynamic occluders (see [`PromotedToDynamic`]).
+pub(crate) fn promote_moved_occluders(
+    mut commands: Commands,
+    candidates: Query<
+        (Entity, &GlobalTransform),
+        (
+            With<Mesh3d>,
+            Without<StaticOccluder>,
+            Without<DynamicOccluder>,
+            Without<NoVoxelOcclusion>,
+            Without<PromotedToDynamic>,
+        ),
+    >,
+    mut last: Local<HashMap<Entity, GlobalTransform>>,
+) {
+    let mut seen = HashMap::with_capacity(last.len());
+    for (entity, transform) in &candidates {
+        if let Some(previous) = last.get(&entity)
+            && previous != transform
+        {
+            debug!("bevy_hao: {entity} moved; treating it as a dynamic occluder from now on");
+            commands.entity(entity).insert(PromotedToDynamic);
+            continue;
+        }
+        seen.insert(entity, *transform);
+    }
+    *last = seen;
+}
+
+/// Computes the grid the [`VoxelVolume`] asks for, checks it against the device's limits, and replaces the
+/// [`VoxelGridAssets`] when it changed.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn update_voxel_volume(
+    mut commands: Commands,
+    volumes: Query<&VoxelVolume>,
+    occluders: Query<
+        (
+            &GlobalTransform,
+            &Aabb,
+            &InheritedVisibility,
+            Has<StaticOccluder>,
+            Has<DynamicOccluder>,
+            Has<PromotedToDynamic>,
+        ),
+        (With<Mesh3d>, Without<NoVoxelOcclusion>),
+    >,
+    current: Option<Res<VoxelGridAssets>>,
+    device: Option<Res<RenderDevice>>,
+    adapter: Option<Res<RenderAdapter>>,
+    mut buffers: ResMut<Assets<ShaderBuffer>>,
+    mut images: ResMut<Assets<Image>>,
+    readbacks: Query<Entity, With<VoxelCountersReadback>>,
+    stats: Res<VoxelizationStats>,
+    mut reported: Local<ReportedVolume>,
+    mut generation: Local<u64>,
+) {
+    let (Some(device), Some(adapter)) = (device, adapter) else { return };
+    let mut iter = volumes.iter();
+    let volume = iter.next().copied().unwrap_or_default();
+    if iter.next().is_some() && reported.0.as_deref() != Some("several") {
+        warn!("bevy_hao: more than one VoxelVolume; using the first");
+        reported.0 = Some("several".into());
+    }
+    let bounds = match volume.bounds {
+        VolumeBounds::World { min, max } => Some((min, max)),
+        VolumeBounds::FitStaticScene { margin } => {
+            let mut acc: Option<(Vec3, Vec3)> = None;
+            for (transform, aabb, visible, s, d, p) in &occluders {
+                if !visible.get() || occluder_is_dynamic(s, d, p) {
+                    continue;
+                }
+                let (lo, hi) = world_aabb(aabb, transform);
+                acc = Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+            }
+            acc.map(|(lo, hi)| (lo - Vec3::splat(margin.max(0.0)), hi + Vec3::splat(margin.max(0.0))))
+        }
+    };
+    let remove = |commands: &mut Commands| {
+        if current.is_some() {
+            commands.remove_resource::<VoxelGridAssets>();
+            stats.update(|s| s.grid = None);
+        }
+        for e in &readbacks {
+            commands.entity(e).despawn();
+        }
+    };
+    let Some((min, max)) = bounds else {
+        // Nothing static to fit to yet.
+        remove(&mut commands);
+        return;
+    };
+    let grid = match volume.grid_for_bounds(min, max) {
+        Ok(g) => g,
+        Err(e) => {
+            report(&mut reported, format!("bevy_hao: the voxel volume is invalid ({e}); voxel occlusion is off"));
+            remove(&mut commands);
+            return;
+        }
+    };
+    let limits = device.limits();
+    let words_bytes = grid.occupancy_word_count() as u64 * 4;
+    let counts_bytes = grid.voxel_count() * 4;
+    let binding_limit = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let refusal = if grid.dims.max_element() > limits.max_texture_dimension_3d {
+        Some(format!(
+            "a {}x{}x{} voxel grid exceeds the device's Limits::max_texture_dimension_3d ({})",
+            grid.dims.x, grid.dims.y, grid.dims.z, limits.max_texture_dimension_3d
+        ))
+    } else if words_bytes > binding_limit {
+        Some(format!(
+            "a {}x{}x{} voxel grid needs {words_bytes} bytes of occupancy bits, over the device's \
+             Limits::max_storage_buffer_binding_size ({})",
+            grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
+        ))
+    } else {
+        None
+    };
+    if let Some(msg) = refusal {
+        report(&mut reported, format!("bevy_hao: {msg}; lower VoxelVolume::resolution. Voxel occlusion is off"));
+        remove(&mut commands);
+        return;
+    }
+    let mut point_counts = volume.point_counts;
+    if point_counts && counts_bytes > binding_limit {
+        report(
+            &mut reported,
+            format!(
+                "bevy_hao: per-voxel point counts for a {}x{}x{} grid need {counts_bytes} bytes, over the device's \
+                 Limits::max_storage_buffer_binding_size ({}); point counts are off",
+                grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
+            ),
+        );
+        point_counts = false;
+    }
+    let settings = volume.voxelize_settings();
+    let texture_format = voxel_texture_format(&adapter);
+    if let Some(cur) = &current
+        && cur.grid == grid
+        && cur.point_counts.is_some() == point_counts
+        && cur.settings == settings
+        && cur.point_budget == volume.point_budget
+        && cur.texture_format == texture_format
+    {
+        return;
+    }
+    *generation += 1;
+    let buffer = |bytes: u64, buffers: &mut Assets<ShaderBuffer>| {
+        buffers.add(ShaderBuffer::with_size(bytes.max(4) as usize, RenderAssetUsages::RENDER_WORLD))
+    };
+    let mip_levels = (32 - grid.dims.max_element().leading_zeros()).clamp(1, MAX_VOXEL_MIPS);
+    let texture = Image {
+        data: None,
+        texture_descriptor: TextureDescriptor {
+            label: Some("hao_voxel_texture"),
+            size: Extent3d { width: grid.dims.x, height: grid.dims.y, depth_or_array_layers: grid.dims.z },
+            mip_level_count: mip_levels,
+            sample_count: 1,
+            dimension: TextureDimension::D3,
+            format: texture_format,
+            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::STORAGE_BINDING | TextureUsages::COPY_SRC,
+            view_formats: &[],
+        },
+        sampler: ImageSampler::linear(),
+        asset_usage: RenderAssetUsages::RENDER_WORLD,
+        ..default()
+    };
+    let assets = VoxelGridAssets {
+        grid,
+        settings,
+        point_budget: volume.point_budget,
+        occupancy: buffer(words_bytes, &mut buffers),
+        static_occupancy: buffer(words_bytes, &mut buffers),
+        point_counts: point_counts.then(|| buffer(counts_bytes, &mut buffers)),
+        static_point_counts: point_counts.then(|| buffer(counts_bytes, &mut buffers)),
+        texture: images.add(texture),
+        texture_format,
+        mip_levels,
+        counters: buffer(COUNTER_WORDS as u64 * 4, &mut buffers),
+        generation: *generation,
+    };
+    for e in &readbacks {
+        commands.entity(e).despawn();
+    }
+    commands
+        .spawn((
+            Readback::buffer(assets.counters.clone()),
+            VoxelCountersReadback,
+            Name::new("hao voxel counters readback"),
+        ))
+        .observe(read_voxelize_counters);
+    stats.update(|s| s.grid = Some(grid));
+    debug!(
+        "bevy_hao: voxel grid {}x{}x{}, cell {} at {}",
+        grid.dims.x, grid.dims.y, grid.dims.z, grid.cell_size, grid.origin
+    );
+    commands.insert_resource(assets);
+    reported.0 = None;
+}
+
+fn report(reported: &mut ReportedVolume, msg: String) {
+    if reported.0.as_deref() != Some(msg.as_str()) {
+        error!("{msg}");
+        reported.0 = Some(msg);
+    }
+}
+
+/// Decodes the counters read back from the GPU and warns (once per episode) when the point budget was
+/// exceeded or triangles were too large to voxelize.
+fn read_voxelize_counters(event: On<ReadbackComplete>, stats: Res<VoxelizationStats>) {
+    let words: Vec<u32> = event.data.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    if words.len() < COUNTER_WORDS {
+        return;
+    }
+    let static_counters = VoxelizeCounters::from_words(&words[0..]);
+    let dynamic_counters = VoxelizeCounters::from_words(&words[super::stats::COUNTER_BLOCK..]);
+    stats.update(|s| {
+        for (name, new, old) in [("static", &static_counters, &s.static_counters), ("dynamic", &dynamic_counters, &s.dynamic_counters)] {
+            if new.budget_exceeded && !old.budget_exceeded {
+                warn!(
+                    "bevy_hao: {name} voxelization needs {} points, over VoxelVolume::point_budget; {} were injected and \
+                     voxels are missing. Raise the budget or lower the resolution or gamma",
+                    new.points_requested, new.points_dispatched
+                );
+            }
+            if new.oversize > old.oversize {
+                warn!("bevy_hao: {} {name} triangles need more than 2^28 sub-triangles and were skipped", new.oversize);
+            }
+        }
+        s.static_counters = static_counters;
+        s.dynamic_counters = dynamic_counters;
+        s.counter_readbacks += 1;
+    });
+}

@@ -1,0 +1,88 @@
+//! Extraction: the voxel grid's assets and the occluding mesh instances, with their class and transform.
+//!
+//! The plugin does its own extraction of instances (as Solari does) rather than reading Bevy's
+//! `RenderMeshInstances`, which hold no CPU transforms when meshes are built on the GPU, and which are culled
+//! to the views: an occluder behind the camera must still be voxelized.
+
+use super::assets::{VoxelGridAssets, occluder_is_dynamic, world_aabb};
+use crate::components::*;
+use bevy::camera::primitives::Aabb;
+use bevy::math::Affine3A;
+use bevy::prelude::*;
+use bevy::render::Extract;
+
+/// The grid's assets, extracted each frame (`None` while there is no valid grid).
+#[derive(Resource, Default)]
+pub struct ExtractedVoxelGrid(pub Option<VoxelGridAssets>);
+
+/// One occluding mesh instance.
+#[derive(Clone, Debug)]
+pub struct ExtractedOccluder {
+    /// The main-world entity.
+    pub entity: Entity,
+    /// Its mesh.
+    pub mesh: AssetId<Mesh>,
+    /// Its world transform.
+    pub world_from_local: Affine3A,
+    /// Its world-space bounds, if Bevy computed them.
+    pub world_bounds: Option<(Vec3, Vec3)>,
+    /// Marked [`StaticOccluder`] (as opposed to static by default).
+    pub marked_static: bool,
+}
+
+/// This frame's occluders, split into static and dynamic.
+#[derive(Resource, Default)]
+pub struct ExtractedOccluders {
+    /// Voxelized into the cached static grid.
+    pub statics: Vec<ExtractedOccluder>,
+    /// Voxelized every frame.
+    pub dynamics: Vec<ExtractedOccluder>,
+}
+
+/// Extracts the grid assets.
+pub fn extract_voxel_grid(mut commands: Commands, assets: Extract<Option<Res<VoxelGridAssets>>>) {
+    commands.insert_resource(ExtractedVoxelGrid(assets.as_deref().cloned()));
+}
+
+/// Extracts the visible (in the hierarchy, not per view) occluding mesh instances.
+#[allow(clippy::type_complexity)]
+pub fn extract_voxel_occluders(
+    mut extracted: ResMut<ExtractedOccluders>,
+    occluders: Extract<
+        Query<
+            (
+                Entity,
+                &Mesh3d,
+                &GlobalTransform,
+                Option<&Aabb>,
+                &InheritedVisibility,
+                Has<StaticOccluder>,
+                Has<DynamicOccluder>,
+                Has<PromotedToDynamic>,
+            ),
+            Without<NoVoxelOcclusion>,
+        >,
+    >,
+) {
+    extracted.statics.clear();
+    extracted.dynamics.clear();
+    for (entity, mesh, transform, aabb, visible, s, d, p) in &occluders {
+        if !visible.get() {
+            continue;
+        }
+        let occluder = ExtractedOccluder {
+            entity,
+            mesh: mesh.id(),
+            world_from_local: transform.affine(),
+            world_bounds: aabb.map(|a| world_aabb(a, transform)),
+            marked_static: s,
+        };
+        if occluder_is_dynamic(s, d, p) {
+            extracted.dynamics.push(occluder);
+        } else {
+            extracted.statics.push(occluder);
+        }
+    }
+    // A stable order, so that the static set's fingerprint does not depend on query order.
+    extracted.statics.sort_by_key(|o| o.entity);
+}

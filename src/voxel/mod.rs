@@ -1,0 +1,111 @@
+//! GPU point-tessellated voxelization in Bevy's renderer.
+//!
+//! Every frame, before the cameras render (Bevy 0.19's `RenderGraph` schedule, before `camera_driver`):
+//!
+//! 1. **voxelize static** (only when the static set changed): `classify` (one invocation per triangle, read
+//!    from the mesh allocator's slabs: equation 1, and small triangles injected at once), `scan` (prefix
+//!    sums over the queued big triangles, and the point budget), `expand` (indirect, one invocation per
+//!    sub-triangle of the big triangles) into the static occupancy bits and point counts;
+//! 2. **voxelize dynamic**: the static grid copied into the frame's grid, then the same three passes for
+//!    dynamic geometry on top;
+//! 3. **resolve**: the frame's bits into the 3D voxel texture over the region that changed, and its
+//!    max-reduced mips.
+//!
+//! The CPU twin of passes 1 and 2 is [`crate::cpu::voxelize`]; the WGSL files beside this module name their
+//! functions after it. GPU time spans: `hao/voxelize_static`, `hao/voxelize_dynamic`, `hao/resolve` (add
+//! Bevy's `RenderDiagnosticsPlugin` to see them).
+
+pub mod assets;
+pub mod extract;
+pub mod pass;
+pub mod pipelines;
+pub mod prepare;
+pub mod stats;
+
+pub use assets::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
+pub use stats::VoxelizeCounters;
+
+use bevy::asset::embedded_asset;
+use bevy::core_pipeline::schedule::camera_driver;
+use bevy::prelude::*;
+use bevy::render::mesh::allocator::MeshAllocatorSettings;
+use bevy::render::render_resource::BufferUsages;
+use bevy::render::renderer::{RenderDevice, RenderGraph, RenderGraphSystems};
+use bevy::render::{ExtractSchedule, GpuResourceAppExt, Render, RenderApp, RenderSystems};
+use bevy::shader::load_shader_library;
+
+/// Storage buffers the voxelization passes bind in one stage (classify: 3 in group 0, 5 in group 1).
+pub const REQUIRED_STORAGE_BUFFERS: u32 = 8;
+
+/// Voxelizes the scene every frame (added by [`crate::HaoPlugin`]).
+#[derive(Default)]
+pub struct VoxelizationPlugin;
+
+impl Plugin for VoxelizationPlugin {
+    fn build(&self, app: &mut App) {
+        load_shader_library!(app, "voxelize_common.wgsl");
+        load_shader_library!(app, "voxelize_pass.wgsl");
+        embedded_asset!(app, "voxelize_classify.wgsl");
+        embedded_asset!(app, "voxelize_scan.wgsl");
+        embedded_asset!(app, "voxelize_expand.wgsl");
+        embedded_asset!(app, "voxel_resolve.wgsl");
+        embedded_asset!(app, "voxel_mip.wgsl");
+        app.register_type::<crate::components::StaticOccluder>()
+            .register_type::<crate::components::DynamicOccluder>()
+            .register_type::<crate::components::NoVoxelOcclusion>()
+            .register_type::<crate::components::PromotedToDynamic>()
+            .register_type::<crate::components::VoxelVolume>();
+    }
+
+    fn finish(&self, app: &mut App) {
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+        let limits = render_app.world().resource::<RenderDevice>().limits();
+        let lacking = if limits.max_storage_buffers_per_shader_stage < REQUIRED_STORAGE_BUFFERS {
+            Some(format!(
+                "Limits::max_storage_buffers_per_shader_stage is {} (needs {REQUIRED_STORAGE_BUFFERS})",
+                limits.max_storage_buffers_per_shader_stage
+            ))
+        } else if limits.max_storage_textures_per_shader_stage < 1 {
+            Some("the device has no storage textures".to_string())
+        } else if limits.max_compute_invocations_per_workgroup < 256 {
+            Some(format!(
+                "Limits::max_compute_invocations_per_workgroup is {} (needs 256)",
+                limits.max_compute_invocations_per_workgroup
+            ))
+        } else {
+            None
+        };
+        if let Some(why) = lacking {
+            warn!("bevy_hao: voxelization is disabled: {why}. Voxel ambient occlusion will not be rendered");
+            return;
+        }
+        // Read mesh data where Bevy keeps it: the allocator's slabs must be bindable as storage, and no slab
+        // may exceed what one binding can address.
+        let max_binding = limits.max_storage_buffer_binding_size as u64;
+        {
+            let mut settings = render_app.world_mut().resource_mut::<MeshAllocatorSettings>();
+            settings.extra_buffer_usages |= BufferUsages::STORAGE;
+            let s = &mut settings.slab_allocator_settings;
+            s.max_slab_size = s.max_slab_size.min(max_binding);
+            s.large_threshold = s.large_threshold.min(max_binding);
+        }
+        let stats = assets::VoxelizationStats::default();
+        app.insert_resource(stats.clone()).add_systems(
+            PostUpdate,
+            (assets::promote_moved_occluders, assets::update_voxel_volume)
+                .chain()
+                .after(bevy::transform::TransformSystems::Propagate)
+                .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds),
+        );
+        let render_app = app.sub_app_mut(RenderApp);
+        render_app
+            .insert_resource(stats)
+            .init_resource::<extract::ExtractedOccluders>()
+            .init_resource::<extract::ExtractedVoxelGrid>()
+            .init_resource::<prepare::VoxelizeState>()
+            .init_gpu_resource::<pipelines::VoxelizePipelines>()
+            .add_systems(ExtractSchedule, (extract::extract_voxel_grid, extract::extract_voxel_occluders))
+            .add_systems(Render, prepare::prepare_voxelize.in_set(RenderSystems::PrepareBindGroups))
+            .add_systems(RenderGraph, pass::voxelize.in_set(RenderGraphSystems::Render).before(camera_driver));
+    }
+}

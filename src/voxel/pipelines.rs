@@ -1,0 +1,255 @@
+//! The voxelization pipelines and the layouts of the data they read.
+
+use super::assets::voxel_texture_format;
+use bevy::asset::load_embedded_asset;
+use bevy::prelude::*;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_3d, texture_storage_3d, uniform_buffer_sized,
+};
+use bevy::render::render_resource::*;
+use bevy::render::renderer::{RenderAdapter, RenderDevice};
+use bevy::shader::ShaderDefVal;
+use bytemuck::{Pod, Zeroable};
+
+/// One occluding mesh instance as the classify pass reads it (WGSL `OccluderInstance`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GpuOccluderInstance {
+    /// `grid_from_local` as four padded columns (x, y, z axes, translation).
+    pub grid_from_local: [[f32; 4]; 4],
+    /// First vertex of the mesh in its vertex slab, in vertices.
+    pub vertex_start: u32,
+    /// Vertices of the mesh (indices at or past this are invalid).
+    pub vertex_count: u32,
+    /// Vertex stride in `u32` words.
+    pub vertex_stride: u32,
+    /// Offset of the position attribute in a vertex, in words.
+    pub position_offset: u32,
+    /// First index of the mesh in its index slab, in indices.
+    pub index_start: u32,
+    /// 0: not indexed, 1: `u16` indices, 2: `u32` indices.
+    pub index_format: u32,
+    /// Triangles of the mesh.
+    pub triangle_count: u32,
+    /// Index of the instance's first triangle within its dispatch.
+    pub first_triangle: u32,
+}
+
+/// The instances of one classify dispatch (WGSL `SlabGroup`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuSlabGroup {
+    /// First instance in the instance buffer.
+    pub first_instance: u32,
+    /// Instances in the dispatch.
+    pub instance_count: u32,
+    /// Triangles in the dispatch.
+    pub triangle_count: u32,
+    /// Padding.
+    pub _pad: u32,
+}
+
+/// Per-pass settings (WGSL `VoxelizeParams`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuVoxelizeParams {
+    /// Grid dimensions.
+    pub dims: [u32; 3],
+    /// 0: centroid, 1: conservative.
+    pub mode: u32,
+    /// The effective gamma.
+    pub gamma: f32,
+    /// Most points per frame.
+    pub point_budget: u32,
+    /// Whether point counts are written.
+    pub store_counts: u32,
+    /// First counter of this pass's block.
+    pub counter_base: u32,
+}
+
+/// A region of a texture level (WGSL `ResolveParams` / `MipParams`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuRegionParams {
+    /// First texel.
+    pub region_min: [u32; 3],
+    /// Padding.
+    pub _pad0: u32,
+    /// One past the last texel.
+    pub region_max: [u32; 3],
+    /// Padding.
+    pub _pad1: u32,
+    /// Grid dimensions (resolve) or the source level's size (mip).
+    pub size: [u32; 3],
+    /// Padding.
+    pub _pad2: u32,
+}
+
+/// Size of WGSL `BigTriangle` in bytes.
+pub const BIG_TRIANGLE_BYTES: u64 = 64;
+/// Invocations per classify and expand workgroup.
+pub const VOXELIZE_WORKGROUP: u32 = 64;
+
+/// The voxelization pipelines, layouts and the small buffers they share.
+#[derive(Resource)]
+pub struct VoxelizePipelines {
+    /// Group 0 of classify: instances, vertex slab, index slab, slab group.
+    pub slab_layout: BindGroupLayoutDescriptor,
+    /// Group 1 of classify, scan and expand.
+    pub pass_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of scan and expand, which read no slabs: empty.
+    pub empty_layout: BindGroupLayoutDescriptor,
+    /// Group 2 of scan: the expand pass's indirect arguments.
+    pub dispatch_layout: BindGroupLayoutDescriptor,
+    /// The resolve pass's group.
+    pub resolve_layout: BindGroupLayoutDescriptor,
+    /// The mip pass's group.
+    pub mip_layout: BindGroupLayoutDescriptor,
+    /// Pass 1.
+    pub classify: CachedComputePipelineId,
+    /// Pass 2.
+    pub scan: CachedComputePipelineId,
+    /// Pass 3.
+    pub expand: CachedComputePipelineId,
+    /// Bits to texture.
+    pub resolve: CachedComputePipelineId,
+    /// Texture mips.
+    pub mip: CachedComputePipelineId,
+    /// The voxel texture's format.
+    pub texture_format: TextureFormat,
+    /// A 16-byte storage buffer bound where a mesh has no index slab or point counts are off.
+    pub dummy: Buffer,
+}
+
+impl FromWorld for VoxelizePipelines {
+    fn from_world(world: &mut World) -> Self {
+        let texture_format = voxel_texture_format(world.resource::<RenderAdapter>());
+        let device = world.resource::<RenderDevice>();
+        let dummy = device.create_buffer(&BufferDescriptor {
+            label: Some("hao_dummy_storage"),
+            size: 16,
+            usage: BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let slab_layout = BindGroupLayoutDescriptor::new(
+            "hao_voxelize_slab_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    storage_buffer_read_only_sized(false, None),
+                    storage_buffer_read_only_sized(false, None),
+                    storage_buffer_read_only_sized(false, None),
+                    uniform_buffer_sized(false, None),
+                ),
+            ),
+        );
+        let pass_layout = BindGroupLayoutDescriptor::new(
+            "hao_voxelize_pass_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    uniform_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                ),
+            ),
+        );
+        let dispatch_layout = BindGroupLayoutDescriptor::new(
+            "hao_voxelize_dispatch_layout",
+            &BindGroupLayoutEntries::single(ShaderStages::COMPUTE, storage_buffer_sized(false, None)),
+        );
+        let empty_layout = BindGroupLayoutDescriptor::new("hao_voxelize_empty_layout", &[]);
+        let resolve_layout = BindGroupLayoutDescriptor::new(
+            "hao_voxel_resolve_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    uniform_buffer_sized(false, None),
+                    storage_buffer_read_only_sized(false, None),
+                    texture_storage_3d(texture_format, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let mip_layout = BindGroupLayoutDescriptor::new(
+            "hao_voxel_mip_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    uniform_buffer_sized(false, None),
+                    texture_3d(TextureSampleType::Float { filterable: false }),
+                    texture_storage_3d(texture_format, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let texture_defs: Vec<ShaderDefVal> =
+            if texture_format == TextureFormat::R8Unorm { vec!["VOXEL_TEXTURE_R8".into()] } else { vec![] };
+        let pipeline_cache = world.resource::<PipelineCache>();
+        let queue = |label: &'static str,
+                     layout: Vec<BindGroupLayoutDescriptor>,
+                     shader: Handle<Shader>,
+                     entry: &'static str,
+                     defs: Vec<ShaderDefVal>| {
+            pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                label: Some(label.into()),
+                layout,
+                shader,
+                shader_defs: defs,
+                entry_point: Some(entry.into()),
+                ..default()
+            })
+        };
+        let classify = queue(
+            "hao_voxelize_classify",
+            vec![slab_layout.clone(), pass_layout.clone()],
+            load_embedded_asset!(world, "voxelize_classify.wgsl"),
+            "classify",
+            vec![],
+        );
+        let scan = queue(
+            "hao_voxelize_scan",
+            vec![empty_layout.clone(), pass_layout.clone(), dispatch_layout.clone()],
+            load_embedded_asset!(world, "voxelize_scan.wgsl"),
+            "scan",
+            vec![],
+        );
+        let expand = queue(
+            "hao_voxelize_expand",
+            vec![empty_layout.clone(), pass_layout.clone()],
+            load_embedded_asset!(world, "voxelize_expand.wgsl"),
+            "expand",
+            vec![],
+        );
+        let resolve = queue(
+            "hao_voxel_resolve",
+            vec![resolve_layout.clone()],
+            load_embedded_asset!(world, "voxel_resolve.wgsl"),
+            "resolve_occupancy",
+            texture_defs.clone(),
+        );
+        let mip = queue(
+            "hao_voxel_mip",
+            vec![mip_layout.clone()],
+            load_embedded_asset!(world, "voxel_mip.wgsl"),
+            "downsample_max",
+            texture_defs,
+        );
+        Self {
+            slab_layout,
+            pass_layout,
+            empty_layout,
+            dispatch_layout,
+            resolve_layout,
+            mip_layout,
+            classify,
+            scan,
+            expand,
+            resolve,
+            mip,
+            texture_format,
+            dummy,
+        }
+    }
+}

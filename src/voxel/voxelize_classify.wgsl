@@ -1,0 +1,155 @@
+// Voxelization, pass 1 of 3: one invocation per triangle. Reads the triangle where Bevy keeps it (the mesh
+// allocator's vertex and index slabs), moves it to grid space, computes equation 1's subdivision count and,
+// for the common small triangle wholly inside the grid (n = 1), injects it at once. Larger or boundary-
+// crossing triangles are queued for the expand pass, which spreads their sub-triangles over many
+// invocations. CPU twin: `bevy_hao::cpu::voxelize::voxelize_triangle`.
+#import bevy_hao::voxelize_common::{
+    BigTriangle, LatticeRange, SubTriangle, grid_space_position, is_finite3,
+    triangle_is_degenerate, subdivision_count, grid_placement, clipped_lattice_range, sub_triangle_count,
+    PLACEMENT_INSIDE, PLACEMENT_OUTSIDE, MAX_SUBDIVISION, MAX_SUB_TRIANGLES_PER_TRIANGLE,
+    COUNTER_TRIANGLES, COUNTER_INVALID, COUNTER_DEGENERATE, COUNTER_OUTSIDE, COUNTER_OVERSIZE,
+    COUNTER_SMALL, COUNTER_BIG_TRIANGLES,
+}
+#import bevy_hao::voxelize_pass::{
+    params, big_triangles, counters, inject_sub_triangle, add_counter, flush_counters, reset_counters,
+}
+
+// One mesh instance (src/voxel/prepare.rs: `GpuOccluderInstance`).
+struct OccluderInstance {
+    grid_from_local: mat4x3<f32>,
+    vertex_start: u32,
+    vertex_count: u32,
+    vertex_stride: u32,
+    position_offset: u32,
+    index_start: u32,
+    index_format: u32,
+    triangle_count: u32,
+    first_triangle: u32,
+}
+
+// The instances of this dispatch: those whose meshes live in the bound pair of slabs.
+struct SlabGroup {
+    first_instance: u32,
+    instance_count: u32,
+    triangle_count: u32,
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<storage, read> instances: array<OccluderInstance>;
+@group(0) @binding(1) var<storage, read> vertices: array<u32>;
+@group(0) @binding(2) var<storage, read> indices: array<u32>;
+@group(0) @binding(3) var<uniform> slab_group: SlabGroup;
+
+
+const INDEX_NONE: u32 = 0u;
+const INDEX_U16: u32 = 1u;
+
+fn read_index(format: u32, element: u32) -> u32 {
+    if format == INDEX_U16 {
+        let word = indices[element >> 1u];
+        if (element & 1u) == 0u {
+            return word & 0xffffu;
+        }
+        return word >> 16u;
+    }
+    return indices[element];
+}
+
+fn read_position(inst: OccluderInstance, vertex: u32) -> vec3<f32> {
+    let base = (inst.vertex_start + vertex) * inst.vertex_stride + inst.position_offset;
+    return vec3<f32>(bitcast<f32>(vertices[base]), bitcast<f32>(vertices[base + 1u]), bitcast<f32>(vertices[base + 2u]));
+}
+
+// The instance holding triangle `t` of this dispatch: the last whose first_triangle <= t.
+fn find_instance(t: u32) -> u32 {
+    var lo = slab_group.first_instance;
+    var hi = slab_group.first_instance + slab_group.instance_count;
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if instances[mid].first_triangle <= t {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+@compute @workgroup_size(64)
+fn classify(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) local_index: u32,
+) {
+    reset_counters(local_index);
+    workgroupBarrier();
+    let t = gid.x + gid.y * groups.x * 64u;
+    if t < slab_group.triangle_count {
+        classify_triangle(t);
+    }
+    workgroupBarrier();
+    flush_counters(local_index, params.counter_base);
+}
+
+fn classify_triangle(t: u32) {
+    add_counter(COUNTER_TRIANGLES, 1u);
+    let inst = instances[find_instance(t)];
+    let local = t - inst.first_triangle;
+    var i0 = 3u * local;
+    var i1 = i0 + 1u;
+    var i2 = i0 + 2u;
+    if inst.index_format != INDEX_NONE {
+        let e = inst.index_start + 3u * local;
+        i0 = read_index(inst.index_format, e);
+        i1 = read_index(inst.index_format, e + 1u);
+        i2 = read_index(inst.index_format, e + 2u);
+    }
+    if i0 >= inst.vertex_count || i1 >= inst.vertex_count || i2 >= inst.vertex_count {
+        add_counter(COUNTER_INVALID, 1u);
+        return;
+    }
+    let v0 = grid_space_position(inst.grid_from_local, read_position(inst, i0));
+    let v1 = grid_space_position(inst.grid_from_local, read_position(inst, i1));
+    let v2 = grid_space_position(inst.grid_from_local, read_position(inst, i2));
+    if !(is_finite3(v0) && is_finite3(v1) && is_finite3(v2)) {
+        add_counter(COUNTER_INVALID, 1u);
+        return;
+    }
+    if triangle_is_degenerate(v0, v1, v2) {
+        add_counter(COUNTER_DEGENERATE, 1u);
+        return;
+    }
+    let placement = grid_placement(v0, v1, v2, params.dims);
+    if placement == PLACEMENT_OUTSIDE {
+        add_counter(COUNTER_OUTSIDE, 1u);
+        return;
+    }
+    let n = subdivision_count(v0, v1, v2, params.gamma);
+    if n > MAX_SUBDIVISION {
+        add_counter(COUNTER_OVERSIZE, 1u);
+        return;
+    }
+    var range = LatticeRange(n, 0u, 0u, 0u, 0u, true);
+    if placement != PLACEMENT_INSIDE {
+        range = clipped_lattice_range(v0, v1 - v0, v2 - v0, n, params.dims);
+        if !range.valid {
+            add_counter(COUNTER_OUTSIDE, 1u);
+            return;
+        }
+    }
+    let count = sub_triangle_count(range);
+    if count > MAX_SUB_TRIANGLES_PER_TRIANGLE {
+        add_counter(COUNTER_OVERSIZE, 1u);
+        return;
+    }
+    if n == 1u && placement == PLACEMENT_INSIDE {
+        // The common case: one sub-triangle, the triangle itself; inject it here.
+        add_counter(COUNTER_SMALL, 1u);
+        inject_sub_triangle(v0, v1, v2, range, SubTriangle(0u, 0u, true, true));
+        return;
+    }
+    let slot = atomicAdd(&counters[params.counter_base + COUNTER_BIG_TRIANGLES], 1u);
+    if slot < arrayLength(&big_triangles) {
+        big_triangles[slot] = BigTriangle(v0, n, v1, range.u_start, v2, range.v_start, range.width, range.height, count, 0u);
+    }
+}

@@ -1,0 +1,100 @@
+// What the three voxelization passes (classify, scan, expand) share: the bind group of the pass (group 1:
+// settings, the occupancy grid and point counts being written, the queue of big triangles, the statistics
+// counters and the scan's offsets), the injection of one sub-triangle, and workgroup-aggregated counters. CPU twin of the injection: the two match arms of
+// `bevy_hao::cpu::voxelize::voxelize_triangle`.
+#define_import_path bevy_hao::voxelize_pass
+
+#import bevy_hao::voxelize_common::{
+    VoxelizeParams, BigTriangle, LatticeRange, SubTriangle, sub_triangle_centroid, lattice_point,
+    cell_of_point, linear_index, triangle_box_overlap, MODE_CENTROID, CONSERVATIVE_PAD,
+    COUNTER_SUB_TRIANGLES, COUNTER_INJECTED, COUNTER_OVERLAP_TESTS, COUNTER_COUNT,
+}
+
+@group(1) @binding(0) var<uniform> params: VoxelizeParams;
+@group(1) @binding(1) var<storage, read_write> occupancy: array<atomic<u32>>;
+@group(1) @binding(2) var<storage, read_write> point_counts: array<atomic<u32>>;
+@group(1) @binding(3) var<storage, read_write> big_triangles: array<BigTriangle>;
+@group(1) @binding(4) var<storage, read_write> counters: array<atomic<u32>>;
+// Exclusive prefix sums of the big triangles' sub-triangle counts (written by the scan pass).
+@group(1) @binding(5) var<storage, read_write> offsets: array<u32>;
+
+var<workgroup> local_counters: array<atomic<u32>, 13>;
+
+fn reset_counters(local_index: u32) {
+    if local_index < COUNTER_COUNT {
+        atomicStore(&local_counters[local_index], 0u);
+    }
+}
+
+fn add_counter(counter: u32, value: u32) {
+    atomicAdd(&local_counters[counter], value);
+}
+
+// After a workgroup barrier: one global atomic per counter and workgroup.
+fn flush_counters(local_index: u32, base: u32) {
+    if local_index < COUNTER_COUNT {
+        let v = atomicLoad(&local_counters[local_index]);
+        if v != 0u {
+            atomicAdd(&counters[base + local_index], v);
+        }
+    }
+}
+
+// grid.rs: VoxelOccupancy::inject_voxel
+fn inject_voxel(index: u32) {
+    atomicOr(&occupancy[index >> 5u], 1u << (index & 31u));
+    if params.store_counts != 0u {
+        atomicAdd(&point_counts[index], 1u);
+    }
+}
+
+// One sub-triangle of the grid-space triangle v0 v1 v2 subdivided n times (range.n).
+fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, range: LatticeRange, sub: SubTriangle) {
+    add_counter(COUNTER_SUB_TRIANGLES, 1u);
+    let e1 = v1 - v0;
+    let e2 = v2 - v0;
+    let dims = params.dims;
+    if params.mode == MODE_CENTROID {
+        let inv_3n = 1.0 / (3.0 * f32(range.n));
+        let p = sub_triangle_centroid(v0, e1, e2, inv_3n, sub);
+        var cell: vec3<u32>;
+        if cell_of_point(p, dims, &cell) {
+            inject_voxel(linear_index(cell, dims));
+            add_counter(COUNTER_INJECTED, 1u);
+        }
+        return;
+    }
+    // Conservative: the cells of the sub-triangle's padded bounds, each tested against the parent.
+    let inv_n = 1.0 / f32(range.n);
+    var a: vec3<f32>;
+    var b: vec3<f32>;
+    var c: vec3<f32>;
+    if sub.up {
+        a = lattice_point(v0, e1, e2, inv_n, sub.i, sub.j);
+        b = lattice_point(v0, e1, e2, inv_n, sub.i + 1u, sub.j);
+        c = lattice_point(v0, e1, e2, inv_n, sub.i, sub.j + 1u);
+    } else {
+        a = lattice_point(v0, e1, e2, inv_n, sub.i + 1u, sub.j);
+        b = lattice_point(v0, e1, e2, inv_n, sub.i, sub.j + 1u);
+        c = lattice_point(v0, e1, e2, inv_n, sub.i + 1u, sub.j + 1u);
+    }
+    // voxelize.rs: conservative_candidate_cells
+    let lo = max(vec3<i32>(floor(min(min(a, b), c) - vec3<f32>(CONSERVATIVE_PAD))), vec3<i32>(0));
+    let hi = min(vec3<i32>(floor(max(max(a, b), c) + vec3<f32>(CONSERVATIVE_PAD))), vec3<i32>(dims) - vec3<i32>(1));
+    var tests = 0u;
+    var hits = 0u;
+    for (var z = lo.z; z <= hi.z; z++) {
+        for (var y = lo.y; y <= hi.y; y++) {
+            for (var x = lo.x; x <= hi.x; x++) {
+                let cell = vec3<u32>(vec3<i32>(x, y, z));
+                tests += 1u;
+                if triangle_box_overlap(v0, v1, v2, cell) {
+                    inject_voxel(linear_index(cell, dims));
+                    hits += 1u;
+                }
+            }
+        }
+    }
+    add_counter(COUNTER_OVERLAP_TESTS, tests);
+    add_counter(COUNTER_INJECTED, hits);
+}

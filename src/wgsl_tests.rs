@@ -1,0 +1,82 @@
+//! Every WGSL file of the crate, composed with naga_oil (as Bevy does) and validated with naga. No GPU
+//! needed.
+
+use naga_oil::compose::{ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue, ShaderType};
+use std::collections::HashMap;
+use std::path::Path;
+
+/// Import modules, in dependency order.
+const MODULES: &[&str] = &["src/voxel/voxelize_common.wgsl", "src/voxel/voxelize_pass.wgsl"];
+
+/// Entry shaders and the shader-def sets they are compiled with.
+fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
+    let texture_variants = vec![vec![("VOXEL_TEXTURE_R8", ShaderDefValue::Bool(true))], vec![]];
+    vec![
+        ("src/voxel/voxelize_classify.wgsl", vec![vec![]]),
+        ("src/voxel/voxelize_scan.wgsl", vec![vec![]]),
+        ("src/voxel/voxelize_expand.wgsl", vec![vec![]]),
+        ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
+        ("src/voxel/voxel_mip.wgsl", texture_variants),
+    ]
+}
+
+fn read(path: &str) -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(path)).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+fn composer() -> Composer {
+    let mut c = Composer::default();
+    for path in MODULES {
+        c.add_composable_module(ComposableModuleDescriptor {
+            source: &read(path),
+            file_path: path,
+            ..Default::default()
+        })
+        .unwrap_or_else(|e| panic!("{path}: {}", e.emit_to_string(&Composer::default())));
+    }
+    c
+}
+
+#[test]
+fn every_wgsl_file_composes_and_validates() {
+    let mut composer = composer();
+    let mut checked = 0;
+    for (path, variants) in shaders() {
+        let source = read(path);
+        for defs in variants {
+            let shader_defs: HashMap<String, ShaderDefValue> = defs.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+            let module = composer
+                .make_naga_module(NagaModuleDescriptor {
+                    source: &source,
+                    file_path: path,
+                    shader_type: ShaderType::Wgsl,
+                    shader_defs,
+                    ..Default::default()
+                })
+                .unwrap_or_else(|e| panic!("{path} {defs:?}: {}", e.emit_to_string(&composer)));
+            naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
+                .validate(&module)
+                .unwrap_or_else(|e| panic!("{path} {defs:?}: {}", e.emit_to_string(&source)));
+            checked += 1;
+        }
+    }
+    // Every .wgsl file under src/ is either an import module or an entry shader listed above.
+    let mut on_disk = Vec::new();
+    let mut stack = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("src")];
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let p = entry.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.extension().is_some_and(|e| e == "wgsl") {
+                on_disk.push(p.strip_prefix(env!("CARGO_MANIFEST_DIR")).unwrap().to_string_lossy().into_owned());
+            }
+        }
+    }
+    let listed: Vec<String> =
+        MODULES.iter().map(|s| s.to_string()).chain(shaders().iter().map(|s| s.0.to_string())).collect();
+    for f in &on_disk {
+        assert!(listed.contains(f), "{f} is not validated: add it to src/wgsl_tests.rs");
+    }
+    assert!(checked >= 7);
+}

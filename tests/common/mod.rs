@@ -1,0 +1,179 @@
+//! Shared harness of the headless GPU tests: a Bevy app on Mesa's lavapipe (or any Vulkan device), run frame
+//! by frame, with buffers read back.
+
+#![allow(dead_code)]
+
+use bevy::app::PluginGroupBuilder;
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::{Indices, PrimitiveTopology};
+use bevy::prelude::*;
+use bevy::render::RenderPlugin;
+use bevy::render::error_handler::{RenderErrorHandler, RenderErrorPolicy};
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::settings::{Backends, RenderCreation, WgpuSettings};
+use bevy::render::storage::ShaderBuffer;
+use bevy::window::ExitCondition;
+use bevy_hao::cpu::{TriangleMesh, VoxelOccupancy};
+use bevy_hao::voxel::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+static GPU: Mutex<()> = Mutex::new(());
+static RENDER_ERRORS: Mutex<Vec<String>> = Mutex::new(Vec::new());
+
+/// One GPU test at a time: lavapipe runs on the CPU, and Bevy apps are heavy.
+pub fn gpu_lock() -> MutexGuard<'static, ()> {
+    GPU.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Fails (does not skip) when there is no Vulkan adapter.
+pub fn require_vulkan() {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapters = bevy::tasks::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
+    assert!(
+        !adapters.is_empty(),
+        "no Vulkan adapter found: the GPU tests need one. Install Mesa's lavapipe (a Vulkan device on the CPU): \
+         `apt-get install mesa-vulkan-drivers`"
+    );
+}
+
+/// wgpu errors reported to Bevy's render error handler since the last call.
+pub fn take_render_errors() -> Vec<String> {
+    std::mem::take(&mut *RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()))
+}
+
+fn plugins() -> PluginGroupBuilder {
+    let mut plugins = DefaultPlugins.build();
+    // Logging can be set up once per process: on only when asked for (run a single test with it).
+    if std::env::var_os("HAO_TEST_LOG").is_none() {
+        plugins = plugins.disable::<bevy::log::LogPlugin>();
+    }
+    plugins
+        .disable::<bevy::winit::WinitPlugin>()
+        .disable::<bevy::render::pipelined_rendering::PipelinedRenderingPlugin>()
+        .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
+        .set(RenderPlugin {
+            render_creation: RenderCreation::Automatic(Box::new(WgpuSettings {
+                backends: Some(Backends::VULKAN),
+                ..default()
+            })),
+            synchronous_pipeline_compilation: true,
+            ..default()
+        })
+}
+
+/// A headless app with the HAO plugin, ready to `update()`.
+pub fn headless_app(setup: impl FnOnce(&mut App)) -> App {
+    require_vulkan();
+    let mut app = App::new();
+    app.add_plugins((plugins(), bevy_hao::HaoPlugin));
+    app.insert_resource(RenderErrorHandler(|error, _, _| {
+        RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()).push(format!("{:?}: {}", error.ty, error.description));
+        RenderErrorPolicy::StopRendering
+    }));
+    setup(&mut app);
+    app.finish();
+    app.cleanup();
+    app
+}
+
+/// Runs `n` frames.
+pub fn run(app: &mut App, n: usize) {
+    for _ in 0..n {
+        app.update();
+    }
+}
+
+/// The plugin's statistics.
+pub fn stats(app: &App) -> VoxelizationStatsData {
+    app.world().resource::<VoxelizationStats>().get()
+}
+
+/// The current grid assets.
+pub fn grid_assets(app: &App) -> Option<VoxelGridAssets> {
+    app.world().get_resource::<VoxelGridAssets>().cloned()
+}
+
+/// Reads a buffer back: spawns a `Readback`, runs frames until data from at least `settle` frames after the
+/// call arrives, despawns it.
+pub fn read_buffer(app: &mut App, buffer: Handle<ShaderBuffer>, settle: usize) -> Vec<u8> {
+    let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+    let writer = slot.clone();
+    let entity = app
+        .world_mut()
+        .spawn(Readback::buffer(buffer))
+        .observe(move |ev: On<ReadbackComplete>| {
+            *writer.lock().unwrap() = Some(ev.data.clone());
+        })
+        .id();
+    run(app, settle);
+    *slot.lock().unwrap() = None;
+    let mut data = None;
+    for _ in 0..20 {
+        app.update();
+        if let Some(d) = slot.lock().unwrap().take() {
+            data = Some(d);
+            break;
+        }
+    }
+    app.world_mut().despawn(entity);
+    data.expect("no readback arrived within 20 frames")
+}
+
+/// The frame's occupancy grid as the GPU has it.
+pub fn read_occupancy(app: &mut App) -> VoxelOccupancy {
+    let assets = grid_assets(app).expect("no voxel grid");
+    let bytes = read_buffer(app, assets.occupancy.clone(), 3);
+    let words: Vec<u32> = bytemuck::cast_slice(&bytes).to_vec();
+    VoxelOccupancy::from_words(assets.grid, &words, None).expect("occupancy buffer too short")
+}
+
+/// The static grid's occupancy as the GPU has it.
+pub fn read_static_occupancy(app: &mut App) -> VoxelOccupancy {
+    let assets = grid_assets(app).expect("no voxel grid");
+    let bytes = read_buffer(app, assets.static_occupancy.clone(), 3);
+    let words: Vec<u32> = bytemuck::cast_slice(&bytes).to_vec();
+    VoxelOccupancy::from_words(assets.grid, &words, None).expect("occupancy buffer too short")
+}
+
+/// How a test mesh stores its data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layout {
+    /// Positions only (stride 12), `u32` indices.
+    U32,
+    /// Positions, normals and UVs (stride 32), `u16` indices.
+    U16WithAttributes,
+    /// Positions and normals (stride 24), no indices (three vertices per triangle).
+    NonIndexed,
+}
+
+/// A Bevy mesh from a [`TriangleMesh`], in one of the layouts.
+pub fn bevy_mesh(mesh: &TriangleMesh, layout: Layout) -> Mesh {
+    let mut m = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default());
+    match layout {
+        Layout::NonIndexed => {
+            let positions: Vec<[f32; 3]> =
+                mesh.triangles.iter().flat_map(|t| t.map(|i| mesh.positions[i as usize].to_array())).collect();
+            let normals = vec![[0.0, 1.0, 0.0]; positions.len()];
+            m.insert_attribute(Mesh::ATTRIBUTE_POSITION, positions);
+            m.insert_attribute(Mesh::ATTRIBUTE_NORMAL, normals);
+        }
+        Layout::U32 | Layout::U16WithAttributes => {
+            let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+            let n = positions.len();
+            m.insert_attribute(Mesh::ATTRIBUTE_POSITION, positions);
+            let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+            if layout == Layout::U16WithAttributes {
+                assert!(n <= 65536, "too many vertices for u16 indices");
+                m.insert_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 1.0, 0.0]; n]);
+                m.insert_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.5f32, 0.5]; n]);
+                m.insert_indices(Indices::U16(indices.iter().map(|&i| i as u16).collect()));
+            } else {
+                m.insert_indices(Indices::U32(indices));
+            }
+        }
+    }
+    m
+}

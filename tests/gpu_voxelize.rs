@@ -1,0 +1,356 @@
+//! GPU voxelization on a headless Bevy app (lavapipe here), read back and held against the CPU reference.
+
+mod common;
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::PrimitiveTopology;
+use bevy::prelude::*;
+use bevy_hao::cpu::{self, TriangleMesh, VoxelGrid, VoxelOccupancy, voxelize_mesh};
+use bevy_hao::meshes::builtin;
+use bevy_hao::prelude::*;
+use common::*;
+
+/// A volume with fixed bounds `[-r, r]^3` and `cells` along each axis.
+fn volume(r: f32, cells: u32, injection: VoxelInjection) -> VoxelVolume {
+    VoxelVolume {
+        bounds: VolumeBounds::World { min: Vec3::splat(-r), max: Vec3::splat(r) },
+        resolution: VolumeResolution::Cells(cells),
+        injection,
+        ..default()
+    }
+}
+
+/// Random tiny triangles (thousands, each well under a voxel).
+fn sub_voxel_triangles(count: usize, center: Vec3, spread: f32, size: f32) -> TriangleMesh {
+    let mut state = 12345u64;
+    let mut next = move || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    };
+    let mut m = TriangleMesh::default();
+    for k in 0..count as u32 {
+        let c = center + Vec3::new(next(), next(), next()) * spread;
+        for _ in 0..3 {
+            m.positions.push(c + Vec3::new(next(), next(), next()) * size);
+        }
+        m.triangles.push([3 * k, 3 * k + 1, 3 * k + 2]);
+    }
+    m
+}
+
+/// The test scene: every kind of input the GPU voxelizer must read.
+fn scene() -> Vec<(TriangleMesh, Layout, Transform)> {
+    let big = TriangleMesh::new(
+        // One triangle spanning the whole grid diagonally, and one crossing its boundary far outside.
+        vec![
+            Vec3::new(-3.9, -3.9, -3.9),
+            Vec3::new(3.9, -3.5, 3.8),
+            Vec3::new(-3.7, 3.9, 3.2),
+            Vec3::new(-40.0, 1.1, -40.0),
+            Vec3::new(60.0, 1.3, -40.0),
+            Vec3::new(-40.0, 1.2, 60.0),
+        ],
+        vec![[0, 1, 2], [3, 4, 5]],
+    );
+    vec![
+        (
+            builtin("torus").unwrap(),
+            Layout::U32,
+            Transform::from_xyz(-1.5, 0.5, 0.3)
+                .with_rotation(Quat::from_euler(EulerRot::XYZ, 0.4, 0.9, -0.2))
+                .with_scale(Vec3::new(1.2, 0.8, 1.0)),
+        ),
+        (
+            builtin("sphere").unwrap(),
+            Layout::U16WithAttributes,
+            Transform::from_xyz(1.6, -1.2, 0.9).with_scale(Vec3::splat(0.9)),
+        ),
+        (
+            builtin("star").unwrap(),
+            Layout::NonIndexed,
+            Transform::from_xyz(0.5, 2.2, -1.5).with_rotation(Quat::from_rotation_z(0.6)),
+        ),
+        (
+            builtin("chamfer-box").unwrap(),
+            Layout::U16WithAttributes,
+            Transform::from_xyz(1.8, 1.5, 2.0).with_scale(Vec3::splat(0.6)),
+        ),
+        (sub_voxel_triangles(4000, Vec3::new(-1.0, -2.0, -2.0), 1.2, 0.03), Layout::U32, Transform::IDENTITY),
+        (big, Layout::U32, Transform::IDENTITY),
+    ]
+}
+
+fn cpu_reference(
+    grid: &VoxelGrid,
+    settings: &cpu::VoxelizeSettings,
+    scene: &[(TriangleMesh, Layout, Transform)],
+) -> (VoxelOccupancy, u64) {
+    let out = VoxelOccupancy::new(*grid, false);
+    let mut injected = 0;
+    for (mesh, _, transform) in scene {
+        let world = GlobalTransform::from(*transform).affine();
+        injected += voxelize_mesh(mesh, grid.grid_from_world() * world, settings, &out).injected;
+    }
+    (out, injected)
+}
+
+#[test]
+fn gpu_grid_equals_the_cpu_reference_in_both_modes() {
+    let _gpu = gpu_lock();
+    for injection in [VoxelInjection::Centroid, VoxelInjection::Conservative] {
+        let mut app = headless_app(|app| {
+            app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                commands.spawn(volume(4.0, 64, injection));
+                for (mesh, layout, transform) in scene() {
+                    commands.spawn((Mesh3d(meshes.add(bevy_mesh(&mesh, layout))), transform, StaticOccluder));
+                }
+            });
+        });
+        run(&mut app, 6);
+        let gpu = read_occupancy(&mut app);
+        let assets = grid_assets(&app).unwrap();
+        let (cpu, cpu_injected) = cpu_reference(&assets.grid, &assets.settings, &scene());
+        let (only_gpu, only_cpu) = (gpu.count_not_in(&cpu), cpu.count_not_in(&gpu));
+        let set = cpu.set_voxel_count();
+        let stats = stats(&app);
+        println!(
+            "{injection:?}: {set} voxels on the CPU; {only_gpu} only on the GPU, {only_cpu} only on the CPU; injected GPU {} CPU {cpu_injected}",
+            stats.static_counters.injected
+        );
+        assert!(set > 5_000, "{set}");
+        // Float ties at cell faces (fused multiply-adds on the GPU, f32 overlap tests against the CPU's f64)
+        // may move a few voxels; allow one in 10^4.
+        assert!((only_gpu + only_cpu) * 10_000 <= set, "{injection:?}: {only_gpu} + {only_cpu} of {set} differ");
+        assert_eq!(
+            stats.static_counters.triangles as u64,
+            scene().iter().map(|s| s.0.triangle_count() as u64).sum::<u64>()
+        );
+        assert!(stats.static_counters.big_triangles > 0 && stats.static_counters.small > 0);
+        let diff = (stats.static_counters.injected as i64 - cpu_injected as i64).unsigned_abs();
+        assert!(diff * 1000 <= cpu_injected, "injected GPU {} CPU {cpu_injected}", stats.static_counters.injected);
+        assert!(take_render_errors().is_empty());
+    }
+}
+
+fn cube_mesh() -> Mesh {
+    Cuboid::new(1.0, 1.0, 1.0).mesh().build()
+}
+
+fn set_cells(occ: &VoxelOccupancy, world_min: Vec3, world_max: Vec3) -> u64 {
+    let g = occ.grid();
+    let lo = g.world_to_grid(world_min).max(Vec3::ZERO).as_uvec3();
+    let hi = g.world_to_grid(world_max).min(g.dims.as_vec3() - 1.0).as_uvec3();
+    let mut n = 0;
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                n += u64::from(occ.is_set(UVec3::new(x, y, z)));
+            }
+        }
+    }
+    n
+}
+
+#[derive(Component)]
+struct Mover;
+
+#[test]
+fn static_grid_is_cached_and_dynamic_occluders_move_and_vanish() {
+    let _gpu = gpu_lock();
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(volume(4.0, 32, VoxelInjection::Centroid));
+            commands.spawn((
+                Mesh3d(meshes.add(Plane3d::default().mesh().size(6.0, 6.0))),
+                Transform::from_xyz(0.0, -2.0, 0.0),
+                StaticOccluder,
+            ));
+            commands.spawn((
+                Mesh3d(meshes.add(cube_mesh())),
+                Transform::from_xyz(-2.0, 0.0, 0.0),
+                DynamicOccluder,
+                Mover,
+            ));
+        });
+    });
+    run(&mut app, 6);
+    let rebuilds = stats(&app).static_rebuilds;
+    assert_eq!(rebuilds, 1, "the static grid is built once");
+    let before = read_occupancy(&mut app);
+    assert!(set_cells(&before, Vec3::new(-2.4, -0.4, -0.4), Vec3::new(-1.6, 0.4, 0.4)) > 0);
+    assert_eq!(set_cells(&before, Vec3::new(1.6, -0.4, -0.4), Vec3::new(2.4, 0.4, 0.4)), 0);
+    let floor = set_cells(&before, Vec3::new(-2.9, -2.1, -2.9), Vec3::new(2.9, -1.9, 2.9));
+    assert!(floor > 100);
+
+    // Nothing static changes for 10 frames: no rebuild.
+    run(&mut app, 10);
+    assert_eq!(stats(&app).static_rebuilds, rebuilds);
+
+    // The dynamic cube moves: its voxels move with it, the static grid is not rebuilt.
+    let mut q = app.world_mut().query_filtered::<&mut Transform, With<Mover>>();
+    q.single_mut(app.world_mut()).unwrap().translation = Vec3::new(2.0, 0.0, 0.0);
+    let after = read_occupancy(&mut app);
+    assert_eq!(set_cells(&after, Vec3::new(-2.4, -0.4, -0.4), Vec3::new(-1.6, 0.4, 0.4)), 0, "old place cleared");
+    assert!(set_cells(&after, Vec3::new(1.6, -0.4, -0.4), Vec3::new(2.4, 0.4, 0.4)) > 0, "new place set");
+    assert_eq!(stats(&app).static_rebuilds, rebuilds);
+    assert!(stats(&app).dynamic_instances == 1);
+
+    // Despawned: its voxels vanish.
+    let e = app.world_mut().query_filtered::<Entity, With<Mover>>().single(app.world()).unwrap();
+    app.world_mut().despawn(e);
+    let gone = read_occupancy(&mut app);
+    assert_eq!(set_cells(&gone, Vec3::new(1.6, -0.4, -0.4), Vec3::new(2.4, 0.4, 0.4)), 0);
+    assert_eq!(set_cells(&gone, Vec3::new(-2.9, -2.1, -2.9), Vec3::new(2.9, -1.9, 2.9)), floor);
+
+    // A static occluder despawned: the static grid is rebuilt and the floor vanishes.
+    let floor_entity = app.world_mut().query_filtered::<Entity, With<StaticOccluder>>().single(app.world()).unwrap();
+    app.world_mut().despawn(floor_entity);
+    let empty = read_occupancy(&mut app);
+    assert_eq!(empty.set_voxel_count(), 0);
+    assert_eq!(stats(&app).static_rebuilds, rebuilds + 1);
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn moving_static_and_unmarked_occluders_are_handled_as_documented() {
+    let _gpu = gpu_lock();
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(volume(4.0, 32, VoxelInjection::Centroid));
+            commands.spawn((
+                Mesh3d(meshes.add(cube_mesh())),
+                Transform::from_xyz(-2.0, 0.0, 0.0),
+                StaticOccluder,
+                Name::new("static"),
+            ));
+            commands.spawn((
+                Mesh3d(meshes.add(cube_mesh())),
+                Transform::from_xyz(0.0, 2.0, 0.0),
+                Name::new("unmarked"),
+            ));
+        });
+    });
+    run(&mut app, 6);
+    let base = stats(&app).static_rebuilds;
+    assert_eq!(base, 1);
+    let by_name = |app: &mut App, name: &str| {
+        let mut q = app.world_mut().query::<(Entity, &Name)>();
+        q.iter(app.world()).find(|(_, n)| n.as_str() == name).unwrap().0
+    };
+    // A StaticOccluder that moves: the static grid is rebuilt, and its voxels follow it.
+    let s = by_name(&mut app, "static");
+    app.world_mut().get_mut::<Transform>(s).unwrap().translation.x = 2.0;
+    let occ = read_occupancy(&mut app);
+    assert!(set_cells(&occ, Vec3::new(1.6, -0.4, -0.4), Vec3::new(2.4, 0.4, 0.4)) > 0);
+    assert_eq!(set_cells(&occ, Vec3::new(-2.4, -0.4, -0.4), Vec3::new(-1.6, 0.4, 0.4)), 0);
+    assert_eq!(stats(&app).static_rebuilds, base + 1);
+    // An unmarked mesh that moves: one static rebuild, then it is dynamic and moves without rebuilds.
+    let u = by_name(&mut app, "unmarked");
+    for k in 1..=4 {
+        app.world_mut().get_mut::<Transform>(u).unwrap().translation.z = 0.5 * k as f32;
+        run(&mut app, 2);
+    }
+    assert!(app.world().get::<PromotedToDynamic>(u).is_some());
+    assert_eq!(stats(&app).static_rebuilds, base + 2, "one rebuild when it left the static set");
+    let occ = read_occupancy(&mut app);
+    assert!(set_cells(&occ, Vec3::new(-0.4, 1.6, 1.6), Vec3::new(0.4, 2.4, 2.4)) > 0);
+    assert_eq!(set_cells(&occ, Vec3::new(-0.4, 1.6, -0.4), Vec3::new(0.4, 2.4, 0.4)), 0);
+    assert!(take_render_errors().is_empty());
+}
+
+fn line_mesh() -> Mesh {
+    Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32, 0.0, 0.0], [1.0, 1.0, 1.0]])
+}
+
+#[test]
+fn bad_input_is_skipped_with_a_warning_and_the_frame_renders() {
+    let _gpu = gpu_lock();
+    let nan_and_degenerate = TriangleMesh::new(
+        vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)],
+        vec![[0, 1, 2], [0, 1, 3], [0, 1, 4]],
+    );
+    let mut app = headless_app(|app| {
+        app.add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut images: ResMut<Assets<Image>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>| {
+                commands.spawn(volume(4.0, 32, VoxelInjection::Centroid));
+                commands.spawn((Mesh3d(meshes.add(bevy_mesh(&nan_and_degenerate, Layout::U32))), StaticOccluder));
+                commands.spawn((Mesh3d(meshes.add(line_mesh())), StaticOccluder));
+                // Wholly outside the volume.
+                commands.spawn((Mesh3d(meshes.add(cube_mesh())), Transform::from_xyz(50.0, 0.0, 0.0), StaticOccluder));
+                // Something to render.
+                let material = materials.add(StandardMaterial::default());
+                commands.spawn((
+                    Mesh3d(meshes.add(cube_mesh())),
+                    MeshMaterial3d(material),
+                    Transform::from_xyz(0.0, 0.0, -3.0),
+                ));
+                let target = images.add(Image::new_target_texture(
+                    32,
+                    24,
+                    bevy::render::render_resource::TextureFormat::Rgba8UnormSrgb,
+                    None,
+                ));
+                commands.spawn((
+                    Camera3d::default(),
+                    bevy::camera::RenderTarget::Image(target.into()),
+                    Msaa::Off,
+                    bevy::core_pipeline::tonemapping::Tonemapping::None,
+                ));
+            },
+        );
+    });
+    run(&mut app, 8);
+    let s = stats(&app);
+    assert_eq!(s.skipped_instances, 1, "the line list is skipped");
+    assert_eq!(s.static_counters.invalid, 1, "the NaN triangle");
+    assert_eq!(s.static_counters.degenerate, 1, "the zero-area triangle");
+    assert_eq!(s.static_counters.outside, 12, "the cube outside the volume");
+    assert!(s.static_counters.injected >= 1, "the good triangle");
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn a_volume_over_the_device_limit_is_refused_and_rendering_goes_on() {
+    let _gpu = gpu_lock();
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            // 8192 cells along an axis: over every device's max_texture_dimension_3d (lavapipe: 4096).
+            commands.spawn(VoxelVolume {
+                bounds: VolumeBounds::World { min: Vec3::splat(-4.0), max: Vec3::new(4.0, -3.99, -3.99) },
+                resolution: VolumeResolution::Cells(8192),
+                ..default()
+            });
+            commands.spawn((Mesh3d(meshes.add(cube_mesh())), StaticOccluder));
+        });
+    });
+    run(&mut app, 5);
+    assert!(grid_assets(&app).is_none());
+    // Lowering the resolution brings it back.
+    let mut q = app.world_mut().query::<&mut VoxelVolume>();
+    q.single_mut(app.world_mut()).unwrap().resolution = VolumeResolution::Cells(64);
+    run(&mut app, 3);
+    assert!(grid_assets(&app).is_some());
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn the_point_budget_is_enforced_and_reported() {
+    let _gpu = gpu_lock();
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(VoxelVolume { point_budget: 1000, ..volume(4.0, 64, VoxelInjection::Centroid) });
+            commands.spawn((Mesh3d(meshes.add(Plane3d::default().mesh().size(7.0, 7.0))), StaticOccluder));
+        });
+    });
+    run(&mut app, 8);
+    let c = stats(&app).static_counters;
+    assert!(c.budget_exceeded, "{c:?}");
+    assert_eq!(c.points_dispatched, 1000);
+    assert!(c.points_requested > 3000, "{c:?}");
+    assert!(take_render_errors().is_empty());
+}
