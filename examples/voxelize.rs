@@ -4,6 +4,7 @@
 //! ```text
 //! cargo run --release --example voxelize -- <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0]
 //!     [--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]
+//!     [--gpu]
 //! ```
 //!
 //! For each mesh and resolution the grid is fitted to the mesh's bounds with the longest axis at the
@@ -14,9 +15,20 @@
 //! (n/a when the mesh encloses no voxel), and the median times of both voxelizers on all cores.
 //! `--target-bias` fits equation 3 to the mesh (biases measured at gamma 1, 1.5, 2, 3, 4) and uses the
 //! gamma it predicts for the target; `--gamma-sweep` prints bias and time against gamma (Figure 5d).
+//!
+//! With `--gpu` the point-tessellated voxelization runs on the GPU instead, through the plugin in a
+//! headless Bevy app (Mesa's lavapipe on a machine without a GPU): the mesh is a `StaticOccluder` in a
+//! `VoxelVolume` with the same fitted grid, the GPU's occupancy is read back, measured against the same
+//! ground truth and exported the same way, and the time column is the median GPU time of the static
+//! voxelization pass (`hao/voxelize_static`) over `--runs` forced rebuilds.
 
+mod support;
+
+use bevy::prelude::*;
 use bevy_hao::cpu::*;
 use bevy_hao::meshes::load_mesh;
+use bevy_hao::prelude::*;
+use bevy_hao::voxel::{RebuildStaticVoxels, VoxelizeCounters};
 use std::time::Instant;
 
 struct Args {
@@ -28,10 +40,11 @@ struct Args {
     export: Option<String>,
     gamma_sweep: bool,
     runs: usize,
+    gpu: bool,
 }
 
 const USAGE: &str = "usage: voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0] \
-[--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]";
+[--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -43,6 +56,7 @@ fn parse_args() -> Result<Args, String> {
         export: None,
         gamma_sweep: false,
         runs: 5,
+        gpu: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -68,6 +82,7 @@ fn parse_args() -> Result<Args, String> {
             }
             "--export" => a.export = Some(value("--export")?),
             "--gamma-sweep" => a.gamma_sweep = true,
+            "--gpu" => a.gpu = true,
             "--runs" => a.runs = value("--runs")?.parse::<usize>().map_err(|e| format!("bad --runs: {e}"))?.max(1),
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
@@ -79,6 +94,9 @@ fn parse_args() -> Result<Args, String> {
     }
     if !(a.gamma.is_finite() && a.gamma > 0.0) {
         return Err("--gamma must be positive".into());
+    }
+    if a.gpu && (a.gamma_sweep || a.target_bias.is_some()) {
+        return Err("--gamma-sweep and --target-bias run on the CPU reference; leave out --gpu".into());
     }
     Ok(a)
 }
@@ -95,6 +113,66 @@ fn median_ms<T>(runs: usize, grid: &mut VoxelOccupancy, f: impl Fn(&VoxelOccupan
     }
     times.sort_by(f64::total_cmp);
     (times[times.len() / 2], last.expect("at least one run"))
+}
+
+/// The same voxelization on the GPU: returns the grid read back, the GPU's counters, the median GPU time of
+/// the static pass over `runs` rebuilds, and the adapter's name.
+fn gpu_voxelize(
+    mesh: &TriangleMesh,
+    bounds: (Vec3, Vec3),
+    res: u32,
+    settings: &VoxelizeSettings,
+    runs: usize,
+) -> Result<(VoxelOccupancy, VoxelizeCounters, Option<f64>, String), String> {
+    let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
+    let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+    let injection = match settings.mode {
+        InjectionMode::Centroid => VoxelInjection::Centroid,
+        InjectionMode::Conservative => VoxelInjection::Conservative,
+    };
+    let volume = VoxelVolume {
+        bounds: VolumeBounds::World { min: bounds.0, max: bounds.1 },
+        resolution: VolumeResolution::Cells(res),
+        gamma: settings.gamma,
+        injection,
+        point_budget: u32::MAX,
+        point_counts: false,
+    };
+    let mut app = support::headless_app(move |app| {
+        app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            let m =
+                Mesh::new(bevy::mesh::PrimitiveTopology::TriangleList, bevy::asset::RenderAssetUsages::RENDER_WORLD)
+                    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions.clone())
+                    .with_inserted_indices(bevy::mesh::Indices::U32(indices.clone()));
+            commands.spawn(volume);
+            commands.spawn((Mesh3d(meshes.add(m)), StaticOccluder));
+        });
+    });
+    let mut frames = 0;
+    while !(support::stats(&app).static_rebuilds >= 1 && support::stats(&app).counter_readbacks >= 3) {
+        app.update();
+        frames += 1;
+        if frames > 120 {
+            return Err("the GPU voxelization did not complete within 120 frames".into());
+        }
+    }
+    let errors = support::take_render_errors();
+    if !errors.is_empty() {
+        return Err(format!("wgpu errors: {errors:?}"));
+    }
+    let occupancy = support::read_occupancy(&mut app);
+    let counters = support::stats(&app).static_counters;
+    let mut times = Vec::new();
+    for _ in 0..runs {
+        app.world_mut().write_message(RebuildStaticVoxels);
+        app.update();
+        app.update();
+        if let Some(t) = support::diagnostic(&app, "render/hao/voxelize_static/elapsed_gpu") {
+            times.push(t);
+        }
+    }
+    let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
+    Ok((occupancy, counters, support::median(times), adapter))
 }
 
 fn main() {
@@ -182,7 +260,41 @@ fn main() {
                     }
                 }
             }
-            let (t_vox, vstats) = run(gamma, args.runs, &mut result);
+            let (t_vox, injected) = if args.gpu {
+                let settings = VoxelizeSettings { gamma, mode: args.mode };
+                match gpu_voxelize(&mesh, (lo, hi), res, &settings, args.runs) {
+                    Ok((occ, counters, t, adapter)) => {
+                        if occ.grid() != &grid {
+                            eprintln!("error: the GPU grid {:?} differs from the CPU's {:?}", occ.grid(), grid);
+                            std::process::exit(1);
+                        }
+                        eprintln!(
+                            "  GPU ({adapter}): {} triangles read, {} injected at once, {} queued for expansion, {} invalid, {} degenerate, {} oversize",
+                            counters.triangles,
+                            counters.small,
+                            counters.big_triangles,
+                            counters.invalid,
+                            counters.degenerate,
+                            counters.oversize
+                        );
+                        result = occ;
+                        (t.unwrap_or(f64::NAN), counters.injected as u64)
+                    }
+                    Err(e) => {
+                        eprintln!("error: {} at {res} on the GPU: {e}", loaded.name);
+                        std::process::exit(1);
+                    }
+                }
+            } else {
+                let (t, vstats) = run(gamma, args.runs, &mut result);
+                if vstats.invalid + vstats.degenerate + vstats.oversize > 0 {
+                    eprintln!(
+                        "  skipped triangles: {} invalid, {} degenerate, {} oversize",
+                        vstats.invalid, vstats.degenerate, vstats.oversize
+                    );
+                }
+                (t, vstats.injected)
+            };
             let cmp = compare(&result, &truth);
             let split = graze_split(&result, &truth, &cut);
             let wt = watertight(&result, &truth);
@@ -203,8 +315,8 @@ fn main() {
                 grid.dims.z,
                 stats.triangles,
                 gamma,
-                args.mode,
-                vstats.injected,
+                if args.gpu { format!("{} (gpu)", args.mode) } else { args.mode.to_string() },
+                injected,
                 estimate,
                 cmp.result_voxels,
                 cmp.truth_voxels,
@@ -215,12 +327,6 @@ fn main() {
                 t_vox,
                 t_truth
             );
-            if vstats.invalid + vstats.degenerate + vstats.oversize > 0 {
-                eprintln!(
-                    "  skipped triangles: {} invalid, {} degenerate, {} oversize",
-                    vstats.invalid, vstats.degenerate, vstats.oversize
-                );
-            }
             if let Some(out) = &args.export {
                 let path = if several_outputs {
                     let stem = out.strip_suffix(".binvox").unwrap_or(out);

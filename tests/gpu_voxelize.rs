@@ -1,6 +1,7 @@
 //! GPU voxelization on a headless Bevy app (lavapipe here), read back and held against the CPU reference.
 
-mod common;
+#[path = "../examples/support/mod.rs"]
+mod support;
 
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::PrimitiveTopology;
@@ -8,7 +9,7 @@ use bevy::prelude::*;
 use bevy_hao::cpu::{self, TriangleMesh, VoxelGrid, VoxelOccupancy, voxelize_mesh};
 use bevy_hao::meshes::builtin;
 use bevy_hao::prelude::*;
-use common::*;
+use support::*;
 
 /// A volume with fixed bounds `[-r, r]^3` and `cells` along each axis.
 fn volume(r: f32, cells: u32, injection: VoxelInjection) -> VoxelVolume {

@@ -8,6 +8,8 @@ use super::assets::{VoxelGridAssets, occluder_is_dynamic, world_aabb};
 use crate::components::*;
 use bevy::camera::primitives::Aabb;
 use bevy::math::Affine3A;
+use bevy::mesh::skinning::SkinnedMesh;
+use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
 use bevy::render::Extract;
 
@@ -37,6 +39,26 @@ pub struct ExtractedOccluders {
     pub statics: Vec<ExtractedOccluder>,
     /// Voxelized every frame.
     pub dynamics: Vec<ExtractedOccluder>,
+    /// The number of [`RebuildStaticVoxels`] requests so far.
+    pub rebuild_requests: u64,
+}
+
+/// Asks for the static grid to be voxelized again this frame, although nothing the plugin watches changed
+/// (for instance after editing vertex data in place in a way the asset system does not report, or to
+/// measure the static pass in a benchmark).
+#[derive(Message, Clone, Copy, Debug, Default)]
+pub struct RebuildStaticVoxels;
+
+/// Counts [`RebuildStaticVoxels`] messages (main world).
+#[derive(Resource, Default, Clone, Copy, Debug)]
+pub struct StaticRebuildRequests(pub u64);
+
+/// Main world: counts the rebuild requests of this frame.
+pub fn count_rebuild_requests(
+    mut messages: MessageReader<RebuildStaticVoxels>,
+    mut count: ResMut<StaticRebuildRequests>,
+) {
+    count.0 += messages.read().count() as u64;
 }
 
 /// Extracts the grid assets.
@@ -59,15 +81,29 @@ pub fn extract_voxel_occluders(
                 Has<StaticOccluder>,
                 Has<DynamicOccluder>,
                 Has<PromotedToDynamic>,
+                Has<SkinnedMesh>,
             ),
             Without<NoVoxelOcclusion>,
         >,
     >,
+    requests: Extract<Res<StaticRebuildRequests>>,
+    mut warned_skinned: Local<HashSet<Entity>>,
 ) {
     extracted.statics.clear();
     extracted.dynamics.clear();
-    for (entity, mesh, transform, aabb, visible, s, d, p) in &occluders {
+    extracted.rebuild_requests = requests.0;
+    for (entity, mesh, transform, aabb, visible, s, d, p, skinned) in &occluders {
         if !visible.get() {
+            continue;
+        }
+        if skinned {
+            // Bevy skins meshes in the vertex shader: the slabs hold the bind pose, which would be voxelized
+            // in the wrong place.
+            if warned_skinned.insert(entity) {
+                warn!(
+                    "bevy_hao: {entity} is a skinned mesh; skinned meshes are not voxelized yet (add NoVoxelOcclusion to silence this)"
+                );
+            }
             continue;
         }
         let occluder = ExtractedOccluder {

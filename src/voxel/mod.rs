@@ -23,6 +23,7 @@ pub mod prepare;
 pub mod stats;
 
 pub use assets::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
+pub use extract::RebuildStaticVoxels;
 pub use stats::VoxelizeCounters;
 
 use bevy::asset::embedded_asset;
@@ -54,7 +55,10 @@ impl Plugin for VoxelizationPlugin {
             .register_type::<crate::components::DynamicOccluder>()
             .register_type::<crate::components::NoVoxelOcclusion>()
             .register_type::<crate::components::PromotedToDynamic>()
-            .register_type::<crate::components::VoxelVolume>();
+            .register_type::<crate::components::VoxelVolume>()
+            .add_message::<extract::RebuildStaticVoxels>()
+            .init_resource::<extract::StaticRebuildRequests>()
+            .add_systems(PostUpdate, extract::count_rebuild_requests);
     }
 
     fn finish(&self, app: &mut App) {

@@ -48,6 +48,7 @@ pub struct VoxelizeState {
     warned_meshes: HashSet<AssetId<Mesh>>,
     warned_moved: HashSet<Entity>,
     static_transforms: HashMap<Entity, Affine3A>,
+    rebuild_requests: u64,
     big: Option<BigBuffers>,
     warned_capacity: bool,
 }
@@ -399,6 +400,8 @@ pub fn prepare_voxelize(
     }
     state.static_transforms = transforms;
     let fingerprint = hasher.finish();
+    force |= occluders.rebuild_requests != state.rebuild_requests;
+    state.rebuild_requests = occluders.rebuild_requests;
     let rebuild_static = force || state.static_fingerprint != Some(fingerprint);
     let has_dynamic = !dynamics.is_empty();
     if !rebuild_static && !has_dynamic && !state.had_dynamic {

@@ -1,5 +1,6 @@
-//! Shared harness of the headless GPU tests: a Bevy app on Mesa's lavapipe (or any Vulkan device), run frame
-//! by frame, with buffers read back.
+//! Headless Bevy apps for the examples and the GPU tests: an app on Vulkan (Mesa's lavapipe on a machine
+//! without a GPU) with no window, run frame by frame, with buffers read back and GPU timings collected.
+//! Shared by `examples/*.rs` (`mod support;`) and `tests/*.rs` (`#[path = "../examples/support/mod.rs"]`).
 
 #![allow(dead_code)]
 
@@ -44,10 +45,14 @@ pub fn take_render_errors() -> Vec<String> {
     std::mem::take(&mut *RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()))
 }
 
+static LOGGING: std::sync::Once = std::sync::Once::new();
+
 fn plugins() -> PluginGroupBuilder {
     let mut plugins = DefaultPlugins.build();
-    // Logging can be set up once per process: on only when asked for (run a single test with it).
-    if std::env::var_os("HAO_TEST_LOG").is_none() {
+    // Logging can be set up once per process: the first app gets it, later ones do not.
+    let mut first = false;
+    LOGGING.call_once(|| first = true);
+    if !first {
         plugins = plugins.disable::<bevy::log::LogPlugin>();
     }
     plugins
@@ -64,11 +69,12 @@ fn plugins() -> PluginGroupBuilder {
         })
 }
 
-/// A headless app with the HAO plugin, ready to `update()`.
+/// A headless app with the HAO plugin (and Bevy's render diagnostics, for GPU time spans), ready to
+/// `update()`.
 pub fn headless_app(setup: impl FnOnce(&mut App)) -> App {
     require_vulkan();
     let mut app = App::new();
-    app.add_plugins((plugins(), bevy_hao::HaoPlugin));
+    app.add_plugins((plugins(), bevy_hao::HaoPlugin, bevy::render::diagnostic::RenderDiagnosticsPlugin));
     app.insert_resource(RenderErrorHandler(|error, _, _| {
         RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()).push(format!("{:?}: {}", error.ty, error.description));
         RenderErrorPolicy::StopRendering
@@ -176,4 +182,19 @@ pub fn bevy_mesh(mesh: &TriangleMesh, layout: Layout) -> Mesh {
         }
     }
     m
+}
+
+/// The latest value of a diagnostic (e.g. `render/hao/voxelize_static/elapsed_gpu`, in ms).
+pub fn diagnostic(app: &App, path: &str) -> Option<f64> {
+    let store = app.world().resource::<bevy::diagnostic::DiagnosticsStore>();
+    store.get(&bevy::diagnostic::DiagnosticPath::new(path.to_string())).and_then(|d| d.value())
+}
+
+/// Median of a list of timings.
+pub fn median(mut v: Vec<f64>) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    Some(v[v.len() / 2])
 }
