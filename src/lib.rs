@@ -1,6 +1,7 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
+pub mod ao;
 pub mod components;
 pub mod cpu;
 pub mod meshes;
@@ -9,6 +10,7 @@ pub mod voxel;
 #[cfg(test)]
 mod wgsl_tests;
 
+pub use ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
 pub use components::*;
 
 use bevy::prelude::*;
@@ -19,12 +21,13 @@ pub struct HaoPlugin;
 
 impl Plugin for HaoPlugin {
     fn build(&self, app: &mut App) {
-        app.add_plugins(voxel::VoxelizationPlugin);
+        app.add_plugins((voxel::VoxelizationPlugin, ao::HybridAmbientOcclusionPlugin));
     }
 }
 
 /// The components and plugin most apps need.
 pub mod prelude {
     pub use crate::HaoPlugin;
+    pub use crate::ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
     pub use crate::components::*;
 }

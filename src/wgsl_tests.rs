@@ -6,7 +6,27 @@ use std::collections::HashMap;
 use std::path::Path;
 
 /// Import modules, in dependency order.
-const MODULES: &[&str] = &["src/voxel/voxelize_common.wgsl", "src/voxel/voxelize_pass.wgsl"];
+const MODULES: &[&str] = &["src/voxel/voxelize_common.wgsl", "src/voxel/voxelize_pass.wgsl", "src/ao/hao_common.wgsl"];
+
+/// Bevy's modules our shaders import, relative to the `bevy_render` crate's root.
+const BEVY_RENDER_MODULES: &[&str] = &["src/view/view.wgsl"];
+
+/// The root of the `bevy_render` crate this build uses, from `cargo metadata`.
+fn bevy_render_root() -> std::path::PathBuf {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args(["metadata", "--format-version", "1"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo metadata");
+    let meta: serde_json::Value = serde_json::from_slice(&out.stdout).expect("cargo metadata output");
+    let package = meta["packages"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "bevy_render")
+        .expect("bevy_render in the dependency graph");
+    Path::new(package["manifest_path"].as_str().unwrap()).parent().unwrap().to_path_buf()
+}
 
 /// Entry shaders and the shader-def sets they are compiled with.
 fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
@@ -17,6 +37,10 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxelize_expand.wgsl", vec![vec![]]),
         ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
         ("src/voxel/voxel_mip.wgsl", texture_variants),
+        ("src/ao/hao_trace.wgsl", vec![vec![]]),
+        ("src/ao/hao_denoise.wgsl", vec![vec![]]),
+        ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),
+        ("src/ao/hao_debug_copy.wgsl", vec![vec![]]),
     ]
 }
 
@@ -26,6 +50,13 @@ fn read(path: &str) -> String {
 
 fn composer() -> Composer {
     let mut c = Composer::default();
+    let root = bevy_render_root();
+    for path in BEVY_RENDER_MODULES {
+        let file = root.join(path);
+        let source = std::fs::read_to_string(&file).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
+        c.add_composable_module(ComposableModuleDescriptor { source: &source, file_path: path, ..Default::default() })
+            .unwrap_or_else(|e| panic!("{path}: {}", e.emit_to_string(&Composer::default())));
+    }
     for path in MODULES {
         c.add_composable_module(ComposableModuleDescriptor {
             source: &read(path),
@@ -78,5 +109,5 @@ fn every_wgsl_file_composes_and_validates() {
     for f in &on_disk {
         assert!(listed.contains(f), "{f} is not validated: add it to src/wgsl_tests.rs");
     }
-    assert!(checked >= 7);
+    assert!(checked >= 12);
 }

@@ -198,3 +198,58 @@ pub fn median(mut v: Vec<f64>) -> Option<f64> {
     v.sort_by(f64::total_cmp);
     Some(v[v.len() / 2])
 }
+
+/// Reads an image back (the first arrival at least `settle` frames after the call), without the 256-byte
+/// row padding. Returns `(width, height, bytes per texel, bytes)`.
+pub fn read_image(app: &mut App, image: Handle<Image>, settle: usize) -> (u32, u32, u32, Vec<u8>) {
+    let (w, h, texel) = {
+        let images = app.world().resource::<Assets<Image>>();
+        let img = images.get(&image).expect("image asset");
+        let size = img.texture_descriptor.size;
+        let texel = img.texture_descriptor.format.block_copy_size(None).expect("uncompressed format");
+        (size.width, size.height, texel)
+    };
+    let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+    let writer = slot.clone();
+    let entity = app
+        .world_mut()
+        .spawn(Readback::texture(image))
+        .observe(move |ev: On<ReadbackComplete>| {
+            *writer.lock().unwrap() = Some(ev.data.clone());
+        })
+        .id();
+    run(app, settle);
+    *slot.lock().unwrap() = None;
+    let mut data = None;
+    for _ in 0..20 {
+        app.update();
+        if let Some(d) = slot.lock().unwrap().take() {
+            data = Some(d);
+            break;
+        }
+    }
+    app.world_mut().despawn(entity);
+    let data = data.expect("no readback arrived within 20 frames");
+    let row = (w * texel) as usize;
+    let padded = row.div_ceil(256) * 256;
+    let mut out = Vec::with_capacity(row * h as usize);
+    for y in 0..h as usize {
+        out.extend_from_slice(&data[y * padded..y * padded + row]);
+    }
+    (w, h, texel, out)
+}
+
+/// An `R32Float` image read back as floats, with its width and height.
+pub fn read_image_f32(app: &mut App, image: Handle<Image>, settle: usize) -> (u32, u32, Vec<f32>) {
+    let (w, h, texel, bytes) = read_image(app, image, settle);
+    assert_eq!(texel, 4, "not a 32-bit single-channel image");
+    (w, h, bytemuck::cast_slice(&bytes).to_vec())
+}
+
+/// A render target image that can be read back.
+pub fn target_image(images: &mut Assets<Image>, size: UVec2) -> Handle<Image> {
+    let mut image =
+        Image::new_target_texture(size.x, size.y, bevy::render::render_resource::TextureFormat::Rgba8UnormSrgb, None);
+    image.texture_descriptor.usage |= bevy::render::render_resource::TextureUsages::COPY_SRC;
+    images.add(image)
+}

@@ -32,6 +32,7 @@
 //! assert!(cmp.bias() < 0.5 && stats.sub_triangles >= 256);
 //! ```
 
+pub mod ao;
 pub mod bias_model;
 pub mod binvox;
 pub mod grid;

@@ -47,6 +47,9 @@ pub struct VoxelGridAssets {
     pub texture_format: TextureFormat,
     /// Its mip level count.
     pub mip_levels: u32,
+    /// Its size: the grid's dimensions rounded up to a multiple of `2^(mip_levels - 1)`, so that every mip
+    /// texel covers exactly `2^level` cells per axis (the padding is empty).
+    pub texture_size: UVec3,
     /// The voxelization statistics counters (see [`VoxelizeCounters`]).
     pub counters: Handle<ShaderBuffer>,
     /// Bumped whenever the assets are replaced (the render world then rebuilds the static grid).
@@ -236,10 +239,13 @@ pub(crate) fn update_voxel_volume(
         }
     };
     let limits = device.limits();
+    let mip_levels = (32 - grid.dims.max_element().leading_zeros()).clamp(1, MAX_VOXEL_MIPS);
+    let align = 1u32 << (mip_levels - 1);
+    let texture_size = (grid.dims + UVec3::splat(align - 1)) / align * align;
     let words_bytes = grid.occupancy_word_count() as u64 * 4;
     let counts_bytes = grid.voxel_count() * 4;
     let binding_limit = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
-    let refusal = if grid.dims.max_element() > limits.max_texture_dimension_3d {
+    let refusal = if texture_size.max_element() > limits.max_texture_dimension_3d {
         Some(format!(
             "a {}x{}x{} voxel grid exceeds the device's Limits::max_texture_dimension_3d ({})",
             grid.dims.x, grid.dims.y, grid.dims.z, limits.max_texture_dimension_3d
@@ -285,12 +291,11 @@ pub(crate) fn update_voxel_volume(
     let buffer = |bytes: u64, buffers: &mut Assets<ShaderBuffer>| {
         buffers.add(ShaderBuffer::with_size(bytes.max(4) as usize, RenderAssetUsages::RENDER_WORLD))
     };
-    let mip_levels = (32 - grid.dims.max_element().leading_zeros()).clamp(1, MAX_VOXEL_MIPS);
     let texture = Image {
         data: None,
         texture_descriptor: TextureDescriptor {
             label: Some("hao_voxel_texture"),
-            size: Extent3d { width: grid.dims.x, height: grid.dims.y, depth_or_array_layers: grid.dims.z },
+            size: Extent3d { width: texture_size.x, height: texture_size.y, depth_or_array_layers: texture_size.z },
             mip_level_count: mip_levels,
             sample_count: 1,
             dimension: TextureDimension::D3,
@@ -313,6 +318,7 @@ pub(crate) fn update_voxel_volume(
         texture: images.add(texture),
         texture_format,
         mip_levels,
+        texture_size,
         counters: buffer(COUNTER_WORDS as u64 * 4, &mut buffers),
         generation: *generation,
     };

@@ -101,11 +101,15 @@ pub fn voxelize(
         cpass.set_bind_group(0, &frame.resolve.bind_group, &[]);
         let w = frame.resolve.workgroups;
         cpass.dispatch_workgroups(w.x, w.y, w.z);
+    }
+    // One pass per level: each reads the level the previous one wrote.
+    for (bind_group, w) in &frame.resolve.mips {
+        let encoder = ctx.command_encoder();
+        let mut cpass =
+            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_voxel_mip"), timestamp_writes: None });
         cpass.set_pipeline(mip);
-        for (bind_group, w) in &frame.resolve.mips {
-            cpass.set_bind_group(0, bind_group, &[]);
-            cpass.dispatch_workgroups(w.x.max(1), w.y.max(1), w.z.max(1));
-        }
+        cpass.set_bind_group(0, bind_group, &[]);
+        cpass.dispatch_workgroups(w.x.max(1), w.y.max(1), w.z.max(1));
     }
     span.end(ctx.command_encoder());
 }

@@ -425,7 +425,7 @@ pub fn prepare_voxelize(
         }
     }
     let region = if rebuild_static {
-        Some(CellRegion::full(grid.dims))
+        Some(CellRegion::full(assets.texture_size))
     } else {
         match (dynamic_region, state.prev_dynamic_region) {
             (Some(a), Some(b)) => Some(a.union(b)),
@@ -546,10 +546,10 @@ pub fn prepare_voxelize(
     );
     let mip_layout = cache.get_bind_group_layout(&pipelines.mip_layout);
     let mut mips = Vec::new();
-    let mut level_size = grid.dims;
+    let mut level_size = assets.texture_size;
     for level in 1..assets.mip_levels {
         let source_size = level_size;
-        level_size = (level_size / 2).max(UVec3::ONE);
+        level_size = level_size / 2;
         let min = region.min >> level;
         let max = ((region.max + UVec3::splat((1 << level) - 1)) >> level).min(level_size);
         let params = uniform(&device, "hao_voxel_mip_params", &region_params(min, max, source_size));

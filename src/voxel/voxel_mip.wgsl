@@ -1,4 +1,5 @@
-// One mip level of the voxel texture: the maximum of the eight children one level down.
+// One mip level of the voxel texture: the maximum of the eight children one level down (the texture's size
+// is a multiple of the coarsest texel, so every texel has exactly eight).
 
 struct MipParams {
     region_min: vec3<u32>,

@@ -28,7 +28,11 @@ fn resolve_occupancy(@builtin(global_invocation_id) gid: vec3<u32>) {
     if any(cell >= resolve.region_max) {
         return;
     }
-    let index = cell.x + resolve.dims.x * (cell.y + resolve.dims.y * cell.z);
-    let bit = (occupancy[index >> 5u] >> (index & 31u)) & 1u;
+    // The texture is padded past the grid to a multiple of the coarsest mip's texel: empty there.
+    var bit = 0u;
+    if all(cell < resolve.dims) {
+        let index = cell.x + resolve.dims.x * (cell.y + resolve.dims.y * cell.z);
+        bit = (occupancy[index >> 5u] >> (index & 31u)) & 1u;
+    }
     textureStore(level0, vec3<i32>(cell), vec4<f32>(f32(bit), 0.0, 0.0, 1.0));
 }

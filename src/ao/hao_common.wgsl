@@ -1,0 +1,85 @@
+// Hybrid ambient occlusion: what the trace pass and the CPU twin (`bevy_hao::cpu::ao`) share: the settings,
+// the ray directions (cosine-weighted, stratified, rotated per pixel), the distance falloff, and the march
+// through the voxel texture with empty-space skipping on its max-reduced mips.
+#define_import_path bevy_hao::hao_common
+
+// src/ao/prepare.rs: `GpuHaoSettings`
+struct HaoSettings {
+    grid_origin: vec3<f32>,
+    cell_size: f32,
+    grid_dims: vec3<u32>,
+    mip_levels: u32,
+    rays: u32,
+    steps: u32,
+    max_distance: f32,
+    falloff: f32,
+    intensity: f32,
+    start_offset: f32,
+    grid_valid: u32,
+    frame: u32,
+    near_field: u32,
+    half_resolution: u32,
+    denoise_radius: u32,
+    _pad: u32,
+}
+
+const PI: f32 = 3.141592653589793;
+const GOLDEN: f32 = 0.6180339887498949;
+
+// cpu/ao.rs: interleaved_gradient_noise (Jimenez 2014), in [0, 1).
+fn interleaved_gradient_noise(pixel: vec2<f32>, frame: u32) -> f32 {
+    let p = pixel + 5.588238 * f32(frame % 64u);
+    return fract(52.9829189 * fract(0.06711056 * p.x + 0.00583715 * p.y));
+}
+
+// cpu/ao.rs: orthonormal_basis (Duff et al. 2017): two tangents completing `n`.
+fn orthonormal_basis(n: vec3<f32>) -> mat3x3<f32> {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    let t = vec3<f32>(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    let bt = vec3<f32>(b, s + n.y * n.y * a, -n.y);
+    return mat3x3<f32>(t, bt, n);
+}
+
+// cpu/ao.rs: hemisphere_direction. Ray `i` of `count`, cosine-weighted around `normal` and stratified in
+// the polar coordinate; `rotation` (two numbers in [0, 1)) shifts the whole set per pixel.
+fn hemisphere_direction(normal: vec3<f32>, i: u32, count: u32, rotation: vec2<f32>) -> vec3<f32> {
+    let u1 = fract((f32(i) + rotation.x) / f32(count));
+    let u2 = fract(f32(i) * GOLDEN + rotation.y);
+    let r = sqrt(u1);
+    let phi = 2.0 * PI * u2;
+    let local = vec3<f32>(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u1)));
+    return orthonormal_basis(normal) * local;
+}
+
+// cpu/ao.rs: ao_falloff. The weight of an occluder at `distance`: 1 near the surface, 0 at `max_distance`
+// and beyond, `(1 - d / max)^falloff` between.
+fn ao_falloff(distance: f32, max_distance: f32, falloff: f32) -> f32 {
+    let x = clamp(distance / max_distance, 0.0, 1.0);
+    return pow(1.0 - x, falloff);
+}
+
+// The [t_enter, t_exit] of a ray (grid space) in the box [lo, hi]; empty if t_enter > t_exit.
+fn ray_box(origin: vec3<f32>, inv_dir: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>) -> vec2<f32> {
+    let t0 = (lo - origin) * inv_dir;
+    let t1 = (hi - origin) * inv_dir;
+    let tmin = min(t0, t1);
+    let tmax = max(t0, t1);
+    return vec2<f32>(max(max(tmin.x, tmin.y), tmin.z), min(min(tmax.x, tmax.y), tmax.z));
+}
+
+// cpu/ao.rs: safe_inverse. 1 / d with zero components replaced by a huge value of the same sign.
+fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
+    let big = vec3<f32>(1.0e30);
+    let s = select(vec3<f32>(-1.0), vec3<f32>(1.0), d >= vec3<f32>(0.0));
+    return select(1.0 / d, s * big, abs(d) < vec3<f32>(1.0e-30));
+}
+
+// cpu/ao.rs: VoxelMips level sizes. The voxel texture's size at `level`: the grid's dimensions rounded up
+// to a multiple of the coarsest texel (2^(mip_levels - 1) cells), halved `level` times.
+fn voxel_level_size(settings: HaoSettings, level: u32) -> vec3<u32> {
+    let align = 1u << (settings.mip_levels - 1u);
+    let padded = (settings.grid_dims + vec3<u32>(align - 1u)) / align * align;
+    return padded >> vec3<u32>(level);
+}

@@ -1,0 +1,91 @@
+// Hybrid ambient occlusion, pass 1: per pixel (or per 2x2 pixels at half resolution), cosine-weighted rays
+// from the surface (position from the depth prepass, normal from the normal prepass) through the voxel
+// texture, with empty-space skipping on its max-reduced mips. Writes the noisy AO (1 = open, 0 = occluded).
+// CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`.
+#import bevy_render::view::View
+#import bevy_hao::hao_common::{
+    HaoSettings, interleaved_gradient_noise, hemisphere_direction, ao_falloff, ray_box, safe_inverse,
+    voxel_level_size,
+}
+
+@group(0) @binding(0) var depth_texture: texture_depth_2d;
+@group(0) @binding(1) var normal_texture: texture_2d<f32>;
+@group(0) @binding(2) var voxels: texture_3d<f32>;
+@group(0) @binding(3) var<uniform> settings: HaoSettings;
+@group(0) @binding(4) var ao_out: texture_storage_2d<r32float, write>;
+@group(1) @binding(0) var<uniform> view: View;
+
+// cpu/ao.rs: march_voxels. The distance along `dir` (grid units, from `origin`) to the first occupied cell
+// within [t_start, t_end], or -1: start at mip level 2, step over empty texels whole, descend into occupied
+// ones; at most `settings.steps` texel visits.
+fn march_voxels(origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32) -> f32 {
+    let inv = safe_inverse(dir);
+    let span = ray_box(origin, inv, vec3<f32>(0.0), vec3<f32>(settings.grid_dims));
+    var t = max(t_start, span.x);
+    let t_max = min(t_end, span.y);
+    let top = settings.mip_levels - 1u;
+    var level = min(2u, top);
+    for (var i = 0u; i < settings.steps; i++) {
+        if t > t_max {
+            return -1.0;
+        }
+        let p = origin + dir * t;
+        // The level's size from the settings (the texture is padded to a multiple of the coarsest texel), not
+        // from textureDimensions, which Mesa 22's lavapipe gets wrong for levels >= 2 of 3D textures.
+        let size = vec3<i32>(voxel_level_size(settings, level));
+        let scale = f32(1u << level);
+        let texel = clamp(vec3<i32>(floor(p / scale)), vec3<i32>(0), size - vec3<i32>(1));
+        if textureLoad(voxels, texel, i32(level)).r > 0.0 {
+            if level == 0u {
+                return t;
+            }
+            level -= 1u;
+        } else {
+            let lo = vec3<f32>(texel) * scale;
+            let exit = ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y;
+            t = max(exit, t) + 1.0e-3;
+            level = min(level + 1u, top);
+        }
+    }
+    return -1.0;
+}
+
+fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
+    let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
+    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    let p = view.world_from_clip * vec4<f32>(ndc, depth, 1.0);
+    return p.xyz / p.w;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let out_size = textureDimensions(ao_out);
+    if any(gid.xy >= out_size) {
+        return;
+    }
+    let scale = select(1u, 2u, settings.half_resolution != 0u);
+    let pixel = min(gid.xy * scale, textureDimensions(depth_texture) - vec2<u32>(1u));
+    let depth = textureLoad(depth_texture, pixel, 0);
+    if depth <= 0.0 || settings.grid_valid == 0u {
+        textureStore(ao_out, gid.xy, vec4<f32>(1.0, 0.0, 0.0, 1.0));
+        return;
+    }
+    let world = world_position(pixel, depth);
+    let normal = normalize(textureLoad(normal_texture, pixel, 0).xyz * 2.0 - 1.0);
+    let surface = (world - settings.grid_origin) / settings.cell_size;
+    let origin = surface + normal * settings.start_offset;
+    let pf = vec2<f32>(pixel);
+    let rotation = vec2<f32>(interleaved_gradient_noise(pf, settings.frame), interleaved_gradient_noise(pf.yx + vec2<f32>(17.0, 59.0), settings.frame));
+    let t_end = settings.max_distance / settings.cell_size;
+    var occlusion = 0.0;
+    for (var i = 0u; i < settings.rays; i++) {
+        let dir = hemisphere_direction(normal, i, settings.rays, rotation);
+        let t = march_voxels(origin, dir, 0.0, t_end);
+        if t >= 0.0 {
+            let d = length(origin + dir * t - surface) * settings.cell_size;
+            occlusion += ao_falloff(d, settings.max_distance, settings.falloff);
+        }
+    }
+    let ao = clamp(1.0 - settings.intensity * occlusion / f32(settings.rays), 0.0, 1.0);
+    textureStore(ao_out, gid.xy, vec4<f32>(ao, 0.0, 0.0, 1.0));
+}

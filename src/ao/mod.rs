@@ -1,0 +1,132 @@
+//! Hybrid ambient occlusion: per pixel, rays through the voxel grid.
+//!
+//! Per view with a [`HybridAmbientOcclusion`], in `Core3d` after Bevy's SSAO and before the main opaque pass
+//! and deferred lighting:
+//!
+//! 1. **trace** (`hao_trace.wgsl`, GPU span `hao/trace`): from each pixel's world position and normal (the
+//!    depth and normal prepasses), cosine-weighted hemisphere rays, rotated per pixel (and per frame when
+//!    TAA jitters the view), start about a voxel off the surface and march the voxel texture up to
+//!    `max_distance`, skipping empty space on its mips; each hit weighs `(1 - d/max)^falloff`;
+//! 2. **denoise** (`hao_denoise.wgsl`, `hao/denoise`): a depth- and normal-aware bilateral filter, which also
+//!    upsamples a half-resolution trace, and the minimum with Bevy's SSAO when the near field is on;
+//! 3. **apply** (`hao_apply.wgsl`, `hao/apply`): the result into the texture Bevy's PBR reads AO from, so
+//!    it dims indirect light only.
+//!
+//! The CPU twin of the trace is [`crate::cpu::ao`].
+
+pub mod node;
+pub mod pipelines;
+pub mod prepare;
+pub mod settings;
+
+pub use settings::{HaoAddedSsao, HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
+
+use bevy::asset::embedded_asset;
+use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
+use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
+use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel};
+use bevy::prelude::*;
+use bevy::render::extract_component::ExtractComponentPlugin;
+use bevy::render::renderer::RenderDevice;
+use bevy::render::{GpuResourceAppExt, Render, RenderApp, RenderSystems};
+use bevy::shader::load_shader_library;
+
+/// Renders [`HybridAmbientOcclusion`] (added by [`crate::HaoPlugin`]).
+#[derive(Default)]
+pub struct HybridAmbientOcclusionPlugin;
+
+impl Plugin for HybridAmbientOcclusionPlugin {
+    fn build(&self, app: &mut App) {
+        load_shader_library!(app, "hao_common.wgsl");
+        embedded_asset!(app, "hao_trace.wgsl");
+        embedded_asset!(app, "hao_denoise.wgsl");
+        embedded_asset!(app, "hao_apply.wgsl");
+        embedded_asset!(app, "hao_debug_copy.wgsl");
+        app.register_type::<HybridAmbientOcclusion>()
+            .add_plugins((
+                ExtractComponentPlugin::<HybridAmbientOcclusion>::default(),
+                ExtractComponentPlugin::<HaoDebugImages>::default(),
+            ))
+            .add_systems(PostUpdate, configure_hao_cameras);
+    }
+
+    fn finish(&self, app: &mut App) {
+        let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
+        // Bevy's SSAO plugin, whose texture PBR reads, needs 5 storage textures per stage; so do we.
+        if render_app.world().resource::<RenderDevice>().limits().max_storage_textures_per_shader_stage < 5 {
+            warn!(
+                "bevy_hao: hybrid ambient occlusion is disabled: Limits::max_storage_textures_per_shader_stage is below 5 (Bevy's SSAO is unavailable too)"
+            );
+            return;
+        }
+        render_app
+            .init_gpu_resource::<pipelines::HaoPipelines>()
+            .add_systems(
+                Render,
+                (
+                    prepare::prepare_hao_textures.in_set(RenderSystems::PrepareResources),
+                    prepare::prepare_hao_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                ),
+            )
+            .add_systems(
+                Core3d,
+                (node::hao, node::hao_debug_copy)
+                    .chain()
+                    .in_set(Core3dSystems::MainPass)
+                    .before(main_opaque_pass_3d)
+                    .before(bevy::pbr::deferred::deferred_lighting),
+            );
+    }
+}
+
+/// The SSAO quality a HAO camera asks for: its near-field quality, or the cheapest when the near field is
+/// off (the SSAO pass still runs, since PBR reads AO from its texture, but its result is unused).
+fn ssao_for(hao: &HybridAmbientOcclusion) -> ScreenSpaceAmbientOcclusion {
+    ScreenSpaceAmbientOcclusion {
+        quality_level: if hao.near_field {
+            hao.near_field_quality
+        } else {
+            ScreenSpaceAmbientOcclusionQualityLevel::Custom { slice_count: 1, samples_per_slice_side: 1 }
+        },
+        ..default()
+    }
+}
+
+/// Gives HAO cameras what they need: Bevy's SSAO (added and removed with HAO unless the user put it there)
+/// and `Msaa::Off`.
+fn configure_hao_cameras(
+    mut commands: Commands,
+    cameras: Query<(
+        Entity,
+        Ref<HybridAmbientOcclusion>,
+        Option<&ScreenSpaceAmbientOcclusion>,
+        Has<HaoAddedSsao>,
+        &Msaa,
+    )>,
+    mut removed: RemovedComponents<HybridAmbientOcclusion>,
+    added_ssao: Query<(), With<HaoAddedSsao>>,
+) {
+    for (entity, hao, ssao, we_added, msaa) in &cameras {
+        if *msaa != Msaa::Off {
+            warn!("bevy_hao: {entity} has HybridAmbientOcclusion, which needs Msaa::Off; turning MSAA off");
+            commands.entity(entity).insert(Msaa::Off);
+        }
+        match ssao {
+            None => {
+                commands.entity(entity).insert((ssao_for(&hao), HaoAddedSsao));
+            }
+            Some(current) if we_added && hao.is_changed() => {
+                let wanted = ssao_for(&hao);
+                if *current != wanted {
+                    commands.entity(entity).insert(wanted);
+                }
+            }
+            _ => {}
+        }
+    }
+    for entity in removed.read() {
+        if added_ssao.contains(entity) && !cameras.contains(entity) {
+            commands.entity(entity).remove::<(ScreenSpaceAmbientOcclusion, HaoAddedSsao)>();
+        }
+    }
+}

@@ -1,0 +1,87 @@
+//! The HAO passes of a view, in `Core3d` after Bevy's SSAO and before anything lights with ambient
+//! occlusion (the main opaque pass, deferred lighting).
+
+use super::pipelines::HaoPipelines;
+use super::prepare::{HaoBindGroups, HaoDebugBindGroup, HaoViewResources};
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_resource::*;
+use bevy::render::renderer::{RenderContext, ViewQuery};
+use bevy::render::view::ViewUniformOffset;
+
+fn groups(size: UVec2) -> (u32, u32) {
+    (size.x.div_ceil(8), size.y.div_ceil(8))
+}
+
+/// Trace, denoise, apply.
+pub fn hao(
+    view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset)>,
+    pipelines: Res<HaoPipelines>,
+    cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (res, bind_groups, view_offset) = view.into_inner();
+    let (Some(trace), Some(denoise), Some(apply)) = (
+        cache.get_compute_pipeline(pipelines.trace),
+        cache.get_compute_pipeline(pipelines.denoise),
+        cache.get_compute_pipeline(pipelines.apply),
+    ) else {
+        return;
+    };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let encoder = ctx.command_encoder();
+    encoder.push_debug_group("hao");
+    {
+        let mut pass =
+            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_trace"), timestamp_writes: None });
+        let span = diagnostics.pass_span(&mut pass, "hao/trace");
+        pass.set_pipeline(trace);
+        pass.set_bind_group(0, &bind_groups.trace, &[]);
+        pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
+        let (x, y) = groups(res.trace_size);
+        pass.dispatch_workgroups(x, y, 1);
+        span.end(&mut pass);
+    }
+    {
+        let mut pass =
+            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_denoise"), timestamp_writes: None });
+        let span = diagnostics.pass_span(&mut pass, "hao/denoise");
+        pass.set_pipeline(denoise);
+        pass.set_bind_group(0, &bind_groups.denoise, &[]);
+        pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
+        let (x, y) = groups(res.view_size);
+        pass.dispatch_workgroups(x, y, 1);
+        span.end(&mut pass);
+    }
+    {
+        let mut pass =
+            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_apply"), timestamp_writes: None });
+        let span = diagnostics.pass_span(&mut pass, "hao/apply");
+        pass.set_pipeline(apply);
+        pass.set_bind_group(0, &bind_groups.apply, &[]);
+        let (x, y) = groups(res.view_size);
+        pass.dispatch_workgroups(x, y, 1);
+        span.end(&mut pass);
+    }
+    encoder.pop_debug_group();
+}
+
+/// Copies the view's AO, depth and normal into its [`super::HaoDebugImages`].
+pub fn hao_debug_copy(
+    view: ViewQuery<(&HaoDebugBindGroup, &bevy::render::camera::ExtractedCamera)>,
+    pipelines: Res<HaoPipelines>,
+    cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (bind_group, camera) = view.into_inner();
+    let Some(size) = camera.physical_viewport_size else { return };
+    let Some(pipeline) = cache.get_compute_pipeline(pipelines.debug_copy) else { return };
+    let mut pass = ctx
+        .command_encoder()
+        .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_debug_copy"), timestamp_writes: None });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, &bind_group.0, &[]);
+    let (x, y) = groups(size);
+    pass.dispatch_workgroups(x, y, 1);
+}

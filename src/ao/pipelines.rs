@@ -1,0 +1,183 @@
+//! The HAO pipelines.
+
+use bevy::asset::load_embedded_asset;
+use bevy::prelude::*;
+use bevy::render::render_resource::binding_types::{
+    texture_2d, texture_3d, texture_depth_2d, texture_storage_2d, uniform_buffer, uniform_buffer_sized,
+};
+use bevy::render::render_resource::*;
+use bevy::render::renderer::{RenderAdapter, RenderDevice, RenderQueue};
+use bevy::render::view::ViewUniform;
+use bevy::shader::ShaderDefVal;
+
+/// The HAO pipelines, layouts, and a 1-voxel texture bound when there is no voxel grid.
+#[derive(Resource)]
+pub struct HaoPipelines {
+    /// Group 1 of trace and denoise: the view uniform.
+    pub view_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of trace.
+    pub trace_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of denoise.
+    pub denoise_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of apply.
+    pub apply_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the debug copy.
+    pub debug_layout: BindGroupLayoutDescriptor,
+    /// Rays through the voxels.
+    pub trace: CachedComputePipelineId,
+    /// Bilateral filter and near field.
+    pub denoise: CachedComputePipelineId,
+    /// Into the texture PBR reads.
+    pub apply: CachedComputePipelineId,
+    /// Into the debug images.
+    pub debug_copy: CachedComputePipelineId,
+    /// The format of Bevy's SSAO texture on this adapter (as `bevy_pbr::ssao` chooses it).
+    pub ssao_format: TextureFormat,
+    /// An empty 1x1x1 voxel texture.
+    pub empty_voxels: TextureView,
+}
+
+impl FromWorld for HaoPipelines {
+    fn from_world(world: &mut World) -> Self {
+        let adapter = world.resource::<RenderAdapter>();
+        // The same rule as bevy_pbr's SsaoPipelines.
+        let ssao_format = if adapter
+            .get_texture_format_features(TextureFormat::R16Float)
+            .allowed_usages
+            .contains(TextureUsages::STORAGE_BINDING)
+        {
+            TextureFormat::R16Float
+        } else {
+            TextureFormat::R32Float
+        };
+        let device = world.resource::<RenderDevice>();
+        let queue = world.resource::<RenderQueue>();
+        let empty_voxels = device
+            .create_texture_with_data(
+                queue,
+                &TextureDescriptor {
+                    label: Some("hao_empty_voxels"),
+                    size: Extent3d { width: 1, height: 1, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: TextureDimension::D3,
+                    format: TextureFormat::R32Float,
+                    usage: TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                },
+                TextureDataOrder::default(),
+                &[0; 4],
+            )
+            .create_view(&TextureViewDescriptor::default());
+        let unfilterable = TextureSampleType::Float { filterable: false };
+        let view_layout = BindGroupLayoutDescriptor::new(
+            "hao_view_layout",
+            &BindGroupLayoutEntries::single(ShaderStages::COMPUTE, uniform_buffer::<ViewUniform>(true)),
+        );
+        let trace_layout = BindGroupLayoutDescriptor::new(
+            "hao_trace_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    texture_depth_2d(),
+                    texture_2d(unfilterable),
+                    texture_3d(unfilterable),
+                    uniform_buffer_sized(false, None),
+                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let denoise_layout = BindGroupLayoutDescriptor::new(
+            "hao_denoise_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    texture_2d(unfilterable),
+                    texture_depth_2d(),
+                    texture_2d(unfilterable),
+                    texture_2d(unfilterable),
+                    uniform_buffer_sized(false, None),
+                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let apply_layout = BindGroupLayoutDescriptor::new(
+            "hao_apply_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (texture_2d(unfilterable), texture_storage_2d(ssao_format, StorageTextureAccess::WriteOnly)),
+            ),
+        );
+        let debug_layout = BindGroupLayoutDescriptor::new(
+            "hao_debug_copy_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    texture_2d(unfilterable),
+                    texture_depth_2d(),
+                    texture_2d(unfilterable),
+                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let cache = world.resource::<PipelineCache>();
+        let queue_pipeline = |label: &'static str,
+                              layout: Vec<BindGroupLayoutDescriptor>,
+                              shader: Handle<Shader>,
+                              entry: &'static str,
+                              defs: Vec<ShaderDefVal>| {
+            cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                label: Some(label.into()),
+                layout,
+                shader,
+                shader_defs: defs,
+                entry_point: Some(entry.into()),
+                ..default()
+            })
+        };
+        let trace = queue_pipeline(
+            "hao_trace",
+            vec![trace_layout.clone(), view_layout.clone()],
+            load_embedded_asset!(world, "hao_trace.wgsl"),
+            "trace",
+            vec![],
+        );
+        let denoise = queue_pipeline(
+            "hao_denoise",
+            vec![denoise_layout.clone(), view_layout.clone()],
+            load_embedded_asset!(world, "hao_denoise.wgsl"),
+            "denoise",
+            vec![],
+        );
+        let apply_defs = if ssao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
+        let apply = queue_pipeline(
+            "hao_apply",
+            vec![apply_layout.clone()],
+            load_embedded_asset!(world, "hao_apply.wgsl"),
+            "apply",
+            apply_defs,
+        );
+        let debug_copy = queue_pipeline(
+            "hao_debug_copy",
+            vec![debug_layout.clone()],
+            load_embedded_asset!(world, "hao_debug_copy.wgsl"),
+            "debug_copy",
+            vec![],
+        );
+        Self {
+            view_layout,
+            trace_layout,
+            denoise_layout,
+            apply_layout,
+            debug_layout,
+            trace,
+            denoise,
+            apply,
+            debug_copy,
+            ssao_format,
+            empty_voxels,
+        }
+    }
+}

@@ -1,0 +1,224 @@
+//! Per-view textures, settings and bind groups of the HAO passes.
+
+use super::pipelines::HaoPipelines;
+use super::settings::{HaoDebugImages, HybridAmbientOcclusion};
+use crate::voxel::extract::ExtractedVoxelGrid;
+use bevy::core_pipeline::prepass::ViewPrepassTextures;
+use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
+use bevy::prelude::*;
+use bevy::render::camera::{ExtractedCamera, TemporalJitter};
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_resource::*;
+use bevy::render::renderer::RenderDevice;
+use bevy::render::texture::{CachedTexture, GpuImage, TextureCache};
+use bevy::render::view::ViewUniforms;
+use bytemuck::{Pod, Zeroable};
+
+/// The WGSL `HaoSettings`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct GpuHaoSettings {
+    /// World position of the grid's min corner.
+    pub grid_origin: [f32; 3],
+    /// World size of a cell.
+    pub cell_size: f32,
+    /// Cells per axis.
+    pub grid_dims: [u32; 3],
+    /// Mip levels of the voxel texture.
+    pub mip_levels: u32,
+    /// Rays per pixel.
+    pub rays: u32,
+    /// Texel visits per ray.
+    pub steps: u32,
+    /// World units.
+    pub max_distance: f32,
+    /// Falloff exponent.
+    pub falloff: f32,
+    /// Occlusion scale.
+    pub intensity: f32,
+    /// Ray start offset, cells.
+    pub start_offset: f32,
+    /// 1 if there is a voxel grid.
+    pub grid_valid: u32,
+    /// Noise frame (0 unless TAA jitters the view).
+    pub frame: u32,
+    /// 1 to take the minimum with SSAO.
+    pub near_field: u32,
+    /// 1 to trace at half resolution.
+    pub half_resolution: u32,
+    /// Bilateral filter radius.
+    pub denoise_radius: u32,
+    /// Padding.
+    pub _pad: u32,
+}
+
+/// A view's HAO textures and settings.
+#[derive(Component)]
+pub struct HaoViewResources {
+    /// The traced AO (half or full resolution).
+    pub noisy: CachedTexture,
+    /// The denoised (and near-field combined) AO, full resolution.
+    pub result: CachedTexture,
+    /// The settings uniform.
+    pub settings: Buffer,
+    /// Size of the noisy texture.
+    pub trace_size: UVec2,
+    /// Size of the view.
+    pub view_size: UVec2,
+}
+
+/// A view's HAO bind groups.
+#[derive(Component)]
+pub struct HaoBindGroups {
+    /// The view uniform.
+    pub view: BindGroup,
+    /// Trace.
+    pub trace: BindGroup,
+    /// Denoise.
+    pub denoise: BindGroup,
+    /// Apply.
+    pub apply: BindGroup,
+}
+
+/// A view's debug-copy bind group.
+#[derive(Component)]
+pub struct HaoDebugBindGroup(pub BindGroup);
+
+/// Creates the per-view textures and settings.
+pub fn prepare_hao_textures(
+    mut commands: Commands,
+    mut texture_cache: ResMut<TextureCache>,
+    device: Res<RenderDevice>,
+    grid: Res<ExtractedVoxelGrid>,
+    views: Query<(Entity, &ExtractedCamera, &HybridAmbientOcclusion, Has<TemporalJitter>)>,
+    mut frame: Local<u32>,
+) {
+    *frame = frame.wrapping_add(1);
+    for (entity, camera, hao, jitter) in &views {
+        let Some(view_size) = camera.physical_viewport_size else { continue };
+        let (rays, steps, half) = hao.quality.parameters();
+        let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
+        let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2| {
+            cache.get(
+                &device,
+                TextureDescriptor {
+                    label: Some(label),
+                    size: Extent3d { width: size.x.max(1), height: size.y.max(1), depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: TextureDimension::D2,
+                    format: TextureFormat::R32Float,
+                    usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                },
+            )
+        };
+        let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size);
+        let result = texture(&mut texture_cache, "hao_result_texture", view_size);
+        let g = grid.0.as_ref();
+        let settings = GpuHaoSettings {
+            grid_origin: g.map_or([0.0; 3], |g| g.grid.origin.to_array()),
+            cell_size: g.map_or(1.0, |g| g.grid.cell_size),
+            grid_dims: g.map_or([1; 3], |g| g.grid.dims.to_array()),
+            mip_levels: g.map_or(1, |g| g.mip_levels),
+            rays,
+            steps,
+            max_distance: hao.max_distance.max(1.0e-4),
+            falloff: hao.falloff.max(0.0),
+            intensity: hao.intensity.max(0.0),
+            start_offset: hao.start_offset.max(0.0),
+            grid_valid: g.is_some() as u32,
+            frame: if jitter { *frame } else { 0 },
+            near_field: hao.near_field as u32,
+            half_resolution: half as u32,
+            denoise_radius: hao.denoise_radius.min(8),
+            _pad: 0,
+        };
+        let settings = device.create_buffer_with_data(&BufferInitDescriptor {
+            label: Some("hao_settings"),
+            contents: bytemuck::bytes_of(&settings),
+            usage: BufferUsages::UNIFORM,
+        });
+        commands.entity(entity).insert(HaoViewResources { noisy, result, settings, trace_size, view_size });
+    }
+}
+
+/// Creates the per-view bind groups.
+#[allow(clippy::too_many_arguments)]
+pub fn prepare_hao_bind_groups(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    pipelines: Res<HaoPipelines>,
+    cache: Res<PipelineCache>,
+    view_uniforms: Res<ViewUniforms>,
+    grid: Res<ExtractedVoxelGrid>,
+    images: Res<RenderAssets<GpuImage>>,
+    views: Query<(Entity, &HaoViewResources, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
+    debug_views: Query<(Entity, &HaoDebugImages, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
+) {
+    let Some(view_binding) = view_uniforms.uniforms.binding() else { return };
+    let voxels = grid
+        .0
+        .as_ref()
+        .and_then(|g| images.get(&g.texture))
+        .map(|i| &i.texture_view)
+        .unwrap_or(&pipelines.empty_voxels);
+    for (entity, res, prepass, ssao) in &views {
+        let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
+        let ssao_view = &ssao.screen_space_ambient_occlusion_texture.default_view;
+        let view = device.create_bind_group(
+            "hao_view_bind_group",
+            &cache.get_bind_group_layout(&pipelines.view_layout),
+            &BindGroupEntries::single(view_binding.clone()),
+        );
+        let trace = device.create_bind_group(
+            "hao_trace_bind_group",
+            &cache.get_bind_group_layout(&pipelines.trace_layout),
+            &BindGroupEntries::sequential((
+                depth,
+                normal,
+                voxels,
+                res.settings.as_entire_binding(),
+                &res.noisy.default_view,
+            )),
+        );
+        let denoise = device.create_bind_group(
+            "hao_denoise_bind_group",
+            &cache.get_bind_group_layout(&pipelines.denoise_layout),
+            &BindGroupEntries::sequential((
+                &res.noisy.default_view,
+                depth,
+                normal,
+                ssao_view,
+                res.settings.as_entire_binding(),
+                &res.result.default_view,
+            )),
+        );
+        let apply = device.create_bind_group(
+            "hao_apply_bind_group",
+            &cache.get_bind_group_layout(&pipelines.apply_layout),
+            &BindGroupEntries::sequential((&res.result.default_view, ssao_view)),
+        );
+        commands.entity(entity).insert(HaoBindGroups { view, trace, denoise, apply });
+    }
+    for (entity, debug, prepass, ssao) in &debug_views {
+        let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
+        let (Some(ao), Some(d), Some(n)) = (images.get(&debug.ao), images.get(&debug.depth), images.get(&debug.normal))
+        else {
+            continue;
+        };
+        let bind_group = device.create_bind_group(
+            "hao_debug_copy_bind_group",
+            &cache.get_bind_group_layout(&pipelines.debug_layout),
+            &BindGroupEntries::sequential((
+                &ssao.screen_space_ambient_occlusion_texture.default_view,
+                depth,
+                normal,
+                &ao.texture_view,
+                &d.texture_view,
+                &n.texture_view,
+            )),
+        );
+        commands.entity(entity).insert(HaoDebugBindGroup(bind_group));
+    }
+}

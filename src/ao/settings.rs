@@ -1,0 +1,144 @@
+//! The camera component and its settings.
+
+use bevy::core_pipeline::prepass::{DepthPrepass, NormalPrepass};
+use bevy::pbr::ScreenSpaceAmbientOcclusionQualityLevel;
+use bevy::prelude::*;
+use bevy::render::extract_component::ExtractComponent;
+
+/// Voxel-based hybrid ambient occlusion on a 3D camera: per pixel, rays through the scene's voxel grid
+/// (see [`crate::VoxelVolume`]), so occluders off screen, behind other objects or far away still darken what
+/// they shadow. The result replaces the ambient occlusion Bevy's PBR shading reads: it dims indirect light
+/// (ambient, environment maps, irradiance volumes) only, in forward and deferred rendering.
+///
+/// Adding it to a camera is enough: it requires the depth and normal prepasses, turns MSAA off (AO needs
+/// `Msaa::Off`, as Bevy's SSAO does) and adds Bevy's `ScreenSpaceAmbientOcclusion`, whose texture is where
+/// PBR reads AO and which provides the optional near field. Removing it removes what it added.
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_hao::prelude::*;
+/// fn setup(mut commands: Commands) {
+///     commands.spawn((Camera3d::default(), HybridAmbientOcclusion::default()));
+/// }
+/// ```
+#[derive(Component, ExtractComponent, Reflect, Clone, Debug, PartialEq)]
+#[reflect(Component, Default, Debug, PartialEq, Clone)]
+#[require(DepthPrepass, NormalPrepass)]
+#[extract_component_sync_target((Self, super::prepare::HaoViewResources, super::prepare::HaoBindGroups))]
+pub struct HybridAmbientOcclusion {
+    /// Rays, steps and resolution.
+    pub quality: HaoQuality,
+    /// How far rays look for occluders, world units.
+    pub max_distance: f32,
+    /// How fast an occluder's weight falls with distance: `(1 - d / max_distance)^falloff` (0: not at all,
+    /// 1: linearly, higher: only close occluders count).
+    pub falloff: f32,
+    /// Scale of the occlusion (1: physically motivated, higher: darker).
+    pub intensity: f32,
+    /// Rays start this many voxels away from the surface along its normal, so that a surface does not
+    /// occlude itself through its own voxels. Closer occluders are the near field's job.
+    pub start_offset: f32,
+    /// Combine with Bevy's screen-space AO (the minimum of both) for contact detail finer than a voxel.
+    pub near_field: bool,
+    /// The quality of Bevy's SSAO when it provides the near field. Without the near field the plugin keeps
+    /// SSAO at its cheapest, since its result is not used.
+    pub near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel,
+    /// Radius in pixels (of the traced resolution) of the bilateral denoiser; 0 turns it off.
+    pub denoise_radius: u32,
+}
+
+impl Default for HybridAmbientOcclusion {
+    fn default() -> Self {
+        Self {
+            quality: HaoQuality::High,
+            max_distance: 3.0,
+            falloff: 1.0,
+            intensity: 1.0,
+            start_offset: 1.0,
+            near_field: true,
+            near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel::Medium,
+            denoise_radius: 2,
+        }
+    }
+}
+
+/// Quality presets of [`HybridAmbientOcclusion`].
+#[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+#[reflect(Default, Debug, PartialEq, Hash, Clone)]
+pub enum HaoQuality {
+    /// 4 rays of 24 steps, traced at half resolution and upsampled with depth.
+    Low,
+    /// 6 rays of 32 steps.
+    Medium,
+    /// 8 rays of 48 steps.
+    #[default]
+    High,
+    /// 16 rays of 64 steps.
+    Ultra,
+    /// Your own.
+    Custom {
+        /// Rays per pixel.
+        rays: u32,
+        /// Texel visits per ray (empty space is skipped at up to 16 voxels a step).
+        steps: u32,
+        /// Trace at half resolution.
+        half_resolution: bool,
+    },
+}
+
+impl HaoQuality {
+    /// `(rays, steps, half_resolution)`.
+    pub fn parameters(&self) -> (u32, u32, bool) {
+        match *self {
+            Self::Low => (4, 24, true),
+            Self::Medium => (6, 32, false),
+            Self::High => (8, 48, false),
+            Self::Ultra => (16, 64, false),
+            Self::Custom { rays, steps, half_resolution } => {
+                (rays.clamp(1, 256), steps.clamp(1, 1024), half_resolution)
+            }
+        }
+    }
+}
+
+/// Put on a camera to get what its ambient occlusion was computed from and what it came to, in images that
+/// can be shown or read back (`Readback::texture`): the AO PBR reads (HAO's, or Bevy's SSAO alone on a camera
+/// without [`HybridAmbientOcclusion`]) as `R32Float`, the prepass depth as `R32Float` (Bevy's reverse-Z
+/// NDC depth, 0 = far), and the world normal as `Rgba16Float`. Sized like the camera's target.
+#[derive(Component, ExtractComponent, Clone, Debug, PartialEq)]
+pub struct HaoDebugImages {
+    /// Ambient occlusion, 1 = open.
+    pub ao: Handle<Image>,
+    /// Depth.
+    pub depth: Handle<Image>,
+    /// World-space normal (xyz).
+    pub normal: Handle<Image>,
+}
+
+impl HaoDebugImages {
+    /// Creates the three images for a target of `size` pixels.
+    pub fn new(images: &mut Assets<Image>, size: UVec2) -> Self {
+        use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
+        let mut image = |format: TextureFormat| {
+            let mut image = Image::new_uninit(
+                Extent3d { width: size.x, height: size.y, depth_or_array_layers: 1 },
+                TextureDimension::D2,
+                format,
+                bevy::asset::RenderAssetUsages::RENDER_WORLD,
+            );
+            image.texture_descriptor.usage =
+                TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_SRC;
+            images.add(image)
+        };
+        Self {
+            ao: image(TextureFormat::R32Float),
+            depth: image(TextureFormat::R32Float),
+            normal: image(TextureFormat::Rgba16Float),
+        }
+    }
+}
+
+/// Marks a camera whose `ScreenSpaceAmbientOcclusion` was added by [`HybridAmbientOcclusion`] (and goes
+/// when it goes).
+#[derive(Component, Clone, Copy, Debug, Default)]
+pub struct HaoAddedSsao;
