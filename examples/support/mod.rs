@@ -4,6 +4,9 @@
 
 #![allow(dead_code)]
 
+pub mod reference;
+pub mod scene;
+
 use bevy::app::PluginGroupBuilder;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology};
@@ -47,8 +50,20 @@ pub fn take_render_errors() -> Vec<String> {
 
 static LOGGING: std::sync::Once = std::sync::Once::new();
 
+/// Where the app's `AssetServer` reads from (the folder of a model given by path), if not `assets/`.
+static ASSET_ROOT: Mutex<Option<String>> = Mutex::new(None);
+
+/// Makes the next apps' `AssetServer` read from `dir` (for a model's textures and glTF scenes).
+pub fn set_asset_root(dir: Option<String>) {
+    *ASSET_ROOT.lock().unwrap() = dir;
+}
+
 fn plugins() -> PluginGroupBuilder {
     let mut plugins = DefaultPlugins.build();
+    if let Some(root) = ASSET_ROOT.lock().unwrap().clone() {
+        plugins =
+            plugins.set(AssetPlugin { file_path: root, meta_check: bevy::asset::AssetMetaCheck::Never, ..default() });
+    }
     // Logging can be set up once per process: the first app gets it, later ones do not.
     let mut first = false;
     LOGGING.call_once(|| first = true);

@@ -42,15 +42,16 @@ fn orthonormal_basis(n: vec3<f32>) -> mat3x3<f32> {
     return mat3x3<f32>(t, bt, n);
 }
 
-// cpu/ao.rs: hemisphere_direction. Ray `i` of `count`, cosine-weighted around `normal` and stratified in
-// the polar coordinate; `rotation` (two numbers in [0, 1)) shifts the whole set per pixel.
-fn hemisphere_direction(normal: vec3<f32>, i: u32, count: u32, rotation: vec2<f32>) -> vec3<f32> {
+// cpu/ao.rs: hemisphere_direction. Ray `i` of `count`, cosine-weighted around the normal (the third column
+// of `basis`, from `orthonormal_basis`) and stratified in the polar coordinate; `rotation` (two numbers in
+// [0, 1)) shifts the whole set per pixel.
+fn hemisphere_direction(basis: mat3x3<f32>, i: u32, count: u32, rotation: vec2<f32>) -> vec3<f32> {
     let u1 = fract((f32(i) + rotation.x) / f32(count));
     let u2 = fract(f32(i) * GOLDEN + rotation.y);
     let r = sqrt(u1);
     let phi = 2.0 * PI * u2;
     let local = vec3<f32>(r * cos(phi), r * sin(phi), sqrt(max(0.0, 1.0 - u1)));
-    return orthonormal_basis(normal) * local;
+    return basis * local;
 }
 
 // cpu/ao.rs: ao_falloff. The weight of an occluder at `distance`: 1 near the surface, 0 at `max_distance`
@@ -82,4 +83,33 @@ fn voxel_level_size(settings: HaoSettings, level: u32) -> vec3<u32> {
     let align = 1u << (settings.mip_levels - 1u);
     let padded = (settings.grid_dims + vec3<u32>(align - 1u)) / align * align;
     return padded >> vec3<u32>(level);
+}
+
+// Octahedral encoding of a unit vector into [-1, 1]^2 (for the denoiser's packed normals).
+fn octahedral_encode(n: vec3<f32>) -> vec2<f32> {
+    let p = n.xy / (abs(n.x) + abs(n.y) + abs(n.z));
+    if n.z >= 0.0 {
+        return p;
+    }
+    return (1.0 - abs(p.yx)) * select(vec2<f32>(-1.0), vec2<f32>(1.0), p >= vec2<f32>(0.0));
+}
+
+fn octahedral_decode(e: vec2<f32>) -> vec3<f32> {
+    var n = vec3<f32>(e, 1.0 - abs(e.x) - abs(e.y));
+    let t = max(-n.z, 0.0);
+    n.x += select(t, -t, n.x >= 0.0);
+    n.y += select(t, -t, n.y >= 0.0);
+    return normalize(n);
+}
+
+// The denoiser's weight of a tap `offset` texels away with view depth `depth` and normal `normal`, against
+// the center's: a Gaussian in distance, falling with the relative depth difference and the normals' angle.
+fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, center_normal: vec3<f32>, normal: vec3<f32>) -> f32 {
+    let spatial = exp(-offset * offset / (2.0 * max(radius * radius, 1.0)));
+    let depth_w = exp(-abs(depth - center_depth) / (0.02 * abs(center_depth) + 1.0e-4));
+    let c = max(dot(center_normal, normal), 0.0);
+    let c2 = c * c;
+    let c4 = c2 * c2;
+    let c8 = c4 * c4;
+    return spatial * depth_w * c8 * c8;
 }

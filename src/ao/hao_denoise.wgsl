@@ -1,69 +1,38 @@
-// Hybrid ambient occlusion, pass 2: a bilateral filter (depth- and normal-aware) over the noisy AO, which
-// also upsamples it from half resolution, and, with the near field on, the minimum with Bevy's own
-// screen-space AO for contact detail finer than a voxel.
-#import bevy_render::view::View
-#import bevy_hao::hao_common::HaoSettings
+// Hybrid ambient occlusion, pass 2: a separable bilateral filter (depth- and normal-aware) over the noisy
+// AO. The horizontal half runs at the traced resolution; the vertical half runs at full resolution, so it
+// also upsamples a half-resolution trace, weighing each tap against the full-resolution pixel's own depth
+// and normal. With the near field on, the result is the minimum with Bevy's screen-space AO.
+#import bevy_hao::hao_common::{HaoSettings, octahedral_decode, bilateral_weight}
 
+// Horizontal half: noisy (ao, view depth, octahedral normal) -> filtered, same layout.
 @group(0) @binding(0) var noisy: texture_2d<f32>;
-@group(0) @binding(1) var depth_texture: texture_depth_2d;
-@group(0) @binding(2) var normal_texture: texture_2d<f32>;
-@group(0) @binding(3) var screen_space_ao: texture_2d<f32>;
-@group(0) @binding(4) var<uniform> settings: HaoSettings;
-@group(0) @binding(5) var ao_out: texture_storage_2d<r32float, write>;
-@group(1) @binding(0) var<uniform> view: View;
-
-fn view_depth(pixel: vec2<u32>) -> f32 {
-    let d = textureLoad(depth_texture, pixel, 0);
-    let p = view.view_from_clip * vec4<f32>(0.0, 0.0, d, 1.0);
-    return -p.z / p.w;
-}
-
-fn world_normal(pixel: vec2<u32>) -> vec3<f32> {
-    return normalize(textureLoad(normal_texture, pixel, 0).xyz * 2.0 - 1.0);
-}
+@group(0) @binding(1) var<uniform> settings: HaoSettings;
+@group(0) @binding(2) var filtered_out: texture_storage_2d<rgba16float, write>;
 
 @compute @workgroup_size(8, 8, 1)
-fn denoise(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let size = textureDimensions(ao_out);
+fn denoise_horizontal(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = textureDimensions(noisy);
     if any(gid.xy >= size) {
         return;
     }
-    let pixel = gid.xy;
-    var ao = 1.0;
-    if textureLoad(depth_texture, pixel, 0) > 0.0 {
-        let scale = select(1u, 2u, settings.half_resolution != 0u);
-        let noisy_size = vec2<i32>(textureDimensions(noisy));
-        let center = vec2<i32>(pixel / scale);
-        let d0 = view_depth(pixel);
-        let n0 = world_normal(pixel);
-        let r = i32(settings.denoise_radius);
-        var sum = 0.0;
-        var weights = 0.0;
-        for (var dy = -r; dy <= r; dy++) {
-            for (var dx = -r; dx <= r; dx++) {
-                let q = clamp(center + vec2<i32>(dx, dy), vec2<i32>(0), noisy_size - vec2<i32>(1));
-                let full = min(vec2<u32>(q) * scale, size - vec2<u32>(1u));
-                if textureLoad(depth_texture, full, 0) <= 0.0 {
-                    continue;
-                }
-                let dq = view_depth(full);
-                let nq = world_normal(full);
-                let spatial = exp(-f32(dx * dx + dy * dy) / (2.0 * max(f32(r * r), 1.0)));
-                let depth_w = exp(-abs(dq - d0) / (0.02 * abs(d0) + 1.0e-4));
-                let normal_w = pow(max(dot(n0, nq), 0.0), 16.0);
-                let w = spatial * depth_w * normal_w;
-                sum += w * textureLoad(noisy, q, 0).r;
-                weights += w;
-            }
-        }
-        if weights > 1.0e-6 {
-            ao = sum / weights;
-        } else {
-            ao = textureLoad(noisy, center, 0).r;
-        }
+    let center = textureLoad(noisy, gid.xy, 0);
+    if center.y <= 0.0 {
+        textureStore(filtered_out, gid.xy, center);
+        return;
     }
-    if settings.near_field != 0u {
-        ao = min(ao, textureLoad(screen_space_ao, pixel, 0).r);
+    let n0 = octahedral_decode(center.zw);
+    let r = i32(settings.denoise_radius);
+    var sum = 0.0;
+    var weights = 0.0;
+    for (var dx = -r; dx <= r; dx++) {
+        let x = clamp(i32(gid.x) + dx, 0, i32(size.x) - 1);
+        let tap = textureLoad(noisy, vec2<i32>(x, i32(gid.y)), 0);
+        if tap.y <= 0.0 {
+            continue;
+        }
+        let w = bilateral_weight(f32(dx), f32(r), center.y, tap.y, n0, octahedral_decode(tap.zw));
+        sum += w * tap.x;
+        weights += w;
     }
-    textureStore(ao_out, pixel, vec4<f32>(clamp(ao, 0.0, 1.0), 0.0, 0.0, 1.0));
+    textureStore(filtered_out, gid.xy, vec4<f32>(select(center.x, sum / weights, weights > 1.0e-6), center.yzw));
 }

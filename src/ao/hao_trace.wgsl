@@ -1,18 +1,19 @@
 // Hybrid ambient occlusion, pass 1: per pixel (or per 2x2 pixels at half resolution), cosine-weighted rays
 // from the surface (position from the depth prepass, normal from the normal prepass) through the voxel
-// texture, with empty-space skipping on its max-reduced mips. Writes the noisy AO (1 = open, 0 = occluded).
+// texture, with empty-space skipping on its max-reduced mips. Writes the noisy AO (1 = open, 0 = occluded)
+// with the pixel's view depth and octahedral normal, which the denoiser weighs by.
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, interleaved_gradient_noise, hemisphere_direction, ao_falloff, ray_box, safe_inverse,
-    voxel_level_size,
+    HaoSettings, interleaved_gradient_noise, hemisphere_direction, orthonormal_basis, ao_falloff, ray_box,
+    safe_inverse, voxel_level_size, octahedral_encode,
 }
 
 @group(0) @binding(0) var depth_texture: texture_depth_2d;
 @group(0) @binding(1) var normal_texture: texture_2d<f32>;
 @group(0) @binding(2) var voxels: texture_3d<f32>;
 @group(0) @binding(3) var<uniform> settings: HaoSettings;
-@group(0) @binding(4) var ao_out: texture_storage_2d<r32float, write>;
+@group(0) @binding(4) var ao_out: texture_storage_2d<rgba16float, write>;
 @group(1) @binding(0) var<uniform> view: View;
 
 // cpu/ao.rs: march_voxels. The distance along `dir` (grid units, from `origin`) to the first occupied cell
@@ -34,7 +35,7 @@ fn march_voxels(origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32) -> 
         // from textureDimensions, which Mesa 22's lavapipe gets wrong for levels >= 2 of 3D textures.
         let size = vec3<i32>(voxel_level_size(settings, level));
         let scale = f32(1u << level);
-        let texel = clamp(vec3<i32>(floor(p / scale)), vec3<i32>(0), size - vec3<i32>(1));
+        let texel = clamp(vec3<i32>(floor(p * (1.0 / scale))), vec3<i32>(0), size - vec3<i32>(1));
         if textureLoad(voxels, texel, i32(level)).r > 0.0 {
             if level == 0u {
                 return t;
@@ -66,26 +67,35 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let scale = select(1u, 2u, settings.half_resolution != 0u);
     let pixel = min(gid.xy * scale, textureDimensions(depth_texture) - vec2<u32>(1u));
     let depth = textureLoad(depth_texture, pixel, 0);
-    if depth <= 0.0 || settings.grid_valid == 0u {
-        textureStore(ao_out, gid.xy, vec4<f32>(1.0, 0.0, 0.0, 1.0));
+    if depth <= 0.0 {
+        // Background: depth 0 tells the denoiser to skip it.
+        textureStore(ao_out, gid.xy, vec4<f32>(1.0, 0.0, 0.0, 0.0));
         return;
     }
     let world = world_position(pixel, depth);
     let normal = normalize(textureLoad(normal_texture, pixel, 0).xyz * 2.0 - 1.0);
+    let view_depth = -(view.view_from_world * vec4<f32>(world, 1.0)).z;
+    let packed_normal = octahedral_encode(normal);
+    if settings.grid_valid == 0u {
+        textureStore(ao_out, gid.xy, vec4<f32>(1.0, view_depth, packed_normal));
+        return;
+    }
     let surface = (world - settings.grid_origin) / settings.cell_size;
     let origin = surface + normal * settings.start_offset;
     let pf = vec2<f32>(pixel);
     let rotation = vec2<f32>(interleaved_gradient_noise(pf, settings.frame), interleaved_gradient_noise(pf.yx + vec2<f32>(17.0, 59.0), settings.frame));
     let t_end = settings.max_distance / settings.cell_size;
     var occlusion = 0.0;
+    let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {
-        let dir = hemisphere_direction(normal, i, settings.rays, rotation);
-        let t = march_voxels(origin, dir, 0.0, t_end);
+        let dir = hemisphere_direction(basis, i, settings.rays, rotation);
+        let t = march_voxels(origin, dir, settings.start_offset, t_end);
         if t >= 0.0 {
-            let d = length(origin + dir * t - surface) * settings.cell_size;
+            // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
+            let d = length(origin + dir * (t + 0.5) - surface) * settings.cell_size;
             occlusion += ao_falloff(d, settings.max_distance, settings.falloff);
         }
     }
     let ao = clamp(1.0 - settings.intensity * occlusion / f32(settings.rays), 0.0, 1.0);
-    textureStore(ao_out, gid.xy, vec4<f32>(ao, 0.0, 0.0, 1.0));
+    textureStore(ao_out, gid.xy, vec4<f32>(ao, view_depth, packed_normal));
 }

@@ -7,8 +7,9 @@
 //!    depth and normal prepasses), cosine-weighted hemisphere rays, rotated per pixel (and per frame when
 //!    TAA jitters the view), start about a voxel off the surface and march the voxel texture up to
 //!    `max_distance`, skipping empty space on its mips; each hit weighs `(1 - d/max)^falloff`;
-//! 2. **denoise** (`hao_denoise.wgsl`, `hao/denoise`): a depth- and normal-aware bilateral filter, which also
-//!    upsamples a half-resolution trace, and the minimum with Bevy's SSAO when the near field is on;
+//! 2. **denoise** (`hao_denoise.wgsl` then `hao_upsample.wgsl`, `hao/denoise`): a separable depth- and
+//!    normal-aware bilateral filter, whose vertical half runs at full resolution and so also upsamples a
+//!    half-resolution trace, and the minimum with Bevy's SSAO when the near field is on;
 //! 3. **apply** (`hao_apply.wgsl`, `hao/apply`): the result into the texture Bevy's PBR reads AO from, so
 //!    it dims indirect light only.
 //!
@@ -40,6 +41,7 @@ impl Plugin for HybridAmbientOcclusionPlugin {
         load_shader_library!(app, "hao_common.wgsl");
         embedded_asset!(app, "hao_trace.wgsl");
         embedded_asset!(app, "hao_denoise.wgsl");
+        embedded_asset!(app, "hao_upsample.wgsl");
         embedded_asset!(app, "hao_apply.wgsl");
         embedded_asset!(app, "hao_debug_copy.wgsl");
         app.register_type::<HybridAmbientOcclusion>()

@@ -21,9 +21,10 @@ pub fn hao(
     mut ctx: RenderContext,
 ) {
     let (res, bind_groups, view_offset) = view.into_inner();
-    let (Some(trace), Some(denoise), Some(apply)) = (
+    let (Some(trace), Some(horizontal), Some(vertical), Some(apply)) = (
         cache.get_compute_pipeline(pipelines.trace),
-        cache.get_compute_pipeline(pipelines.denoise),
+        cache.get_compute_pipeline(pipelines.denoise_horizontal),
+        cache.get_compute_pipeline(pipelines.denoise_vertical),
         cache.get_compute_pipeline(pipelines.apply),
     ) else {
         return;
@@ -47,8 +48,12 @@ pub fn hao(
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_denoise"), timestamp_writes: None });
         let span = diagnostics.pass_span(&mut pass, "hao/denoise");
-        pass.set_pipeline(denoise);
-        pass.set_bind_group(0, &bind_groups.denoise, &[]);
+        pass.set_pipeline(horizontal);
+        pass.set_bind_group(0, &bind_groups.denoise_horizontal, &[]);
+        let (x, y) = groups(res.trace_size);
+        pass.dispatch_workgroups(x, y, 1);
+        pass.set_pipeline(vertical);
+        pass.set_bind_group(0, &bind_groups.denoise_vertical, &[]);
         pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
         let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);

@@ -17,16 +17,20 @@ pub struct HaoPipelines {
     pub view_layout: BindGroupLayoutDescriptor,
     /// Group 0 of trace.
     pub trace_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of denoise.
-    pub denoise_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the horizontal denoise.
+    pub denoise_horizontal_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the vertical denoise and upsample.
+    pub denoise_vertical_layout: BindGroupLayoutDescriptor,
     /// Group 0 of apply.
     pub apply_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the debug copy.
     pub debug_layout: BindGroupLayoutDescriptor,
     /// Rays through the voxels.
     pub trace: CachedComputePipelineId,
-    /// Bilateral filter and near field.
-    pub denoise: CachedComputePipelineId,
+    /// Bilateral filter, horizontal half.
+    pub denoise_horizontal: CachedComputePipelineId,
+    /// Bilateral filter, vertical half, upsampling and near field.
+    pub denoise_vertical: CachedComputePipelineId,
     /// Into the texture PBR reads.
     pub apply: CachedComputePipelineId,
     /// Into the debug images.
@@ -83,12 +87,23 @@ impl FromWorld for HaoPipelines {
                     texture_2d(unfilterable),
                     texture_3d(unfilterable),
                     uniform_buffer_sized(false, None),
-                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
                 ),
             ),
         );
-        let denoise_layout = BindGroupLayoutDescriptor::new(
-            "hao_denoise_layout",
+        let denoise_horizontal_layout = BindGroupLayoutDescriptor::new(
+            "hao_denoise_horizontal_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    texture_2d(unfilterable),
+                    uniform_buffer_sized(false, None),
+                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let denoise_vertical_layout = BindGroupLayoutDescriptor::new(
+            "hao_denoise_vertical_layout",
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
@@ -144,11 +159,18 @@ impl FromWorld for HaoPipelines {
             "trace",
             vec![],
         );
-        let denoise = queue_pipeline(
-            "hao_denoise",
-            vec![denoise_layout.clone(), view_layout.clone()],
+        let denoise_horizontal = queue_pipeline(
+            "hao_denoise_horizontal",
+            vec![denoise_horizontal_layout.clone()],
             load_embedded_asset!(world, "hao_denoise.wgsl"),
-            "denoise",
+            "denoise_horizontal",
+            vec![],
+        );
+        let denoise_vertical = queue_pipeline(
+            "hao_denoise_vertical",
+            vec![denoise_vertical_layout.clone(), view_layout.clone()],
+            load_embedded_asset!(world, "hao_upsample.wgsl"),
+            "denoise_vertical",
             vec![],
         );
         let apply_defs = if ssao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
@@ -169,11 +191,13 @@ impl FromWorld for HaoPipelines {
         Self {
             view_layout,
             trace_layout,
-            denoise_layout,
+            denoise_horizontal_layout,
+            denoise_vertical_layout,
             apply_layout,
             debug_layout,
             trace,
-            denoise,
+            denoise_horizontal,
+            denoise_vertical,
             apply,
             debug_copy,
             ssao_format,

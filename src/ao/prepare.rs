@@ -55,8 +55,10 @@ pub struct GpuHaoSettings {
 /// A view's HAO textures and settings.
 #[derive(Component)]
 pub struct HaoViewResources {
-    /// The traced AO (half or full resolution).
+    /// The traced AO with view depth and normal (half or full resolution).
     pub noisy: CachedTexture,
+    /// The horizontally filtered AO, same layout.
+    pub filtered: CachedTexture,
     /// The denoised (and near-field combined) AO, full resolution.
     pub result: CachedTexture,
     /// The settings uniform.
@@ -74,8 +76,10 @@ pub struct HaoBindGroups {
     pub view: BindGroup,
     /// Trace.
     pub trace: BindGroup,
-    /// Denoise.
-    pub denoise: BindGroup,
+    /// Horizontal denoise.
+    pub denoise_horizontal: BindGroup,
+    /// Vertical denoise.
+    pub denoise_vertical: BindGroup,
     /// Apply.
     pub apply: BindGroup,
 }
@@ -98,7 +102,7 @@ pub fn prepare_hao_textures(
         let Some(view_size) = camera.physical_viewport_size else { continue };
         let (rays, steps, half) = hao.quality.parameters();
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
-        let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2| {
+        let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
             cache.get(
                 &device,
                 TextureDescriptor {
@@ -107,14 +111,15 @@ pub fn prepare_hao_textures(
                     mip_level_count: 1,
                     sample_count: 1,
                     dimension: TextureDimension::D2,
-                    format: TextureFormat::R32Float,
+                    format,
                     usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
                     view_formats: &[],
                 },
             )
         };
-        let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size);
-        let result = texture(&mut texture_cache, "hao_result_texture", view_size);
+        let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
+        let filtered = texture(&mut texture_cache, "hao_filtered_texture", trace_size, TextureFormat::Rgba16Float);
+        let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
         let g = grid.0.as_ref();
         let settings = GpuHaoSettings {
             grid_origin: g.map_or([0.0; 3], |g| g.grid.origin.to_array()),
@@ -139,7 +144,7 @@ pub fn prepare_hao_textures(
             contents: bytemuck::bytes_of(&settings),
             usage: BufferUsages::UNIFORM,
         });
-        commands.entity(entity).insert(HaoViewResources { noisy, result, settings, trace_size, view_size });
+        commands.entity(entity).insert(HaoViewResources { noisy, filtered, result, settings, trace_size, view_size });
     }
 }
 
@@ -182,11 +187,20 @@ pub fn prepare_hao_bind_groups(
                 &res.noisy.default_view,
             )),
         );
-        let denoise = device.create_bind_group(
-            "hao_denoise_bind_group",
-            &cache.get_bind_group_layout(&pipelines.denoise_layout),
+        let denoise_horizontal = device.create_bind_group(
+            "hao_denoise_horizontal_bind_group",
+            &cache.get_bind_group_layout(&pipelines.denoise_horizontal_layout),
             &BindGroupEntries::sequential((
                 &res.noisy.default_view,
+                res.settings.as_entire_binding(),
+                &res.filtered.default_view,
+            )),
+        );
+        let denoise_vertical = device.create_bind_group(
+            "hao_denoise_vertical_bind_group",
+            &cache.get_bind_group_layout(&pipelines.denoise_vertical_layout),
+            &BindGroupEntries::sequential((
+                &res.filtered.default_view,
                 depth,
                 normal,
                 ssao_view,
@@ -199,7 +213,7 @@ pub fn prepare_hao_bind_groups(
             &cache.get_bind_group_layout(&pipelines.apply_layout),
             &BindGroupEntries::sequential((&res.result.default_view, ssao_view)),
         );
-        commands.entity(entity).insert(HaoBindGroups { view, trace, denoise, apply });
+        commands.entity(entity).insert(HaoBindGroups { view, trace, denoise_horizontal, denoise_vertical, apply });
     }
     for (entity, debug, prepass, ssao) in &debug_views {
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };

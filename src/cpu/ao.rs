@@ -24,15 +24,16 @@ pub fn orthonormal_basis(n: Vec3) -> Mat3 {
     Mat3::from_cols(Vec3::new(1.0 + s * n.x * n.x * a, s * b, -s * n.x), Vec3::new(b, s + n.y * n.y * a, -n.y), n)
 }
 
-/// Ray `i` of `count` over the hemisphere around `normal`: cosine-weighted, stratified in the polar
-/// coordinate, the whole set shifted by `rotation` (two numbers in `[0, 1)`, one pair per pixel).
-pub fn hemisphere_direction(normal: Vec3, i: u32, count: u32, rotation: Vec2) -> Vec3 {
+/// Ray `i` of `count` over the hemisphere around the normal (the third column of `basis`, from
+/// [`orthonormal_basis`]): cosine-weighted, stratified in the polar coordinate, the whole set shifted by
+/// `rotation` (two numbers in `[0, 1)`, one pair per pixel).
+pub fn hemisphere_direction(basis: Mat3, i: u32, count: u32, rotation: Vec2) -> Vec3 {
     let u1 = ((i as f32 + rotation.x) / count as f32).fract();
     let u2 = (i as f32 * GOLDEN + rotation.y).fract();
     let r = u1.sqrt();
     let phi = 2.0 * PI * u2;
     let local = Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt());
-    orthonormal_basis(normal) * local
+    basis * local
 }
 
 /// The weight of an occluder at `distance`: 1 at the surface, 0 at `max_distance` and beyond,
@@ -121,7 +122,7 @@ impl VoxelMips {
             let p = origin + dir * t;
             let scale = (1u32 << level) as f32;
             let size = self.levels[level].0.as_ivec3();
-            let texel = (p / scale).floor().as_ivec3().clamp(IVec3::ZERO, size - IVec3::ONE);
+            let texel = (p * (1.0 / scale)).floor().as_ivec3().clamp(IVec3::ZERO, size - IVec3::ONE);
             if self.load(texel, level) {
                 if level == 0 {
                     return Some(t);
@@ -151,7 +152,7 @@ pub struct TraceSettings {
     pub falloff: f32,
     /// Scale of the occlusion.
     pub intensity: f32,
-    /// Ray start offset along the normal, in cells.
+    /// Rays start this many cells off the surface along its normal, and skip as many along their path.
     pub start_offset: f32,
 }
 
@@ -168,10 +169,12 @@ pub fn voxel_ambient_occlusion(
     let origin = surface + normal * s.start_offset;
     let t_end = s.max_distance / cell_size;
     let mut occlusion = 0.0;
+    let basis = orthonormal_basis(normal);
     for i in 0..s.rays {
-        let dir = hemisphere_direction(normal, i, s.rays, rotation);
-        if let Some(t) = mips.march_voxels(origin, dir, 0.0, t_end, s.steps) {
-            let d = (origin + dir * t - surface).length() * cell_size;
+        let dir = hemisphere_direction(basis, i, s.rays, rotation);
+        if let Some(t) = mips.march_voxels(origin, dir, s.start_offset, t_end, s.steps) {
+            // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
+            let d = (origin + dir * (t + 0.5) - surface).length() * cell_size;
             occlusion += ao_falloff(d, s.max_distance, s.falloff);
         }
     }
@@ -189,7 +192,7 @@ mod tests {
         let count = 4096;
         let mut mean_cos = 0.0;
         for i in 0..count {
-            let d = hemisphere_direction(n, i, count, Vec2::new(0.37, 0.81));
+            let d = hemisphere_direction(orthonormal_basis(n), i, count, Vec2::new(0.37, 0.81));
             assert!((d.length() - 1.0).abs() < 1e-4);
             assert!(d.dot(n) >= -1e-6);
             mean_cos += d.dot(n);

@@ -1,0 +1,364 @@
+//! Hybrid ambient occlusion against Bevy's SSAO and a ray-traced reference, on one view of a scene.
+//!
+//! ```text
+//! cargo run --release --example ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
+//!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
+//!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--out ao_compare.png]
+//! ```
+//!
+//! One headless app (Mesa's lavapipe on a machine without a GPU) renders the same view with three cameras:
+//! HAO alone (voxel rays only), HAO with its near field (the minimum with Bevy's SSAO), and Bevy's SSAO
+//! alone; each camera's AO is read back. The CPU reference traces `--rays` cosine-weighted rays per pixel
+//! against the scene's real triangles (through a BVH) from the positions and normals the prepass produced,
+//! with HAO's maximum distance, falloff and intensity. The tool prints the mean absolute error of each
+//! against the reference, over all pixels that show geometry and over the pixels whose reference occlusion
+//! comes mostly (over half) from occluders the view cannot see (off screen or hidden behind what it shows),
+//! and writes the four AO images side by side (HAO, HAO + near field, SSAO, reference) as one PNG.
+
+mod support;
+
+use bevy::camera::RenderTarget;
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::prelude::*;
+use bevy_hao::prelude::*;
+use support::reference::{ReferenceScene, reference_ao};
+use support::scene::{SceneSource, default_camera, spawn_scene};
+
+struct Args {
+    scene: String,
+    size: UVec2,
+    rays: u32,
+    res: u32,
+    max_distance: f32,
+    start_offset: f32,
+    quality: HaoQuality,
+    camera: Option<(Vec3, Vec3)>,
+    outside: bool,
+    out: String,
+}
+
+const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
+[--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] [--out ao_compare.png]";
+
+fn vec3_arg(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("bad number {x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    (v.len() == 3).then(|| Vec3::new(v[0], v[1], v[2])).ok_or_else(|| format!("expected X,Y,Z, got {s}"))
+}
+
+fn parse_args() -> Result<Args, String> {
+    let mut a = Args {
+        scene: "builtin:cathedral".into(),
+        size: UVec2::new(320, 180),
+        rays: 256,
+        res: 128,
+        max_distance: 3.0,
+        start_offset: HybridAmbientOcclusion::default().start_offset,
+        quality: HaoQuality::Medium,
+        camera: None,
+        outside: false,
+        out: "ao_compare.png".into(),
+    };
+    let (mut eye, mut look) = (None, None);
+    let mut it = std::env::args().skip(1);
+    while let Some(arg) = it.next() {
+        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
+        match arg.as_str() {
+            "--size" => {
+                let v = value("--size")?;
+                let (w, h) = v.split_once('x').ok_or("--size is WIDTHxHEIGHT")?;
+                a.size = UVec2::new(w.parse().map_err(|_| "bad width")?, h.parse().map_err(|_| "bad height")?);
+            }
+            "--rays" => a.rays = value("--rays")?.parse().map_err(|e| format!("bad --rays: {e}"))?,
+            "--res" => a.res = value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?,
+            "--max-distance" => {
+                a.max_distance = value("--max-distance")?.parse().map_err(|e| format!("bad --max-distance: {e}"))?
+            }
+            "--start-offset" => {
+                a.start_offset = value("--start-offset")?.parse().map_err(|e| format!("bad --start-offset: {e}"))?
+            }
+            "--quality" => {
+                a.quality = match value("--quality")?.as_str() {
+                    "low" => HaoQuality::Low,
+                    "medium" => HaoQuality::Medium,
+                    "high" => HaoQuality::High,
+                    "ultra" => HaoQuality::Ultra,
+                    q => return Err(format!("unknown quality {q}")),
+                }
+            }
+            "--camera" => eye = Some(vec3_arg(&value("--camera")?)?),
+            "--look" => look = Some(vec3_arg(&value("--look")?)?),
+            "--outside" => a.outside = true,
+            "--out" => a.out = value("--out")?,
+            "-h" | "--help" => return Err(USAGE.into()),
+            s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
+            s => a.scene = s.into(),
+        }
+    }
+    a.camera = match (eye, look) {
+        (Some(e), Some(l)) => Some((e, l)),
+        (None, None) => None,
+        _ => return Err("--camera and --look go together".into()),
+    };
+    Ok(a)
+}
+
+#[derive(Component)]
+struct View(usize);
+
+#[derive(Resource, Clone)]
+struct Outputs(Vec<HaoDebugImages>);
+
+const NAMES: [&str; 3] = ["HAO", "HAO + near field", "Bevy SSAO"];
+
+fn main() {
+    let args = match parse_args() {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    let source = SceneSource::parse(&args.scene).unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    });
+    let triangles = source.triangles().unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    });
+    let bounds = triangles.bounds().expect("a scene with triangles");
+    let camera = match args.camera {
+        Some((eye, look)) => Transform::from_translation(eye).looking_at(look, Vec3::Y),
+        None => default_camera(bounds, !args.outside),
+    };
+    eprintln!(
+        "scene {} ({} triangles), camera at {} looking {}",
+        args.scene,
+        triangles.triangle_count(),
+        camera.translation,
+        camera.forward().as_vec3()
+    );
+    support::set_asset_root(source.asset_root());
+    let hao = HybridAmbientOcclusion {
+        quality: args.quality,
+        max_distance: args.max_distance,
+        start_offset: args.start_offset,
+        near_field: false,
+        ..default()
+    };
+    let (size, res) = (args.size, args.res);
+    let setup_source = source.clone();
+    let setup_hao = hao.clone();
+    let mut app = support::headless_app(move |app| {
+        let source = setup_source.clone();
+        let hao = setup_hao.clone();
+        app.insert_resource(bevy::light::GlobalAmbientLight { brightness: 300.0, ..default() });
+        app.add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>,
+                  mut images: ResMut<Assets<Image>>,
+                  server: Res<AssetServer>| {
+                if let Err(e) = spawn_scene(&source, &mut commands, &mut meshes, &mut materials, &server) {
+                    panic!("{e}");
+                }
+                let margin = (bounds.1 - bounds.0).max_element() * 0.02;
+                commands.spawn(VoxelVolume {
+                    bounds: VolumeBounds::World {
+                        min: bounds.0 - Vec3::splat(margin),
+                        max: bounds.1 + Vec3::splat(margin),
+                    },
+                    resolution: VolumeResolution::Cells(res),
+                    ..default()
+                });
+                let mut outputs = Vec::new();
+                for k in 0..3 {
+                    let debug = HaoDebugImages::new(&mut images, size);
+                    outputs.push(debug.clone());
+                    let target = support::target_image(&mut images, size);
+                    let mut cam = commands.spawn((
+                        Camera3d::default(),
+                        Camera { order: k as isize, ..default() },
+                        RenderTarget::Image(target.into()),
+                        Msaa::Off,
+                        Tonemapping::None,
+                        camera,
+                        debug,
+                        View(k),
+                    ));
+                    match k {
+                        0 => cam.insert(hao.clone()),
+                        1 => cam.insert(HybridAmbientOcclusion { near_field: true, ..hao.clone() }),
+                        _ => cam.insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default()),
+                    };
+                }
+                commands.insert_resource(Outputs(outputs));
+            },
+        );
+    });
+    // Until the scene (glTF scenes load asynchronously) is voxelized and settled.
+    let mut last = (u64::MAX, 0);
+    for frame in 0..600 {
+        app.update();
+        let s = support::stats(&app);
+        let key = (s.static_triangles, s.static_rebuilds);
+        if frame > 20 && key == last && s.static_triangles > 0 {
+            break;
+        }
+        last = key;
+    }
+    support::run(&mut app, 4);
+    let errors = support::take_render_errors();
+    if !errors.is_empty() {
+        eprintln!("error: wgpu errors: {errors:?}");
+        std::process::exit(1);
+    }
+    let outputs = app.world().resource::<Outputs>().clone();
+    let ao: Vec<Vec<f32>> = outputs.0.iter().map(|o| support::read_image_f32(&mut app, o.ao.clone(), 2).2).collect();
+    let (w, h, depth) = support::read_image_f32(&mut app, outputs.0[0].depth.clone(), 0);
+    let (_, _, _, normal_bytes) = support::read_image(&mut app, outputs.0[0].normal.clone(), 0);
+    let normals: Vec<Vec3> = normal_bytes
+        .chunks_exact(8)
+        .map(|c| {
+            let f = |i: usize| half_to_f32(u16::from_le_bytes([c[i], c[i + 1]]));
+            Vec3::new(f(0), f(2), f(4)).normalize_or_zero()
+        })
+        .collect();
+    let mut q = app.world_mut().query::<(&Camera, &GlobalTransform, &View)>();
+    let (cam, cam_transform, _) = q.iter(app.world()).find(|(_, _, v)| v.0 == 0).unwrap();
+    let clip_from_view = cam.clip_from_view();
+    let world_from_clip = cam_transform.to_matrix() * clip_from_view.inverse();
+    let clip_from_world = world_from_clip.inverse();
+    let view_from_clip = clip_from_view.inverse();
+    let linear = |ndc_z: f32| -view_from_clip.project_point3(Vec3::new(0.0, 0.0, ndc_z)).z;
+
+    // The reference.
+    eprintln!("tracing the reference: {w}x{h} pixels, {} rays each...", args.rays);
+    let scene = ReferenceScene::new(&triangles);
+    let epsilon = (bounds.1 - bounds.0).max_element() * 1.0e-4;
+    let hidden = |p: Vec3| {
+        let ndc = clip_from_world.project_point3(p);
+        if !(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0 && ndc.z > 0.0) {
+            return true;
+        }
+        let px = (((ndc.x + 1.0) / 2.0 * w as f32) as u32).min(w - 1);
+        let py = (((1.0 - ndc.y) / 2.0 * h as f32) as u32).min(h - 1);
+        let d = depth[(py * w + px) as usize];
+        d > 0.0 && linear(ndc.z) > linear(d) * 1.02 + epsilon * 10.0
+    };
+    let pixels: Vec<usize> = (0..(w * h) as usize).filter(|&i| depth[i] > 0.0 && normals[i] != Vec3::ZERO).collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let results: Vec<(usize, f32, f32)> = std::thread::scope(|s| {
+        let chunks: Vec<&[usize]> = pixels.chunks(pixels.len().div_ceil(threads).max(1)).collect();
+        let handles: Vec<_> = chunks
+            .into_iter()
+            .map(|chunk| {
+                let (scene, hidden, depth, normals) = (&scene, &hidden, &depth, &normals);
+                let hao = &hao;
+                s.spawn(move || {
+                    chunk
+                        .iter()
+                        .map(|&i| {
+                            let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
+                            let ndc =
+                                Vec3::new((x + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y + 0.5) / h as f32 * 2.0, depth[i]);
+                            let p = world_from_clip.project_point3(ndc);
+                            let rotation = Vec2::new(hash(i as u32 * 2 + 1), hash(i as u32 * 2 + 2));
+                            let r = reference_ao(
+                                scene,
+                                p,
+                                normals[i],
+                                args.rays,
+                                rotation,
+                                hao.max_distance,
+                                hao.falloff,
+                                hao.intensity,
+                                epsilon,
+                                hidden,
+                            );
+                            (i, r.ao, r.hidden_share)
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    });
+    let mut reference = vec![1.0f32; (w * h) as usize];
+    let mut offscreen = Vec::new();
+    for &(i, ao, share) in &results {
+        reference[i] = ao;
+        if share > 0.5 && ao < 0.99 {
+            offscreen.push(i);
+        }
+    }
+    let mae = |img: &[f32], set: &[usize]| {
+        set.iter().map(|&i| (img[i] - reference[i]).abs()).sum::<f32>() / set.len().max(1) as f32
+    };
+    println!(
+        "scene: {} | view {w}x{h}, {} pixels of geometry, {} of them occluded mostly by what the view cannot see",
+        args.scene,
+        pixels.len(),
+        offscreen.len()
+    );
+    println!(
+        "HAO: {:?}, max distance {}, voxel grid {} cells on its longest axis; reference: {} rays per pixel\n",
+        args.quality, args.max_distance, args.res, args.rays
+    );
+    println!("| AO | mean abs. error, all pixels | mean abs. error, off-screen/hidden occluders | mean AO |");
+    println!("|---|---:|---:|---:|");
+    for (k, name) in NAMES.iter().enumerate() {
+        let mean = pixels.iter().map(|&i| ao[k][i]).sum::<f32>() / pixels.len().max(1) as f32;
+        println!("| {name} | {:.4} | {:.4} | {mean:.3} |", mae(&ao[k], &pixels), mae(&ao[k], &offscreen));
+    }
+    let ref_mean = pixels.iter().map(|&i| reference[i]).sum::<f32>() / pixels.len().max(1) as f32;
+    println!("| reference | 0 | 0 | {ref_mean:.3} |");
+    let (e_hao, e_ssao) = (mae(&ao[0], &pixels), mae(&ao[2], &pixels));
+    println!("\nHAO's error is {:.2}x Bevy SSAO's", e_hao / e_ssao.max(1e-6));
+
+    // The PNG: HAO | HAO + near field | SSAO | reference.
+    let panels = [&ao[0], &ao[1], &ao[2], &reference];
+    let mut png = image::GrayImage::new(w * 4 + 3 * 4, h);
+    for (k, panel) in panels.iter().enumerate() {
+        for y in 0..h {
+            for x in 0..w {
+                let v = if depth[(y * w + x) as usize] > 0.0 { panel[(y * w + x) as usize] } else { 1.0 };
+                png.put_pixel(k as u32 * (w + 4) + x, y, image::Luma([(v.clamp(0.0, 1.0) * 255.0).round() as u8]));
+            }
+        }
+    }
+    match png.save(&args.out) {
+        Ok(()) => {
+            eprintln!("wrote {} (left to right: HAO, HAO + near field, Bevy SSAO, ray-traced reference)", args.out)
+        }
+        Err(e) => {
+            eprintln!("error: writing {}: {e}", args.out);
+            std::process::exit(1);
+        }
+    }
+}
+
+/// A hash of an integer to [0, 1).
+fn hash(mut x: u32) -> f32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    (x >> 8) as f32 / (1u32 << 24) as f32
+}
+
+fn half_to_f32(bits: u16) -> f32 {
+    let sign = if bits >> 15 == 1 { -1.0 } else { 1.0 };
+    let exp = ((bits >> 10) & 0x1f) as i32;
+    let frac = (bits & 0x3ff) as f32;
+    match exp {
+        0 => sign * frac * 2f32.powi(-24),
+        31 => f32::NAN,
+        _ => sign * (1.0 + frac / 1024.0) * 2f32.powi(exp - 15),
+    }
+}
