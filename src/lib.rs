@@ -4,6 +4,9 @@
 pub mod ao;
 pub mod components;
 pub mod cpu;
+pub mod debug;
+#[cfg(feature = "inspector")]
+pub mod inspector;
 pub mod meshes;
 pub mod voxel;
 
@@ -12,6 +15,7 @@ mod wgsl_tests;
 
 pub use ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
 pub use components::*;
+pub use debug::HaoDebugView;
 
 use bevy::prelude::*;
 
@@ -21,7 +25,7 @@ pub struct HaoPlugin;
 
 impl Plugin for HaoPlugin {
     fn build(&self, app: &mut App) {
-        app.add_plugins((voxel::VoxelizationPlugin, ao::HybridAmbientOcclusionPlugin));
+        app.add_plugins((voxel::VoxelizationPlugin, ao::HybridAmbientOcclusionPlugin, debug::HaoDebugViewPlugin));
     }
 }
 
@@ -30,4 +34,5 @@ pub mod prelude {
     pub use crate::HaoPlugin;
     pub use crate::ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
     pub use crate::components::*;
+    pub use crate::debug::HaoDebugView;
 }

@@ -391,3 +391,48 @@ fn the_gpu_trace_matches_its_cpu_twin() {
     assert!(far * 100 <= count, "{far} of {count}");
     assert!(take_render_errors().is_empty());
 }
+
+#[test]
+fn debug_views_show_ao_voxels_point_counts_and_the_static_dynamic_split() {
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(1.5, 6.0, 7.5).looking_at(Vec3::new(0.5, 0.5, 0.0), Vec3::Y);
+    let mut app = scene_app(camera, Ao::Hao(hao_settings()), |c, m, mat| {
+        walls(c, m, mat.clone());
+        c.spawn((
+            box_at(m, Vec3::new(1.5, 1.5, 1.5)),
+            MeshMaterial3d(mat),
+            Transform::from_xyz(1.0, 0.75, 1.0),
+            DynamicOccluder,
+        ));
+    });
+    run(&mut app, 6);
+    let cam = app.world_mut().query_filtered::<Entity, With<TheCamera>>().single(app.world()).unwrap();
+    let mut pixels = |app: &mut App, view: HaoDebugView| -> Vec<[u8; 3]> {
+        app.world_mut().entity_mut(cam).insert(view);
+        run(app, 3);
+        let targets = app.world().resource::<Targets>().clone();
+        let (_, _, _, bytes) = read_image(app, targets.color, 2);
+        bytes.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect()
+    };
+    let gray = |p: &[u8; 3]| p[0].abs_diff(p[1]) <= 2 && p[1].abs_diff(p[2]) <= 2;
+    let final_image = pixels(&mut app, HaoDebugView::Final);
+    let ao = pixels(&mut app, HaoDebugView::AmbientOcclusion);
+    assert!(ao.iter().all(gray), "the AO view is grayscale");
+    assert!(
+        ao.iter().any(|p| p[0] < 230) && ao.iter().any(|p| p[0] > 250),
+        "the AO view shows occlusion and open surfaces"
+    );
+    assert_ne!(ao, final_image);
+    let voxels = pixels(&mut app, HaoDebugView::Voxels);
+    let pale = |p: &&[u8; 3]| p.iter().max().unwrap() - p.iter().min().unwrap() <= 30 && p[0] > 100;
+    assert!(voxels.iter().filter(pale).count() * 2 > voxels.len(), "the voxel view shows pale boxes");
+    assert_ne!(voxels, final_image);
+    let split = pixels(&mut app, HaoDebugView::StaticDynamic);
+    let c = |p: &[u8; 3]| p.map(i32::from);
+    let orange = split.iter().map(c).filter(|p| p[0] > p[1] + 30 && p[1] > p[2] + 30).count();
+    let blue = split.iter().map(c).filter(|p| p[2] > p[0] + 30).count();
+    assert!(orange > 20 && blue > 200, "dynamic voxels orange ({orange}) and static ones blue ({blue})");
+    let counts = pixels(&mut app, HaoDebugView::PointCounts);
+    assert!(counts.iter().filter(|p| !gray(p)).count() * 2 > counts.len(), "the heat map is colored");
+    assert!(take_render_errors().is_empty());
+}

@@ -6,13 +6,15 @@
 //! * [`tessellation`]: equation 1 ([`tessellation_factors`]), the subdivision pattern and its indexing
 //!   ([`sub_triangle`]), the centroids of equation 2 ([`sub_triangle_centroid`]), equation 5
 //!   ([`expected_point_count`]) and the clipping of triangles that cross the grid boundary.
-//! * [`voxelize`]: the voxelizer itself, in [`InjectionMode::Centroid`] (the paper's) and
+//! * [`mod@voxelize`]: the voxelizer itself, in [`InjectionMode::Centroid`] (the paper's) and
 //!   [`InjectionMode::Conservative`] (every overlapped cell, by exact tests on at most 8 candidates per
 //!   sub-triangle).
 //! * [`overlap`] and [`ground_truth`]: the exact triangle/box test and the conservative voxelizer that is the
 //!   ground truth.
 //! * [`metrics`]: bias, excess voxels and the six-direction watertight ray test; [`bias_model`]: equation 3.
 //! * [`binvox`]: export and import of the widely used binvox format.
+//! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
+//!   through the voxel grid with empty-space skipping).
 //!
 //! The GPU passes (`src/render/*.wgsl`) implement the same algorithm with the same function names; the
 //! render tests hold the GPU's grids against these.

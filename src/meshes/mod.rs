@@ -1,5 +1,5 @@
 //! Meshes for examples, tests and tools, with no Bevy types: the built-in shapes and the procedural
-//! cathedral ([`builtin`]), and OBJ and glTF files read from disk ([`obj`], [`gltf_file`]).
+//! cathedral ([`mod@builtin`]), and OBJ and glTF files read from disk ([`obj`], [`gltf_file`]).
 
 pub mod builtin;
 pub mod gltf_file;

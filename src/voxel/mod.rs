@@ -11,7 +11,7 @@
 //! 3. **resolve**: the frame's bits into the 3D voxel texture over the region that changed, and its
 //!    max-reduced mips.
 //!
-//! The CPU twin of passes 1 and 2 is [`crate::cpu::voxelize`]; the WGSL files beside this module name their
+//! The CPU twin of passes 1 and 2 is [`mod@crate::cpu::voxelize`]; the WGSL files beside this module name their
 //! functions after it. GPU time spans: `hao/voxelize_static`, `hao/voxelize_dynamic`, `hao/resolve` (add
 //! Bevy's `RenderDiagnosticsPlugin` to see them).
 

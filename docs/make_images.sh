@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# Renders the README's pictures headless (on Mesa's lavapipe on a machine without a GPU) from the built-in
+# procedural cathedral, with the examples' own commands. Run from the repository root:
+#   docs/make_images.sh
+set -euo pipefail
+out=docs/images
+mkdir -p "$out"
+size=800x450
+run() { cargo run --release --example "$@"; }
+run sibenik -- --headless --frames 30 --size $size --ao hao --screenshot $out/cathedral_hao.png
+run sibenik -- --headless --frames 30 --size $size --ao off --screenshot $out/cathedral_no_ao.png
+run sibenik -- --headless --frames 30 --size $size --ao ssao --screenshot $out/cathedral_ssao.png
+run sibenik -- --headless --frames 30 --size $size --view ao --screenshot $out/cathedral_hao_only.png
+run sibenik -- --headless --frames 30 --size $size --ao ssao --view ao --screenshot $out/cathedral_ssao_only.png
+run sibenik -- --headless --frames 30 --size $size --view voxels --screenshot $out/cathedral_voxels.png
+run sibenik -- --headless --frames 30 --size $size --view counts --screenshot $out/cathedral_point_counts.png
+run dynamic -- --headless --frames 60 --size $size --view static-dynamic --screenshot $out/dynamic_static_dynamic.png
+run ao_compare -- --size 320x180 --rays 256 --out $out/ao_compare_cathedral.png

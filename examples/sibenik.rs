@@ -1,0 +1,280 @@
+//! A cathedral with hybrid ambient occlusion: the built-in procedural cathedral by default (no download),
+//! or any OBJ or glTF given by path (the real Sibenik works: `../shared/models/sibenik/sibenik.obj`).
+//!
+//! ```text
+//! cargo run --release --example sibenik -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
+//!     [--ao hao|ssao|both|off] [--view final|ao|voxels|counts|static-dynamic] [--res 128]
+//!     [--camera X,Y,Z --look X,Y,Z] [--headless --frames 30 --screenshot OUT.png [--size 960x540]]
+//! ```
+//!
+//! In a window: hold the right mouse button and move to look around, WASD to fly (Q/E down and up, Shift
+//! faster, the scroll wheel sets the speed); the inspector window edits every setting live and shows the
+//! debug views and GPU times. With `--headless` the view is rendered off screen (on Mesa's lavapipe on a
+//! machine without a GPU) for `--frames` frames and written to `--screenshot`: the README's pictures come
+//! from this.
+//!
+//! The light is a sun through the windows plus an ambient "sky": ambient light is what ambient occlusion
+//! dims (direct sunlight is not), so an interior lit mostly by bounce light is where AO matters.
+
+mod support;
+
+use bevy::camera::RenderTarget;
+use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
+use bevy::light::GlobalAmbientLight;
+use bevy::prelude::*;
+use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+use bevy_hao::prelude::*;
+use support::scene::{SceneSource, default_camera, spawn_scene};
+
+const USAGE: &str = "usage: sibenik [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--ao hao|ssao|both|off] \
+[--view final|ao|voxels|counts|static-dynamic] [--res 128] [--camera X,Y,Z --look X,Y,Z] \
+[--headless --frames 30 --screenshot OUT.png [--size 960x540]]";
+
+#[derive(Clone)]
+struct Args {
+    scene: String,
+    ao: String,
+    view: HaoDebugView,
+    res: u32,
+    camera: Option<(Vec3, Vec3)>,
+    headless: bool,
+    frames: usize,
+    screenshot: Option<String>,
+    size: UVec2,
+}
+
+fn vec3_arg(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("bad number {x:?}: {e}")))
+        .collect::<Result<_, _>>()?;
+    (v.len() == 3).then(|| Vec3::new(v[0], v[1], v[2])).ok_or_else(|| format!("expected X,Y,Z, got {s}"))
+}
+
+fn parse_args() -> Result<Args, String> {
+    let mut a = Args {
+        scene: "builtin:cathedral".into(),
+        ao: "hao".into(),
+        view: HaoDebugView::Final,
+        res: 128,
+        camera: None,
+        headless: false,
+        frames: 30,
+        screenshot: None,
+        size: UVec2::new(960, 540),
+    };
+    let (mut eye, mut look) = (None, None);
+    let mut it = std::env::args().skip(1);
+    while let Some(arg) = it.next() {
+        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
+        match arg.as_str() {
+            "--ao" => {
+                a.ao = value("--ao")?;
+                if !["hao", "ssao", "both", "off"].contains(&a.ao.as_str()) {
+                    return Err(format!("unknown --ao {}", a.ao));
+                }
+            }
+            "--view" => {
+                a.view = match value("--view")?.as_str() {
+                    "final" => HaoDebugView::Final,
+                    "ao" => HaoDebugView::AmbientOcclusion,
+                    "voxels" => HaoDebugView::Voxels,
+                    "counts" => HaoDebugView::PointCounts,
+                    "static-dynamic" => HaoDebugView::StaticDynamic,
+                    v => return Err(format!("unknown --view {v}")),
+                }
+            }
+            "--res" => a.res = value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?,
+            "--camera" => eye = Some(vec3_arg(&value("--camera")?)?),
+            "--look" => look = Some(vec3_arg(&value("--look")?)?),
+            "--headless" => a.headless = true,
+            "--frames" => a.frames = value("--frames")?.parse().map_err(|e| format!("bad --frames: {e}"))?,
+            "--screenshot" => a.screenshot = Some(value("--screenshot")?),
+            "--size" => {
+                let v = value("--size")?;
+                let (w, h) = v.split_once('x').ok_or("--size is WIDTHxHEIGHT")?;
+                a.size = UVec2::new(w.parse().map_err(|_| "bad width")?, h.parse().map_err(|_| "bad height")?);
+            }
+            "-h" | "--help" => return Err(USAGE.into()),
+            s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
+            s => a.scene = s.into(),
+        }
+    }
+    a.camera = match (eye, look) {
+        (Some(e), Some(l)) => Some((e, l)),
+        (None, None) => None,
+        _ => return Err("--camera and --look go together".into()),
+    };
+    if a.headless && a.screenshot.is_none() {
+        return Err("--headless needs --screenshot OUT.png".into());
+    }
+    Ok(a)
+}
+
+/// The fly camera's state.
+#[derive(Component)]
+struct FlyCamera {
+    yaw: f32,
+    pitch: f32,
+    speed: f32,
+}
+
+/// Spawns the scene, the lights, the voxel volume and the camera (rendering to `target` when headless).
+fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transform, target: Option<UVec2>) {
+    let args = args.clone();
+    app.insert_resource(GlobalAmbientLight { color: Color::srgb(0.95, 0.93, 0.88), brightness: 700.0, ..default() })
+        .insert_resource(ClearColor(Color::srgb(0.55, 0.68, 0.85)))
+        .add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>,
+                  mut images: ResMut<Assets<Image>>,
+                  server: Res<AssetServer>| {
+                if let Err(e) = spawn_scene(&source, &mut commands, &mut meshes, &mut materials, &server) {
+                    error!("{e}");
+                    std::process::exit(1);
+                }
+                commands.spawn(VoxelVolume { resolution: VolumeResolution::Cells(args.res), ..default() });
+                // A low sun, so that it reaches in through the windows.
+                commands.spawn((
+                    DirectionalLight {
+                        illuminance: 25_000.0,
+                        color: Color::srgb(1.0, 0.93, 0.8),
+                        shadow_maps_enabled: true,
+                        ..default()
+                    },
+                    Transform::from_xyz(0.4, 0.55, 0.25).looking_at(Vec3::ZERO, Vec3::Y),
+                ));
+                let (yaw, pitch, _) = camera.rotation.to_euler(EulerRot::YXZ);
+                let image = target.map(|size| support::target_image(&mut images, size));
+                if let Some(image) = &image {
+                    commands.insert_resource(ScreenshotTarget(image.clone()));
+                }
+                let mut cam = commands.spawn((
+                    Camera3d::default(),
+                    Msaa::Off,
+                    camera,
+                    args.view,
+                    FlyCamera { yaw, pitch, speed: 4.0 },
+                ));
+                if let Some(image) = image {
+                    cam.insert(RenderTarget::Image(image.into()));
+                }
+                match args.ao.as_str() {
+                    "hao" => {
+                        cam.insert(HybridAmbientOcclusion::default());
+                    }
+                    "both" => {
+                        cam.insert(HybridAmbientOcclusion { near_field: true, ..default() });
+                    }
+                    "ssao" => {
+                        cam.insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
+                    }
+                    _ => {}
+                }
+            },
+        );
+}
+
+#[derive(Resource)]
+struct ScreenshotTarget(Handle<Image>);
+
+fn fly_camera(
+    time: Res<Time>,
+    keys: Res<ButtonInput<KeyCode>>,
+    buttons: Res<ButtonInput<MouseButton>>,
+    motion: Res<AccumulatedMouseMotion>,
+    scroll: Res<AccumulatedMouseScroll>,
+    mut cameras: Query<(&mut Transform, &mut FlyCamera)>,
+) {
+    for (mut transform, mut fly) in &mut cameras {
+        fly.speed = (fly.speed * 1.1f32.powf(scroll.delta.y)).clamp(0.2, 100.0);
+        if buttons.pressed(MouseButton::Right) {
+            fly.yaw -= motion.delta.x * 0.003;
+            fly.pitch = (fly.pitch - motion.delta.y * 0.003).clamp(-1.5, 1.5);
+        }
+        transform.rotation = Quat::from_euler(EulerRot::YXZ, fly.yaw, fly.pitch, 0.0);
+        let mut dir = Vec3::ZERO;
+        for (key, d) in [
+            (KeyCode::KeyW, transform.forward().as_vec3()),
+            (KeyCode::KeyS, transform.back().as_vec3()),
+            (KeyCode::KeyA, transform.left().as_vec3()),
+            (KeyCode::KeyD, transform.right().as_vec3()),
+            (KeyCode::KeyE, Vec3::Y),
+            (KeyCode::KeyQ, -Vec3::Y),
+        ] {
+            if keys.pressed(key) {
+                dir += d;
+            }
+        }
+        let boost = if keys.pressed(KeyCode::ShiftLeft) { 4.0 } else { 1.0 };
+        transform.translation += dir.normalize_or_zero() * fly.speed * boost * time.delta_secs();
+    }
+}
+
+fn main() {
+    let args = match parse_args() {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("{e}");
+            std::process::exit(2);
+        }
+    };
+    let source = SceneSource::parse(&args.scene).unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    });
+    let bounds = source.triangles().ok().and_then(|t| t.bounds()).unwrap_or((Vec3::splat(-10.0), Vec3::splat(10.0)));
+    let camera = match args.camera {
+        Some((eye, look)) => Transform::from_translation(eye).looking_at(look, Vec3::Y),
+        None => default_camera(bounds, true),
+    };
+
+    if args.headless {
+        let out = args.screenshot.clone().expect("checked");
+        support::set_asset_root(source.asset_root());
+        let setup_args = args.clone();
+        let mut app = support::headless_app(|app| setup_scene(app, &setup_args, source, camera, Some(args.size)));
+        support::run(&mut app, args.frames);
+        let _ = std::fs::remove_file(&out);
+        let target = app.world().resource::<ScreenshotTarget>().0.clone();
+        app.world_mut().spawn(Screenshot::image(target)).observe(save_to_disk(out.clone()));
+        for _ in 0..20 {
+            app.update();
+            if std::path::Path::new(&out).exists() {
+                break;
+            }
+        }
+        let errors = support::take_render_errors();
+        if !errors.is_empty() {
+            eprintln!("error: wgpu errors: {errors:?}");
+            std::process::exit(1);
+        }
+        if !std::path::Path::new(&out).exists() {
+            eprintln!("error: the screenshot was not written");
+            std::process::exit(1);
+        }
+        let s = support::stats(&app);
+        println!(
+            "wrote {out}: {} static triangles voxelized into {:?}, {} points",
+            s.static_triangles,
+            s.grid.map(|g| g.dims),
+            s.static_counters.injected
+        );
+        return;
+    }
+
+    let mut app = App::new();
+    let mut plugins = DefaultPlugins.set(WindowPlugin {
+        primary_window: Some(Window { title: "bevy_hao: hybrid ambient occlusion".into(), ..default() }),
+        ..default()
+    });
+    if let Some(root) = source.asset_root() {
+        plugins =
+            plugins.set(AssetPlugin { file_path: root, meta_check: bevy::asset::AssetMetaCheck::Never, ..default() });
+    }
+    app.add_plugins((plugins, HaoPlugin, bevy_hao::inspector::HaoInspectorPlugin)).add_systems(Update, fly_camera);
+    setup_scene(&mut app, &args, source, camera, None);
+    app.run();
+}

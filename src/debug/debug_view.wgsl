@@ -1,0 +1,136 @@
+// Debug views of a camera (src/debug/mod.rs: `HaoDebugView`), drawn over its final image: the ambient
+// occlusion alone, or the voxel grid ray-marched from the camera (voxels as shaded boxes, their point counts
+// as a heat map, or static and dynamic voxels in two colors).
+#import bevy_render::view::View
+#import bevy_hao::hao_common::{ray_box, safe_inverse}
+
+struct DebugSettings {
+    grid_origin: vec3<f32>,
+    cell_size: f32,
+    grid_dims: vec3<u32>,
+    mip_levels: u32,
+    mode: u32,
+    has_counts: u32,
+    grid_valid: u32,
+    has_ao: u32,
+}
+
+const MODE_AO: u32 = 1u;
+const MODE_VOXELS: u32 = 2u;
+const MODE_POINT_COUNTS: u32 = 3u;
+const MODE_STATIC_DYNAMIC: u32 = 4u;
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var voxels: texture_3d<f32>;
+@group(0) @binding(2) var<storage, read> occupancy: array<u32>;
+@group(0) @binding(3) var<storage, read> static_occupancy: array<u32>;
+@group(0) @binding(4) var<storage, read> point_counts: array<u32>;
+@group(0) @binding(5) var ambient_occlusion: texture_2d<f32>;
+@group(0) @binding(6) var<uniform> settings: DebugSettings;
+@group(0) @binding(7) var source: texture_2d<f32>;
+
+struct FullscreenVertexOutput {
+    @builtin(position) position: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+};
+
+fn level_size(level: u32) -> vec3<u32> {
+    let align = 1u << (settings.mip_levels - 1u);
+    let padded = (settings.grid_dims + vec3<u32>(align - 1u)) / align * align;
+    return padded >> vec3<u32>(level);
+}
+
+// The first occupied cell along the ray (grid space), as hierarchical as the HAO trace; -1 if none.
+fn march(origin: vec3<f32>, dir: vec3<f32>) -> f32 {
+    let inv = safe_inverse(dir);
+    let span = ray_box(origin, inv, vec3<f32>(0.0), vec3<f32>(settings.grid_dims));
+    var t = max(span.x, 0.0);
+    let top = settings.mip_levels - 1u;
+    var level = top;
+    for (var i = 0u; i < 1024u; i++) {
+        if t > span.y {
+            return -1.0;
+        }
+        let p = origin + dir * t;
+        let scale = f32(1u << level);
+        let texel = clamp(vec3<i32>(floor(p * (1.0 / scale))), vec3<i32>(0), vec3<i32>(level_size(level)) - vec3<i32>(1));
+        if textureLoad(voxels, texel, i32(level)).r > 0.0 {
+            if level == 0u {
+                return t;
+            }
+            level -= 1u;
+        } else {
+            let lo = vec3<f32>(texel) * scale;
+            t = max(ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y, t) + 1.0e-4;
+            level = min(level + 1u, top);
+        }
+    }
+    return -1.0;
+}
+
+fn bit(words_static: bool, index: u32) -> bool {
+    if words_static {
+        return ((static_occupancy[index >> 5u] >> (index & 31u)) & 1u) == 1u;
+    }
+    return ((occupancy[index >> 5u] >> (index & 31u)) & 1u) == 1u;
+}
+
+// A compact rainbow (blue, cyan, green, yellow, red) for the heat map.
+fn heat(x: f32) -> vec3<f32> {
+    let t = clamp(x, 0.0, 1.0) * 4.0;
+    let c = vec3<f32>(clamp(t - 2.0, 0.0, 1.0), clamp(select(t, 4.0 - t, t > 2.0), 0.0, 1.0), clamp(2.0 - t, 0.0, 1.0));
+    return c;
+}
+
+@fragment
+fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
+    let scene = textureLoad(source, vec2<i32>(in.position.xy), 0);
+    if settings.mode == MODE_AO {
+        if settings.has_ao == 0u {
+            return vec4<f32>(1.0, 0.0, 1.0, 1.0);
+        }
+        let ao = textureLoad(ambient_occlusion, vec2<i32>(in.position.xy), 0).r;
+        return vec4<f32>(vec3<f32>(ao), 1.0);
+    }
+    if settings.grid_valid == 0u {
+        return scene * 0.25;
+    }
+    // A primary ray through the pixel, in grid space.
+    let ndc = vec2<f32>(in.uv.x * 2.0 - 1.0, 1.0 - in.uv.y * 2.0);
+    let near = view.world_from_clip * vec4<f32>(ndc, 1.0, 1.0);
+    let dir_world = normalize(near.xyz / near.w - view.world_position);
+    let origin = (view.world_position - settings.grid_origin) / settings.cell_size;
+    let t = march(origin, dir_world);
+    if t < 0.0 {
+        return vec4<f32>(scene.rgb * 0.2, 1.0);
+    }
+    let entry = origin + dir_world * t;
+    let cell = vec3<u32>(clamp(vec3<i32>(floor(origin + dir_world * (t + 1.0e-3))), vec3<i32>(0), vec3<i32>(settings.grid_dims) - vec3<i32>(1)));
+    // The face the ray entered through: the coordinate closest to a cell face.
+    let f = abs(entry - round(entry));
+    var shade = 0.55;
+    var uv = entry.xy;
+    if f.x <= f.y && f.x <= f.z {
+        shade = 0.75;
+        uv = entry.yz;
+    } else if f.y <= f.z {
+        shade = 1.0;
+        uv = entry.xz;
+    }
+    // Cell edges as lines, so voxels read as boxes.
+    let e = abs(fract(uv) - 0.5);
+    let edge = select(1.0, 0.7, max(e.x, e.y) > 0.44);
+    let index = cell.x + settings.grid_dims.x * (cell.y + settings.grid_dims.y * cell.z);
+    var color = vec3<f32>(0.92, 0.9, 0.85);
+    if settings.mode == MODE_POINT_COUNTS {
+        if settings.has_counts != 0u {
+            let n = f32(point_counts[index]);
+            color = heat(log2(n + 1.0) / 8.0);
+        } else {
+            color = vec3<f32>(0.5);
+        }
+    } else if settings.mode == MODE_STATIC_DYNAMIC {
+        color = select(vec3<f32>(1.0, 0.55, 0.15), vec3<f32>(0.35, 0.6, 1.0), bit(true, index));
+    }
+    return vec4<f32>(color * shade * edge, 1.0);
+}

@@ -1,0 +1,288 @@
+//! An egui inspector for bevy_hao (cargo feature `inspector`): every [`HybridAmbientOcclusion`] and
+//! [`VoxelVolume`] setting live, AO off / HAO / Bevy's SSAO / both, the debug views ([`HaoDebugView`]),
+//! per-pass GPU times from Bevy's render diagnostics, and voxel and point counts.
+//!
+//! ```no_run
+//! # use bevy::prelude::*;
+//! # use bevy_hao::prelude::*;
+//! App::new()
+//!     .add_plugins((DefaultPlugins, HaoPlugin, bevy_hao::inspector::HaoInspectorPlugin))
+//!     .run();
+//! ```
+//!
+//! It inspects the first camera with a [`HybridAmbientOcclusion`], Bevy's `ScreenSpaceAmbientOcclusion` or
+//! an [`HaoInspected`] marker.
+
+use crate::ao::{HaoQuality, HybridAmbientOcclusion};
+use crate::components::{VolumeResolution, VoxelInjection, VoxelVolume};
+use crate::debug::HaoDebugView;
+use crate::voxel::{VoxelGridAssets, VoxelizationStats};
+use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
+use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel};
+use bevy::prelude::*;
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
+
+/// Adds the inspector window (and `EguiPlugin` and Bevy's `RenderDiagnosticsPlugin` if they are missing).
+#[derive(Default)]
+pub struct HaoInspectorPlugin;
+
+impl Plugin for HaoInspectorPlugin {
+    fn build(&self, app: &mut App) {
+        if !app.is_plugin_added::<EguiPlugin>() {
+            app.add_plugins(EguiPlugin::default());
+        }
+        if !app.is_plugin_added::<bevy::render::diagnostic::RenderDiagnosticsPlugin>() {
+            app.add_plugins(bevy::render::diagnostic::RenderDiagnosticsPlugin);
+        }
+        app.init_resource::<VoxelCount>()
+            .add_systems(Update, count_voxels)
+            .add_systems(EguiPrimaryContextPass, inspector_window);
+    }
+}
+
+/// Marks the camera the inspector edits (otherwise the first camera with HAO or SSAO).
+#[derive(Component, Default, Clone, Copy, Debug)]
+pub struct HaoInspected;
+
+/// The voxels set in the frame's grid, counted from a readback every second.
+#[derive(Resource, Default, Clone, Copy, Debug)]
+pub struct VoxelCount {
+    /// Set voxels, once counted.
+    pub voxels: Option<u64>,
+    timer: f32,
+}
+
+#[derive(Component)]
+struct VoxelCountReadback;
+
+fn count_voxels(
+    mut commands: Commands,
+    time: Res<Time>,
+    mut count: ResMut<VoxelCount>,
+    assets: Option<Res<VoxelGridAssets>>,
+    pending: Query<Entity, With<VoxelCountReadback>>,
+) {
+    count.timer -= time.delta_secs();
+    let Some(assets) = assets else {
+        count.voxels = None;
+        return;
+    };
+    if count.timer > 0.0 || !pending.is_empty() {
+        return;
+    }
+    count.timer = 1.0;
+    commands.spawn((Readback::buffer(assets.occupancy.clone()), VoxelCountReadback)).observe(
+        |event: On<ReadbackComplete>, mut count: ResMut<VoxelCount>, mut commands: Commands| {
+            count.voxels = Some(
+                event
+                    .data
+                    .chunks_exact(4)
+                    .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]).count_ones() as u64)
+                    .sum(),
+            );
+            commands.entity(event.entity).despawn();
+        },
+    );
+}
+
+/// Which ambient occlusion the inspected camera renders.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum AoMode {
+    Off,
+    Hao,
+    Ssao,
+    Both,
+}
+
+fn gpu_ms(store: &DiagnosticsStore, span: &str) -> Option<f64> {
+    store.get(&DiagnosticPath::new(format!("render/{span}/elapsed_gpu"))).and_then(|d| d.smoothed())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn inspector_window(
+    mut contexts: EguiContexts,
+    mut commands: Commands,
+    mut cameras: Query<
+        (
+            Entity,
+            Option<&mut HybridAmbientOcclusion>,
+            Option<&ScreenSpaceAmbientOcclusion>,
+            Option<&HaoDebugView>,
+            Has<HaoInspected>,
+        ),
+        With<Camera3d>,
+    >,
+    mut volumes: Query<(Entity, &mut VoxelVolume)>,
+    assets: Option<Res<VoxelGridAssets>>,
+    stats: Res<VoxelizationStats>,
+    count: Res<VoxelCount>,
+    store: Res<DiagnosticsStore>,
+) -> Result {
+    let ctx = contexts.ctx_mut()?;
+    let mut chosen = None;
+    for (entity, hao, ssao, _, marked) in &cameras {
+        if marked || (chosen.is_none() && (hao.is_some() || ssao.is_some())) {
+            chosen = Some(entity);
+        }
+    }
+    egui::Window::new("Hybrid ambient occlusion").default_width(300.0).show(ctx, |ui| {
+        let Some(camera) = chosen.or_else(|| cameras.iter().next().map(|c| c.0)) else {
+            ui.label("no 3D camera");
+            return;
+        };
+        let Ok((_, mut hao, ssao, view, _)) = cameras.get_mut(camera) else { return };
+        let mode = match (&hao, ssao) {
+            (Some(h), _) if h.near_field => AoMode::Both,
+            (Some(_), _) => AoMode::Hao,
+            (None, Some(_)) => AoMode::Ssao,
+            (None, None) => AoMode::Off,
+        };
+        let mut new_mode = mode;
+        ui.horizontal(|ui| {
+            ui.label("AO");
+            ui.selectable_value(&mut new_mode, AoMode::Off, "off");
+            ui.selectable_value(&mut new_mode, AoMode::Hao, "HAO");
+            ui.selectable_value(&mut new_mode, AoMode::Ssao, "SSAO");
+            ui.selectable_value(&mut new_mode, AoMode::Both, "both");
+        });
+        if new_mode != mode {
+            let mut e = commands.entity(camera);
+            let settings = hao.as_deref().cloned().unwrap_or_default();
+            match new_mode {
+                AoMode::Off => {
+                    e.remove::<(HybridAmbientOcclusion, ScreenSpaceAmbientOcclusion)>();
+                }
+                AoMode::Hao => {
+                    e.insert(HybridAmbientOcclusion { near_field: false, ..settings });
+                }
+                AoMode::Ssao => {
+                    e.remove::<HybridAmbientOcclusion>().insert(ScreenSpaceAmbientOcclusion::default());
+                }
+                AoMode::Both => {
+                    e.insert(HybridAmbientOcclusion { near_field: true, ..settings });
+                }
+            }
+        }
+        let current_view = view.copied().unwrap_or_default();
+        let mut new_view = current_view;
+        egui::ComboBox::from_label("view").selected_text(format!("{current_view:?}")).show_ui(ui, |ui| {
+            for v in HaoDebugView::ALL {
+                ui.selectable_value(&mut new_view, v, format!("{v:?}"));
+            }
+        });
+        if new_view != current_view {
+            commands.entity(camera).insert(new_view);
+        }
+
+        if let Some(hao) = hao.as_deref_mut() {
+            ui.separator();
+            ui.heading("HAO");
+            let (rays, steps, half) = hao.quality.parameters();
+            egui::ComboBox::from_label("quality")
+                .selected_text(format!(
+                    "{:?} ({rays} rays x {steps} steps{})",
+                    hao.quality,
+                    if half { ", half res" } else { "" }
+                ))
+                .show_ui(ui, |ui| {
+                    for q in [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra] {
+                        ui.selectable_value(&mut hao.quality, q, format!("{q:?}"));
+                    }
+                });
+            ui.add(egui::Slider::new(&mut hao.max_distance, 0.1..=20.0).text("max distance"));
+            ui.add(egui::Slider::new(&mut hao.falloff, 0.0..=4.0).text("falloff"));
+            ui.add(egui::Slider::new(&mut hao.intensity, 0.0..=3.0).text("intensity"));
+            ui.add(egui::Slider::new(&mut hao.start_offset, 0.0..=3.0).text("start offset (voxels)"));
+            ui.add(egui::Slider::new(&mut hao.denoise_radius, 0..=6).text("denoise radius"));
+            if hao.near_field {
+                egui::ComboBox::from_label("near field (SSAO)")
+                    .selected_text(format!("{:?}", hao.near_field_quality))
+                    .show_ui(ui, |ui| {
+                        use ScreenSpaceAmbientOcclusionQualityLevel as Q;
+                        for q in [Q::Low, Q::Medium, Q::High, Q::Ultra] {
+                            ui.selectable_value(&mut hao.near_field_quality, q, format!("{q:?}"));
+                        }
+                    });
+            }
+        }
+
+        ui.separator();
+        ui.heading("Voxel volume");
+        match volumes.iter_mut().next() {
+            Some((_, mut volume)) => {
+                let mut cells = match volume.resolution {
+                    VolumeResolution::Cells(n) => n,
+                    VolumeResolution::CellSize(_) => assets.as_ref().map_or(128, |a| a.grid.dims.max_element()),
+                };
+                if ui.add(egui::Slider::new(&mut cells, 16..=512).text("cells (longest axis)")).changed() {
+                    volume.resolution = VolumeResolution::Cells(cells);
+                }
+                ui.add(egui::Slider::new(&mut volume.gamma, 0.25..=8.0).logarithmic(true).text("gamma"));
+                ui.horizontal(|ui| {
+                    ui.selectable_value(&mut volume.injection, VoxelInjection::Centroid, "centroid");
+                    ui.selectable_value(&mut volume.injection, VoxelInjection::Conservative, "conservative");
+                });
+                let mut budget_m = volume.point_budget as f64 / (1 << 20) as f64;
+                if ui
+                    .add(egui::Slider::new(&mut budget_m, 0.25..=512.0).logarithmic(true).text("point budget (Mi)"))
+                    .changed()
+                {
+                    volume.point_budget = (budget_m * (1 << 20) as f64) as u32;
+                }
+                ui.checkbox(&mut volume.point_counts, "per-voxel point counts");
+            }
+            None => {
+                ui.label("default volume (fitted to the static scene, 128 cells)");
+                if ui.button("add a VoxelVolume to edit").clicked() {
+                    commands.spawn(VoxelVolume::default());
+                }
+            }
+        }
+        let s = stats.get();
+        match &s.grid {
+            Some(g) => {
+                ui.label(format!("grid {}x{}x{}, cell {:.3}", g.dims.x, g.dims.y, g.dims.z, g.cell_size));
+            }
+            None => {
+                ui.label("no voxel grid");
+            }
+        }
+        if let Some(v) = count.voxels {
+            ui.label(format!("voxels set: {v}"));
+        }
+        ui.label(format!(
+            "static: {} instances, {} triangles; rebuilt {} times",
+            s.static_instances, s.static_triangles, s.static_rebuilds
+        ));
+        ui.label(format!(
+            "points: static {} ({} triangles queued), dynamic {} ({} instances)",
+            s.static_counters.injected,
+            s.static_counters.big_triangles,
+            s.dynamic_counters.injected,
+            s.dynamic_instances
+        ));
+        if s.skipped_instances > 0 {
+            ui.label(format!("{} occluders skipped (see the log)", s.skipped_instances));
+        }
+
+        ui.separator();
+        ui.heading("GPU time (ms)");
+        egui::Grid::new("hao_gpu_times").show(ui, |ui| {
+            for span in [
+                "hao/voxelize_static",
+                "hao/voxelize_dynamic",
+                "hao/resolve",
+                "hao/trace",
+                "hao/denoise",
+                "hao/apply",
+                "ssao",
+            ] {
+                ui.label(span);
+                ui.label(gpu_ms(&store, span).map_or("-".to_string(), |t| format!("{t:.3}")));
+                ui.end_row();
+            }
+        });
+    });
+    Ok(())
+}
