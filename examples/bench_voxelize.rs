@@ -204,7 +204,7 @@ fn main() {
             let grid = support::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
             let name = &loaded.name;
             let tris = loaded.mesh.triangle_count();
-            let points = counters.points_dispatched as u64 + counters.small as u64;
+            let points = counters.sub_triangles as u64;
             for (pass, t, p) in [
                 ("voxelize_static (whole mesh)", a[0], a[2]),
                 ("resolve (full grid)", a[1], a[2]),

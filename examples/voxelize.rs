@@ -162,15 +162,16 @@ fn gpu_voxelize(
     }
     let occupancy = support::read_occupancy(&mut app);
     let counters = support::stats(&app).static_counters;
-    let mut times = Vec::new();
+    // Each forced rebuild records one `hao/voxelize_static` span; read them from the diagnostic's history
+    // once the last has had time to arrive.
+    let before = support::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu").len();
     for _ in 0..runs {
         app.world_mut().write_message(RebuildStaticVoxels);
         app.update();
-        app.update();
-        if let Some(t) = support::diagnostic(&app, "render/hao/voxelize_static/elapsed_gpu") {
-            times.push(t);
-        }
     }
+    support::run(&mut app, 4);
+    let history = support::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu");
+    let times: Vec<f64> = history.iter().skip(before).copied().collect();
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
     Ok((occupancy, counters, support::median(times), adapter))
 }

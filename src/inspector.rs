@@ -262,6 +262,12 @@ fn inspector_window(
             s.dynamic_counters.injected,
             s.dynamic_instances
         ));
+        ui.label(format!(
+            "equation 5 estimate: static {} points, dynamic {} per frame (budget {})",
+            s.estimated_static_points,
+            s.estimated_dynamic_points,
+            assets.as_ref().map_or(0, |a| a.point_budget)
+        ));
         if s.skipped_instances > 0 {
             ui.label(format!("{} occluders skipped (see the log)", s.skipped_instances));
         }

@@ -56,8 +56,21 @@ fn scene_app(
     ao: Ao,
     extra: impl Fn(&mut Commands, &mut Assets<Mesh>, Handle<StandardMaterial>) + Send + Sync + 'static,
 ) -> App {
+    scene_app_with(camera, ao, false, extra)
+}
+
+/// [`scene_app`], optionally rendering opaque materials deferred.
+fn scene_app_with(
+    camera: Transform,
+    ao: Ao,
+    deferred: bool,
+    extra: impl Fn(&mut Commands, &mut Assets<Mesh>, Handle<StandardMaterial>) + Send + Sync + 'static,
+) -> App {
     headless_app(move |app| {
         let ao = ao.clone();
+        if deferred {
+            app.insert_resource(bevy::pbr::DefaultOpaqueRendererMethod::deferred());
+        }
         app.insert_resource(GlobalAmbientLight { brightness: 600.0, ..default() });
         app.add_systems(
             Startup,
@@ -89,6 +102,9 @@ fn scene_app(
                     debug.clone(),
                     TheCamera,
                 ));
+                if deferred {
+                    cam.insert(bevy::core_pipeline::prepass::DeferredPrepass);
+                }
                 match &ao {
                     Ao::Hao(h) => {
                         cam.insert(h.clone());
@@ -435,4 +451,22 @@ fn debug_views_show_ao_voxels_point_counts_and_the_static_dynamic_split() {
     let counts = pixels(&mut app, HaoDebugView::PointCounts);
     assert!(counts.iter().filter(|p| !gray(p)).count() * 2 > counts.len(), "the heat map is colored");
     assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn hao_dims_ambient_light_in_deferred_rendering_too() {
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(0.0, 1.6, 0.0).looking_at(Vec3::new(0.0, 0.0, 0.01), Vec3::Y);
+    let render = |hao: bool| {
+        let mut app = scene_app_with(camera, if hao { Ao::Hao(roof_hao()) } else { Ao::None }, true, roof);
+        run(&mut app, 8);
+        let l = luminance(&mut app);
+        assert!(take_render_errors().is_empty());
+        l
+    };
+    let mean = |v: &[f32]| v.iter().sum::<f32>() / v.len() as f32;
+    let (with, without) = (render(true), render(false));
+    println!("deferred, ambient only: mean {:.1} with HAO, {:.1} without", mean(&with), mean(&without));
+    assert!(mean(&without) > 20.0, "the deferred image is lit");
+    assert!(mean(&with) < mean(&without) - 5.0, "HAO darkens ambient light in deferred rendering");
 }

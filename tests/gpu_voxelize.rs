@@ -85,14 +85,14 @@ fn cpu_reference(
     grid: &VoxelGrid,
     settings: &cpu::VoxelizeSettings,
     scene: &[(TriangleMesh, Layout, Transform)],
-) -> (VoxelOccupancy, u64) {
+) -> (VoxelOccupancy, cpu::VoxelizeStats) {
     let out = VoxelOccupancy::new(*grid, false);
-    let mut injected = 0;
+    let mut stats = cpu::VoxelizeStats::default();
     for (mesh, _, transform) in scene {
         let world = GlobalTransform::from(*transform).affine();
-        injected += voxelize_mesh(mesh, grid.grid_from_world() * world, settings, &out).injected;
+        stats += voxelize_mesh(mesh, grid.grid_from_world() * world, settings, &out);
     }
-    (out, injected)
+    (out, stats)
 }
 
 #[test]
@@ -110,7 +110,8 @@ fn gpu_grid_equals_the_cpu_reference_in_both_modes() {
         run(&mut app, 6);
         let gpu = read_occupancy(&mut app);
         let assets = grid_assets(&app).unwrap();
-        let (cpu, cpu_injected) = cpu_reference(&assets.grid, &assets.settings, &scene());
+        let (cpu, cpu_stats) = cpu_reference(&assets.grid, &assets.settings, &scene());
+        let cpu_injected = cpu_stats.injected;
         let (only_gpu, only_cpu) = (gpu.count_not_in(&cpu), cpu.count_not_in(&gpu));
         let set = cpu.set_voxel_count();
         let stats = stats(&app);
@@ -127,6 +128,9 @@ fn gpu_grid_equals_the_cpu_reference_in_both_modes() {
             scene().iter().map(|s| s.0.triangle_count() as u64).sum::<u64>()
         );
         assert!(stats.static_counters.big_triangles > 0 && stats.static_counters.small > 0);
+        // The same triangles take the same path: injected where read, or queued for the expand pass.
+        assert_eq!(stats.static_counters.small as u64, cpu_stats.small);
+        assert_eq!(stats.static_counters.outside as u64, cpu_stats.outside);
         let diff = (stats.static_counters.injected as i64 - cpu_injected as i64).unsigned_abs();
         assert!(diff * 1000 <= cpu_injected, "injected GPU {} CPU {cpu_injected}", stats.static_counters.injected);
         assert!(take_render_errors().is_empty());
@@ -353,5 +357,33 @@ fn the_point_budget_is_enforced_and_reported() {
     assert!(c.budget_exceeded, "{c:?}");
     assert_eq!(c.points_dispatched, 1000);
     assert!(c.points_requested > 3000, "{c:?}");
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn equation_5_estimates_the_points_and_warns_before_the_budget() {
+    let _gpu = gpu_lock();
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(VoxelVolume { point_budget: 500, ..volume(4.0, 64, VoxelInjection::Centroid) });
+            commands.spawn((Mesh3d(meshes.add(Sphere::new(1.0).mesh().uv(32, 16))), StaticOccluder));
+            commands.spawn((
+                Mesh3d(meshes.add(Sphere::new(1.0).mesh().uv(32, 16))),
+                Transform::from_xyz(2.0, 0.0, 0.0),
+                DynamicOccluder,
+            ));
+        });
+    });
+    run(&mut app, 8);
+    let s = stats(&app);
+    // A UV sphere of 32 x 16 has 960 triangles (faces at the poles included as Bevy builds them): at least
+    // one point each, so both estimates exceed 500, and the GPU agrees that the budget was exceeded.
+    assert!(s.estimated_static_points >= 900, "{s:?}");
+    assert!(s.estimated_dynamic_points >= 900, "{s:?}");
+    // The budget is enforced on the GPU for the inline triangles too (all of these spheres' triangles are
+    // injected where they are read): at most 500 points per frame.
+    assert!(s.static_counters.budget_exceeded && s.dynamic_counters.budget_exceeded, "{s:?}");
+    assert!(s.static_counters.points_dispatched <= 500 && s.static_counters.points_requested >= 3840, "{s:?}");
+    assert!(s.static_counters.injected <= 500, "{s:?}");
     assert!(take_render_errors().is_empty());
 }

@@ -205,6 +205,15 @@ pub fn diagnostic(app: &App, path: &str) -> Option<f64> {
     store.get(&bevy::diagnostic::DiagnosticPath::new(path.to_string())).and_then(|d| d.value())
 }
 
+/// The recorded history of a diagnostic (oldest first; Bevy keeps the latest 120 or so).
+pub fn diagnostic_history(app: &App, path: &str) -> Vec<f64> {
+    let store = app.world().resource::<bevy::diagnostic::DiagnosticsStore>();
+    store
+        .get(&bevy::diagnostic::DiagnosticPath::new(path.to_string()))
+        .map(|d| d.values().copied().collect())
+        .unwrap_or_default()
+}
+
 /// Median of a list of timings.
 pub fn median(mut v: Vec<f64>) -> Option<f64> {
     if v.is_empty() {

@@ -33,6 +33,10 @@ use glam::{UVec3, Vec2, Vec3};
 /// skipped and counted as oversize.
 pub const MAX_SUBDIVISION: u32 = 1 << 20;
 
+/// Sub-triangles a triangle inside the grid may have and still be injected by the GPU invocation that reads
+/// it (`n <= 4`), rather than queued for the expand pass; [`crate::cpu::VoxelizeStats::small`] counts these.
+pub const INLINE_SUB_TRIANGLES: u64 = 16;
+
 /// The most sub-triangles one triangle may produce (2^28); more is skipped and counted as oversize.
 pub const MAX_SUB_TRIANGLES_PER_TRIANGLE: u64 = 1 << 28;
 

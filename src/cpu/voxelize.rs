@@ -104,7 +104,8 @@ pub struct VoxelizeStats {
     pub outside: u64,
     /// Triangles skipped for needing more than [`MAX_SUB_TRIANGLES_PER_TRIANGLE`] sub-triangles.
     pub oversize: u64,
-    /// Triangles with `n = 1` wholly inside the grid (the GPU injects these at once).
+    /// Triangles wholly inside the grid with at most [`INLINE_SUB_TRIANGLES`] sub-triangles (the GPU injects
+    /// these in the pass that reads them).
     pub small: u64,
     /// Sub-triangles generated (centroid mode: points generated).
     pub sub_triangles: u64,
@@ -185,7 +186,7 @@ pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelO
         stats.oversize = 1;
         return stats;
     }
-    if n == 1 && placement == GridPlacement::Inside {
+    if placement == GridPlacement::Inside && count <= INLINE_SUB_TRIANGLES {
         stats.small = 1;
     }
     match settings.mode {

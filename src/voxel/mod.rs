@@ -16,6 +16,7 @@
 //! Bevy's `RenderDiagnosticsPlugin` to see them).
 
 pub mod assets;
+pub mod budget;
 pub mod extract;
 pub mod pass;
 pub mod pipelines;
@@ -96,7 +97,7 @@ impl Plugin for VoxelizationPlugin {
         let stats = assets::VoxelizationStats::default();
         app.insert_resource(stats.clone()).add_systems(
             PostUpdate,
-            (assets::promote_moved_occluders, assets::update_voxel_volume)
+            (assets::promote_moved_occluders, assets::update_voxel_volume, budget::estimate_point_budget)
                 .chain()
                 .after(bevy::transform::TransformSystems::Propagate)
                 .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds),

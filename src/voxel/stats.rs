@@ -1,7 +1,7 @@
 //! The GPU's voxelization counters (the `COUNTER_*` constants of `voxelize_common.wgsl`).
 
 /// Counters per pass.
-pub const COUNTER_BLOCK: usize = 13;
+pub const COUNTER_BLOCK: usize = 14;
 /// Words in the counters buffer: a block for the static pass, one for the dynamic pass, and the points
 /// used so far this frame.
 pub const COUNTER_WORDS: usize = 2 * COUNTER_BLOCK + 1;
@@ -35,12 +35,14 @@ pub struct VoxelizeCounters {
     pub overlap_tests: u32,
     /// Triangles queued for the expand pass.
     pub big_triangles: u32,
-    /// Sub-triangles the queued triangles need (saturating at `u32::MAX`).
+    /// Sub-triangles the pass needed, inline and queued (saturating at `u32::MAX`).
     pub points_requested: u32,
-    /// Sub-triangles the expand pass was dispatched for (after the budget).
+    /// Sub-triangles the budget let through, inline and queued.
     pub points_dispatched: u32,
     /// The point budget cut this pass short.
     pub budget_exceeded: bool,
+    /// Sub-triangles of the queued triangles the expand pass was dispatched for.
+    pub expanded_points: u32,
 }
 
 impl VoxelizeCounters {
@@ -60,6 +62,7 @@ impl VoxelizeCounters {
             points_requested: w[10],
             points_dispatched: w[11],
             budget_exceeded: w[12] != 0,
+            expanded_points: w[13],
         }
     }
 }

@@ -1,14 +1,15 @@
 // Voxelization, pass 1 of 3: one invocation per triangle. Reads the triangle where Bevy keeps it (the mesh
 // allocator's vertex and index slabs), moves it to grid space, computes equation 1's subdivision count and,
-// for the common small triangle wholly inside the grid (n = 1), injects it at once. Larger or boundary-
+// for the common small triangle wholly inside the grid (n <= 4), injects it at once. Larger or boundary-
 // crossing triangles are queued for the expand pass, which spreads their sub-triangles over many
 // invocations. CPU twin: `bevy_hao::cpu::voxelize::voxelize_triangle`.
 #import bevy_hao::voxelize_common::{
-    BigTriangle, LatticeRange, SubTriangle, grid_space_position, is_finite3,
+    BigTriangle, LatticeRange, SubTriangle, sub_triangle, grid_space_position, is_finite3,
     triangle_is_degenerate, subdivision_count, grid_placement, clipped_lattice_range, sub_triangle_count,
-    PLACEMENT_INSIDE, PLACEMENT_OUTSIDE, MAX_SUBDIVISION, MAX_SUB_TRIANGLES_PER_TRIANGLE,
+    PLACEMENT_INSIDE, PLACEMENT_OUTSIDE, MAX_SUBDIVISION, MAX_SUB_TRIANGLES_PER_TRIANGLE, INLINE_SUB_TRIANGLES,
     COUNTER_TRIANGLES, COUNTER_INVALID, COUNTER_DEGENERATE, COUNTER_OUTSIDE, COUNTER_OVERSIZE,
-    COUNTER_SMALL, COUNTER_BIG_TRIANGLES,
+    COUNTER_SMALL, COUNTER_BIG_TRIANGLES, COUNTER_POINTS_REQUESTED, COUNTER_POINTS_DISPATCHED,
+    COUNTER_BUDGET_EXCEEDED, FRAME_POINTS_USED,
 }
 #import bevy_hao::voxelize_pass::{
     params, big_triangles, counters, inject_sub_triangle, add_counter, flush_counters, reset_counters,
@@ -75,6 +76,19 @@ fn find_instance(t: u32) -> u32 {
     return lo;
 }
 
+// A triangle small enough to inject here, kept across the workgroup's budget reservation.
+struct InlineJob {
+    v0: vec3<f32>,
+    v1: vec3<f32>,
+    v2: vec3<f32>,
+    range: LatticeRange,
+    count: u32,
+}
+
+var<workgroup> inline_total: atomic<u32>;
+var<workgroup> inline_accepted: atomic<u32>;
+var<workgroup> inline_base: u32;
+
 @compute @workgroup_size(64)
 fn classify(
     @builtin(global_invocation_id) gid: vec3<u32>,
@@ -82,16 +96,49 @@ fn classify(
     @builtin(local_invocation_index) local_index: u32,
 ) {
     reset_counters(local_index);
-    workgroupBarrier();
-    let t = gid.x + gid.y * groups.x * 64u;
-    if t < slab_group.triangle_count {
-        classify_triangle(t);
+    if local_index == 0u {
+        atomicStore(&inline_total, 0u);
+        atomicStore(&inline_accepted, 0u);
     }
     workgroupBarrier();
+    let t = gid.x + gid.y * groups.x * 64u;
+    var job = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), LatticeRange(1u, 0u, 0u, 0u, 0u, false), 0u);
+    if t < slab_group.triangle_count {
+        job = classify_triangle(t);
+    }
+    // The points of the inline triangles count against the frame's budget like the expand pass's: the
+    // workgroup reserves its total at once, and a triangle past the budget is dropped whole.
+    var offset = 0u;
+    if job.count > 0u {
+        offset = atomicAdd(&inline_total, job.count);
+    }
+    workgroupBarrier();
+    if local_index == 0u {
+        let total = atomicLoad(&inline_total);
+        inline_base = atomicAdd(&counters[FRAME_POINTS_USED], total);
+        atomicAdd(&counters[params.counter_base + COUNTER_POINTS_REQUESTED], total);
+    }
+    workgroupBarrier();
+    if job.count > 0u {
+        let start = inline_base + offset;
+        if start <= params.point_budget && job.count <= params.point_budget - start {
+            atomicAdd(&inline_accepted, job.count);
+            for (var s = 0u; s < job.count; s++) {
+                inject_sub_triangle(job.v0, job.v1, job.v2, job.range, sub_triangle(job.range, s));
+            }
+        } else {
+            atomicStore(&counters[params.counter_base + COUNTER_BUDGET_EXCEEDED], 1u);
+        }
+    }
+    workgroupBarrier();
+    if local_index == 0u {
+        atomicAdd(&counters[params.counter_base + COUNTER_POINTS_DISPATCHED], atomicLoad(&inline_accepted));
+    }
     flush_counters(local_index, params.counter_base);
 }
 
-fn classify_triangle(t: u32) {
+fn classify_triangle(t: u32) -> InlineJob {
+    var none = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), LatticeRange(1u, 0u, 0u, 0u, 0u, false), 0u);
     add_counter(COUNTER_TRIANGLES, 1u);
     let inst = instances[find_instance(t)];
     let local = t - inst.first_triangle;
@@ -106,50 +153,50 @@ fn classify_triangle(t: u32) {
     }
     if i0 >= inst.vertex_count || i1 >= inst.vertex_count || i2 >= inst.vertex_count {
         add_counter(COUNTER_INVALID, 1u);
-        return;
+        return none;
     }
     let v0 = grid_space_position(inst.grid_from_local, read_position(inst, i0));
     let v1 = grid_space_position(inst.grid_from_local, read_position(inst, i1));
     let v2 = grid_space_position(inst.grid_from_local, read_position(inst, i2));
     if !(is_finite3(v0) && is_finite3(v1) && is_finite3(v2)) {
         add_counter(COUNTER_INVALID, 1u);
-        return;
+        return none;
     }
     if triangle_is_degenerate(v0, v1, v2) {
         add_counter(COUNTER_DEGENERATE, 1u);
-        return;
+        return none;
     }
     let placement = grid_placement(v0, v1, v2, params.dims);
     if placement == PLACEMENT_OUTSIDE {
         add_counter(COUNTER_OUTSIDE, 1u);
-        return;
+        return none;
     }
     let n = subdivision_count(v0, v1, v2, params.gamma);
     if n > MAX_SUBDIVISION {
         add_counter(COUNTER_OVERSIZE, 1u);
-        return;
+        return none;
     }
     var range = LatticeRange(n, 0u, 0u, 0u, 0u, true);
     if placement != PLACEMENT_INSIDE {
         range = clipped_lattice_range(v0, v1 - v0, v2 - v0, n, params.dims);
         if !range.valid {
             add_counter(COUNTER_OUTSIDE, 1u);
-            return;
+            return none;
         }
     }
     let count = sub_triangle_count(range);
     if count > MAX_SUB_TRIANGLES_PER_TRIANGLE {
         add_counter(COUNTER_OVERSIZE, 1u);
-        return;
+        return none;
     }
-    if n == 1u && placement == PLACEMENT_INSIDE {
-        // The common case: one sub-triangle, the triangle itself; inject it here.
+    if placement == PLACEMENT_INSIDE && count <= INLINE_SUB_TRIANGLES {
+        // The common case: a triangle near a voxel in size (n <= 4); inject its few sub-triangles here.
         add_counter(COUNTER_SMALL, 1u);
-        inject_sub_triangle(v0, v1, v2, range, SubTriangle(0u, 0u, true, true));
-        return;
+        return InlineJob(v0, v1, v2, range, count);
     }
     let slot = atomicAdd(&counters[params.counter_base + COUNTER_BIG_TRIANGLES], 1u);
     if slot < arrayLength(&big_triangles) {
         big_triangles[slot] = BigTriangle(v0, n, v1, range.u_start, v2, range.v_start, range.width, range.height, count, 0u);
     }
+    return none;
 }

@@ -6,6 +6,9 @@
 // tessellation.rs: MAX_SUBDIVISION, MAX_SUB_TRIANGLES_PER_TRIANGLE
 const MAX_SUBDIVISION: u32 = 1048576u;
 const MAX_SUB_TRIANGLES_PER_TRIANGLE: u32 = 268435456u;
+// tessellation.rs: INLINE_SUB_TRIANGLES (sub-triangles a triangle may have and still be injected by the
+// invocation that reads it, rather than queued for the expand pass)
+const INLINE_SUB_TRIANGLES: u32 = 16u;
 // voxelize.rs: CONSERVATIVE_PAD
 const CONSERVATIVE_PAD: f32 = 0.00390625;
 // tessellation.rs: CLIP_MAX_VERTICES
@@ -32,7 +35,10 @@ const COUNTER_BIG_TRIANGLES: u32 = 9u;
 const COUNTER_POINTS_REQUESTED: u32 = 10u;
 const COUNTER_POINTS_DISPATCHED: u32 = 11u;
 const COUNTER_BUDGET_EXCEEDED: u32 = 12u;
-const COUNTER_COUNT: u32 = 13u;
+const COUNTER_EXPAND_POINTS: u32 = 13u;
+const COUNTER_COUNT: u32 = 14u;
+// After both passes' counter blocks: the points spent so far this frame (both passes, both paths).
+const FRAME_POINTS_USED: u32 = 28u;
 
 // Per-pass settings (src/voxel/pipelines.rs: `VoxelizeParams`).
 struct VoxelizeParams {

@@ -4,10 +4,27 @@
 // sub-triangle by `sub_triangle`, and injects it. CPU twin: the loop of
 // `bevy_hao::cpu::voxelize::voxelize_triangle`.
 #import bevy_hao::voxelize_common::{
-    LatticeRange, sub_triangle, COUNTER_BIG_TRIANGLES, COUNTER_POINTS_DISPATCHED,
+    LatticeRange, sub_triangle, COUNTER_BIG_TRIANGLES, COUNTER_EXPAND_POINTS,
 }
 #import bevy_hao::voxelize_pass::{
     params, big_triangles, counters, offsets, inject_sub_triangle, flush_counters, reset_counters,
+}
+
+var<workgroup> workgroup_first: u32;
+
+// The last queued triangle in [lo, hi) whose first sub-triangle is at or before g.
+fn find_triangle(g: u32, lo_in: u32, hi_in: u32) -> u32 {
+    var lo = lo_in;
+    var hi = hi_in;
+    while hi - lo > 1u {
+        let mid = (lo + hi) / 2u;
+        if offsets[mid] <= g {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
 }
 
 @compute @workgroup_size(64)
@@ -17,22 +34,20 @@ fn expand(
     @builtin(local_invocation_index) local_index: u32,
 ) {
     reset_counters(local_index);
-    workgroupBarrier();
-    let g = (wg.x + wg.y * groups.x) * 64u + local_index;
+    let first = (wg.x + wg.y * groups.x) * 64u;
+    let g = first + local_index;
     let base = params.counter_base;
-    if g < atomicLoad(&counters[base + COUNTER_POINTS_DISPATCHED]) {
-        let queued = min(atomicLoad(&counters[base + COUNTER_BIG_TRIANGLES]), arrayLength(&big_triangles));
-        // The last triangle whose first sub-triangle is at or before g.
-        var lo = 0u;
-        var hi = queued;
-        while hi - lo > 1u {
-            let mid = (lo + hi) / 2u;
-            if offsets[mid] <= g {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
+    let queued = min(atomicLoad(&counters[base + COUNTER_BIG_TRIANGLES]), arrayLength(&big_triangles));
+    let dispatched = atomicLoad(&counters[base + COUNTER_EXPAND_POINTS]);
+    // One invocation finds the workgroup's first triangle; every triangle has at least one sub-triangle, so
+    // invocation k's triangle is at most k triangles further.
+    if local_index == 0u && first < dispatched {
+        workgroup_first = find_triangle(first, 0u, queued);
+    }
+    workgroupBarrier();
+    if g < dispatched {
+        let start = workgroup_first;
+        let lo = find_triangle(g, start, min(start + local_index + 1u, queued));
         let t = big_triangles[lo];
         let range = LatticeRange(t.n, t.u_start, t.v_start, t.width, t.height, true);
         let sub = sub_triangle(range, g - offsets[lo]);

@@ -18,7 +18,7 @@
 // Exclusive prefix sums of the big triangles' sub-triangle counts (written by the scan pass).
 @group(1) @binding(5) var<storage, read_write> offsets: array<u32>;
 
-var<workgroup> local_counters: array<atomic<u32>, 13>;
+var<workgroup> local_counters: array<atomic<u32>, 14>;
 
 fn reset_counters(local_index: u32) {
     if local_index < COUNTER_COUNT {

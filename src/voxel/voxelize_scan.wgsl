@@ -4,6 +4,7 @@
 // on the CPU; this is where it is enforced exactly).
 #import bevy_hao::voxelize_common::{
     COUNTER_BIG_TRIANGLES, COUNTER_POINTS_REQUESTED, COUNTER_POINTS_DISPATCHED, COUNTER_BUDGET_EXCEEDED,
+    COUNTER_EXPAND_POINTS, FRAME_POINTS_USED,
 }
 #import bevy_hao::voxelize_pass::{params, big_triangles, counters, offsets}
 
@@ -14,8 +15,6 @@
 const SCAN_WIDTH: u32 = 256u;
 // Invocations per expand workgroup (voxelize_expand.wgsl).
 const EXPAND_WORKGROUP: u32 = 64u;
-// Where the points already spent this frame are counted (after both passes' counter blocks).
-const FRAME_POINTS_USED: u32 = 26u;
 
 var<workgroup> partial: array<u32, 256>;
 
@@ -59,8 +58,10 @@ fn scan(@builtin(local_invocation_index) local: u32) {
         let used = atomicLoad(&counters[FRAME_POINTS_USED]);
         let left = params.point_budget - min(used, params.point_budget);
         let dispatched = min(carry, left);
-        atomicStore(&counters[base + COUNTER_POINTS_REQUESTED], carry);
-        atomicStore(&counters[base + COUNTER_POINTS_DISPATCHED], dispatched);
+        // Requested and dispatched count both paths: the classify pass added its inline points.
+        atomicStore(&counters[base + COUNTER_POINTS_REQUESTED], saturating_add(atomicLoad(&counters[base + COUNTER_POINTS_REQUESTED]), carry));
+        atomicStore(&counters[base + COUNTER_POINTS_DISPATCHED], saturating_add(atomicLoad(&counters[base + COUNTER_POINTS_DISPATCHED]), dispatched));
+        atomicStore(&counters[base + COUNTER_EXPAND_POINTS], dispatched);
         atomicStore(&counters[FRAME_POINTS_USED], saturating_add(used, dispatched));
         if dispatched < carry {
             atomicStore(&counters[base + COUNTER_BUDGET_EXCEEDED], 1u);

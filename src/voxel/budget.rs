@@ -1,0 +1,96 @@
+//! Main world: equation 5's estimate of the points each frame needs, against the point budget.
+//!
+//! `N_e = 3 N_tri l_avg^2 / (2 l_cell^2)` (times `gamma^2`, and at least one point per triangle), per occluder
+//! from its mesh's triangle count and mean edge length (computed once per mesh, from the main world's copy
+//! of the mesh; meshes kept only in the render world are not estimated) scaled by its transform. The budget
+//! itself is enforced exactly on the GPU (the scan pass); this estimate warns before it is hit, and the
+//! inspector shows it.
+
+use super::assets::{VoxelGridAssets, VoxelizationStats, occluder_is_dynamic};
+use crate::components::*;
+use crate::cpu::expected_point_count;
+use bevy::mesh::{Indices, VertexAttributeValues};
+use bevy::platform::collections::HashMap;
+use bevy::prelude::*;
+
+/// `(triangles, mean edge length)` of a mesh in its local space, if its data is in the main world.
+fn mesh_edge_stats(mesh: &Mesh) -> Option<(u64, f64)> {
+    let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
+        return None;
+    };
+    let index: Vec<usize> = match mesh.indices() {
+        Some(Indices::U16(i)) => i.iter().map(|&i| i as usize).collect(),
+        Some(Indices::U32(i)) => i.iter().map(|&i| i as usize).collect(),
+        None => (0..positions.len()).collect(),
+    };
+    let (mut sum, mut edges) = (0.0f64, 0u64);
+    for t in index.chunks_exact(3) {
+        let p = [t[0], t[1], t[2]].map(|i| positions.get(i).map(|p| Vec3::from(*p)));
+        if let [Some(a), Some(b), Some(c)] = p {
+            sum += (a.distance(b) + b.distance(c) + c.distance(a)) as f64;
+            edges += 3;
+        }
+    }
+    Some(((index.len() / 3) as u64, if edges > 0 { sum / edges as f64 } else { 0.0 }))
+}
+
+/// Estimates the static and per-frame dynamic point counts with equation 5 and warns (once per episode)
+/// when the dynamic estimate exceeds `VoxelVolume::point_budget`.
+#[allow(clippy::type_complexity)]
+pub(crate) fn estimate_point_budget(
+    meshes: Res<Assets<Mesh>>,
+    mut events: MessageReader<AssetEvent<Mesh>>,
+    mut cache: Local<HashMap<AssetId<Mesh>, Option<(u64, f64)>>>,
+    occluders: Query<
+        (
+            &Mesh3d,
+            &GlobalTransform,
+            &InheritedVisibility,
+            Has<StaticOccluder>,
+            Has<DynamicOccluder>,
+            Has<PromotedToDynamic>,
+        ),
+        Without<NoVoxelOcclusion>,
+    >,
+    assets: Option<Res<VoxelGridAssets>>,
+    stats: Res<VoxelizationStats>,
+    mut warned: Local<bool>,
+) {
+    for event in events.read() {
+        if let AssetEvent::Modified { id } | AssetEvent::Removed { id } | AssetEvent::Added { id } = event {
+            cache.remove(id);
+        }
+    }
+    let Some(assets) = assets else { return };
+    let gamma = assets.settings.effective_gamma() as f64;
+    let cell = assets.grid.cell_size as f64;
+    let (mut static_points, mut dynamic_points) = (0.0f64, 0.0f64);
+    for (mesh, transform, visible, s, d, p) in &occluders {
+        if !visible.get() {
+            continue;
+        }
+        let id = mesh.id();
+        let entry = *cache.entry(id).or_insert_with(|| meshes.get(id).and_then(mesh_edge_stats));
+        let Some((triangles, edge)) = entry else { continue };
+        let scale = transform.compute_transform().scale.abs().max_element() as f64;
+        let points = expected_point_count(triangles, edge * scale, cell, gamma).max(triangles as f64);
+        if occluder_is_dynamic(s, d, p) {
+            dynamic_points += points;
+        } else {
+            static_points += points;
+        }
+    }
+    let budget = assets.point_budget as f64;
+    if dynamic_points > budget && !*warned {
+        warn!(
+            "bevy_hao: equation 5 estimates {dynamic_points:.0} points per frame for the dynamic occluders, over \
+             VoxelVolume::point_budget ({budget}); dynamic voxels will be missing. Raise the budget, lower the \
+             resolution or gamma, or mark fewer meshes dynamic"
+        );
+    }
+    *warned = dynamic_points > budget;
+    stats.update(|s| {
+        s.estimated_static_points = static_points as u64;
+        s.estimated_dynamic_points = dynamic_points as u64;
+    });
+}
