@@ -40,14 +40,6 @@ struct Args {
 const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
 [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] [--out ao_compare.png]";
 
-fn vec3_arg(s: &str) -> Result<Vec3, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("bad number {x:?}: {e}")))
-        .collect::<Result<_, _>>()?;
-    (v.len() == 3).then(|| Vec3::new(v[0], v[1], v[2])).ok_or_else(|| format!("expected X,Y,Z, got {s}"))
-}
-
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
         scene: "builtin:cathedral".into(),
@@ -66,11 +58,7 @@ fn parse_args() -> Result<Args, String> {
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match arg.as_str() {
-            "--size" => {
-                let v = value("--size")?;
-                let (w, h) = v.split_once('x').ok_or("--size is WIDTHxHEIGHT")?;
-                a.size = UVec2::new(w.parse().map_err(|_| "bad width")?, h.parse().map_err(|_| "bad height")?);
-            }
+            "--size" => a.size = support::args::size(&value("--size")?)?,
             "--rays" => a.rays = value("--rays")?.parse().map_err(|e| format!("bad --rays: {e}"))?,
             "--res" => a.res = value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?,
             "--max-distance" => {
@@ -88,8 +76,8 @@ fn parse_args() -> Result<Args, String> {
                     q => return Err(format!("unknown quality {q}")),
                 }
             }
-            "--camera" => eye = Some(vec3_arg(&value("--camera")?)?),
-            "--look" => look = Some(vec3_arg(&value("--look")?)?),
+            "--camera" => eye = Some(support::args::vec3(&value("--camera")?)?),
+            "--look" => look = Some(support::args::vec3(&value("--look")?)?),
             "--outside" => a.outside = true,
             "--out" => a.out = value("--out")?,
             "-h" | "--help" => return Err(USAGE.into()),
@@ -224,7 +212,7 @@ fn main() {
     let normals: Vec<Vec3> = normal_bytes
         .chunks_exact(8)
         .map(|c| {
-            let f = |i: usize| half_to_f32(u16::from_le_bytes([c[i], c[i + 1]]));
+            let f = |i: usize| support::f16_to_f32(u16::from_le_bytes([c[i], c[i + 1]]));
             Vec3::new(f(0), f(2), f(4)).normalize_or_zero()
         })
         .collect();
@@ -350,15 +338,4 @@ fn hash(mut x: u32) -> f32 {
     x = x.wrapping_mul(0x846c_a68b);
     x ^= x >> 16;
     (x >> 8) as f32 / (1u32 << 24) as f32
-}
-
-fn half_to_f32(bits: u16) -> f32 {
-    let sign = if bits >> 15 == 1 { -1.0 } else { 1.0 };
-    let exp = ((bits >> 10) & 0x1f) as i32;
-    let frac = (bits & 0x3ff) as f32;
-    match exp {
-        0 => sign * frac * 2f32.powi(-24),
-        31 => f32::NAN,
-        _ => sign * (1.0 + frac / 1024.0) * 2f32.powi(exp - 15),
-    }
 }

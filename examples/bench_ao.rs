@@ -30,9 +30,10 @@ fn main() {
     while let Some(a) = it.next() {
         match a.as_str() {
             "--size" => {
-                let v = it.next().unwrap_or_default();
-                let (w, h) = v.split_once('x').expect("--size is WIDTHxHEIGHT");
-                size = UVec2::new(w.parse().expect("width"), h.parse().expect("height"));
+                size = support::args::size(&it.next().unwrap_or_default()).unwrap_or_else(|e| {
+                    eprintln!("{e}");
+                    std::process::exit(2)
+                })
             }
             "--frames" => frames = it.next().and_then(|v| v.parse().ok()).expect("--frames N"),
             "--res" => res = it.next().and_then(|v| v.parse().ok()).expect("--res N"),

@@ -54,20 +54,11 @@ fn parse_args() -> Result<Args, String> {
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match arg.as_str() {
-            "--res" => {
-                a.resolutions = value("--res")?
-                    .split(',')
-                    .map(|r| r.trim().parse::<u32>().map_err(|e| format!("bad resolution {r:?}: {e}")))
-                    .collect::<Result<_, _>>()?
-            }
+            "--res" => a.resolutions = support::args::resolutions(&value("--res")?)?,
             "--frames" => {
                 a.frames = value("--frames")?.parse::<usize>().map_err(|e| format!("bad --frames: {e}"))?.max(1)
             }
-            "--size" => {
-                let v = value("--size")?;
-                let (w, h) = v.split_once('x').ok_or("--size is WIDTHxHEIGHT")?;
-                a.size = UVec2::new(w.parse().map_err(|_| "bad width")?, h.parse().map_err(|_| "bad height")?);
-            }
+            "--size" => a.size = support::args::size(&value("--size")?)?,
             "--mode" => {
                 a.injection = match value("--mode")?.as_str() {
                     "centroid" => VoxelInjection::Centroid,

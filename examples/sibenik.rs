@@ -43,14 +43,6 @@ struct Args {
     size: UVec2,
 }
 
-fn vec3_arg(s: &str) -> Result<Vec3, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f32>().map_err(|e| format!("bad number {x:?}: {e}")))
-        .collect::<Result<_, _>>()?;
-    (v.len() == 3).then(|| Vec3::new(v[0], v[1], v[2])).ok_or_else(|| format!("expected X,Y,Z, got {s}"))
-}
-
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
         scene: "builtin:cathedral".into(),
@@ -85,16 +77,12 @@ fn parse_args() -> Result<Args, String> {
                 }
             }
             "--res" => a.res = value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?,
-            "--camera" => eye = Some(vec3_arg(&value("--camera")?)?),
-            "--look" => look = Some(vec3_arg(&value("--look")?)?),
+            "--camera" => eye = Some(support::args::vec3(&value("--camera")?)?),
+            "--look" => look = Some(support::args::vec3(&value("--look")?)?),
             "--headless" => a.headless = true,
             "--frames" => a.frames = value("--frames")?.parse().map_err(|e| format!("bad --frames: {e}"))?,
             "--screenshot" => a.screenshot = Some(value("--screenshot")?),
-            "--size" => {
-                let v = value("--size")?;
-                let (w, h) = v.split_once('x').ok_or("--size is WIDTHxHEIGHT")?;
-                a.size = UVec2::new(w.parse().map_err(|_| "bad width")?, h.parse().map_err(|_| "bad height")?);
-            }
+            "--size" => a.size = support::args::size(&value("--size")?)?,
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
             s => a.scene = s.into(),

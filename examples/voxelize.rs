@@ -63,10 +63,7 @@ fn parse_args() -> Result<Args, String> {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match arg.as_str() {
             "--res" => {
-                a.resolutions = value("--res")?
-                    .split(',')
-                    .map(|r| r.trim().parse::<u32>().map_err(|e| format!("bad resolution {r:?}: {e}")))
-                    .collect::<Result<_, _>>()?;
+                a.resolutions = support::args::resolutions(&value("--res")?)?;
                 if a.resolutions.iter().any(|&r| r == 0 || r > 2048) {
                     return Err("resolutions must be in 1..=2048".into());
                 }

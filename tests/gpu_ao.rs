@@ -328,17 +328,6 @@ fn ao_dims_indirect_light_only_and_removing_it_restores_bevys_behaviour() {
     assert!(take_render_errors().is_empty());
 }
 
-fn f16_to_f32(bits: u16) -> f32 {
-    let sign = if bits >> 15 == 1 { -1.0 } else { 1.0 };
-    let exp = ((bits >> 10) & 0x1f) as i32;
-    let frac = (bits & 0x3ff) as f32;
-    match exp {
-        0 => sign * frac * 2f32.powi(-24),
-        31 => f32::NAN,
-        _ => sign * (1.0 + frac / 1024.0) * 2f32.powi(exp - 15),
-    }
-}
-
 #[test]
 fn the_gpu_trace_matches_its_cpu_twin() {
     use bevy_hao::cpu::ao::{TraceSettings, VoxelMips, interleaved_gradient_noise, voxel_ambient_occlusion};
@@ -379,9 +368,9 @@ fn the_gpu_trace_matches_its_cpu_twin() {
             let world = world_from_clip.project_point3(ndc);
             let n = &normal_bytes[i * 8..i * 8 + 6];
             let normal = Vec3::new(
-                f16_to_f32(u16::from_le_bytes([n[0], n[1]])),
-                f16_to_f32(u16::from_le_bytes([n[2], n[3]])),
-                f16_to_f32(u16::from_le_bytes([n[4], n[5]])),
+                support::f16_to_f32(u16::from_le_bytes([n[0], n[1]])),
+                support::f16_to_f32(u16::from_le_bytes([n[2], n[3]])),
+                support::f16_to_f32(u16::from_le_bytes([n[4], n[5]])),
             )
             .normalize();
             let pf = Vec2::new(x as f32, y as f32);

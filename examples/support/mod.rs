@@ -117,14 +117,14 @@ pub fn grid_assets(app: &App) -> Option<VoxelGridAssets> {
     app.world().get_resource::<VoxelGridAssets>().cloned()
 }
 
-/// Reads a buffer back: spawns a `Readback`, runs frames until data from at least `settle` frames after the
+/// Reads something back: spawns `readback`, runs frames until data from at least `settle` frames after the
 /// call arrives, despawns it.
-pub fn read_buffer(app: &mut App, buffer: Handle<ShaderBuffer>, settle: usize) -> Vec<u8> {
+fn read_back(app: &mut App, readback: Readback, settle: usize) -> Vec<u8> {
     let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
     let writer = slot.clone();
     let entity = app
         .world_mut()
-        .spawn(Readback::buffer(buffer))
+        .spawn(readback)
         .observe(move |ev: On<ReadbackComplete>| {
             *writer.lock().unwrap() = Some(ev.data.clone());
         })
@@ -141,6 +141,11 @@ pub fn read_buffer(app: &mut App, buffer: Handle<ShaderBuffer>, settle: usize) -
     }
     app.world_mut().despawn(entity);
     data.expect("no readback arrived within 20 frames")
+}
+
+/// Reads a buffer back (see [`read_back`]).
+pub fn read_buffer(app: &mut App, buffer: Handle<ShaderBuffer>, settle: usize) -> Vec<u8> {
+    read_back(app, Readback::buffer(buffer), settle)
 }
 
 /// The frame's occupancy grid as the GPU has it.
@@ -233,27 +238,7 @@ pub fn read_image(app: &mut App, image: Handle<Image>, settle: usize) -> (u32, u
         let texel = img.texture_descriptor.format.block_copy_size(None).expect("uncompressed format");
         (size.width, size.height, texel)
     };
-    let slot: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
-    let writer = slot.clone();
-    let entity = app
-        .world_mut()
-        .spawn(Readback::texture(image))
-        .observe(move |ev: On<ReadbackComplete>| {
-            *writer.lock().unwrap() = Some(ev.data.clone());
-        })
-        .id();
-    run(app, settle);
-    *slot.lock().unwrap() = None;
-    let mut data = None;
-    for _ in 0..20 {
-        app.update();
-        if let Some(d) = slot.lock().unwrap().take() {
-            data = Some(d);
-            break;
-        }
-    }
-    app.world_mut().despawn(entity);
-    let data = data.expect("no readback arrived within 20 frames");
+    let data = read_back(app, Readback::texture(image), settle);
     let row = (w * texel) as usize;
     let padded = row.div_ceil(256) * 256;
     let mut out = Vec::with_capacity(row * h as usize);
@@ -276,4 +261,44 @@ pub fn target_image(images: &mut Assets<Image>, size: UVec2) -> Handle<Image> {
         Image::new_target_texture(size.x, size.y, bevy::render::render_resource::TextureFormat::Rgba8UnormSrgb, None);
     image.texture_descriptor.usage |= bevy::render::render_resource::TextureUsages::COPY_SRC;
     images.add(image)
+}
+
+/// An `f16` (as its bits) to `f32`.
+pub fn f16_to_f32(bits: u16) -> f32 {
+    let sign = if bits >> 15 == 1 { -1.0 } else { 1.0 };
+    let exp = ((bits >> 10) & 0x1f) as i32;
+    let frac = (bits & 0x3ff) as f32;
+    match exp {
+        0 => sign * frac * 2f32.powi(-24),
+        31 => f32::NAN,
+        _ => sign * (1.0 + frac / 1024.0) * 2f32.powi(exp - 15),
+    }
+}
+
+/// Command-line values shared by the examples.
+pub mod args {
+    use bevy::math::{UVec2, Vec3};
+
+    /// `X,Y,Z`.
+    pub fn vec3(s: &str) -> Result<Vec3, String> {
+        let v: Vec<f32> = s
+            .split(',')
+            .map(|x| x.trim().parse::<f32>().map_err(|e| format!("bad number {x:?}: {e}")))
+            .collect::<Result<_, _>>()?;
+        (v.len() == 3).then(|| Vec3::new(v[0], v[1], v[2])).ok_or_else(|| format!("expected X,Y,Z, got {s}"))
+    }
+
+    /// `WIDTHxHEIGHT`.
+    pub fn size(s: &str) -> Result<UVec2, String> {
+        let (w, h) = s.split_once('x').ok_or("a size is WIDTHxHEIGHT")?;
+        Ok(UVec2::new(
+            w.parse().map_err(|_| format!("bad width {w:?}"))?,
+            h.parse().map_err(|_| format!("bad height {h:?}"))?,
+        ))
+    }
+
+    /// A comma-separated list of resolutions.
+    pub fn resolutions(s: &str) -> Result<Vec<u32>, String> {
+        s.split(',').map(|r| r.trim().parse::<u32>().map_err(|e| format!("bad resolution {r:?}: {e}"))).collect()
+    }
 }

@@ -78,11 +78,55 @@ fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
 }
 
 // cpu/ao.rs: VoxelMips level sizes. The voxel texture's size at `level`: the grid's dimensions rounded up
-// to a multiple of the coarsest texel (2^(mip_levels - 1) cells), halved `level` times.
-fn voxel_level_size(settings: HaoSettings, level: u32) -> vec3<u32> {
-    let align = 1u << (settings.mip_levels - 1u);
-    let padded = (settings.grid_dims + vec3<u32>(align - 1u)) / align * align;
+// to a multiple of the coarsest texel (2^(mip_levels - 1) cells), halved `level` times. (Computed, not
+// queried: Mesa 22's lavapipe returns wrong textureDimensions for levels >= 2 of 3D textures.)
+fn voxel_level_size(grid_dims: vec3<u32>, mip_levels: u32, level: u32) -> vec3<u32> {
+    let align = 1u << (mip_levels - 1u);
+    let padded = (grid_dims + vec3<u32>(align - 1u)) / align * align;
     return padded >> vec3<u32>(level);
+}
+
+// cpu/ao.rs: VoxelMips::march_voxels. The distance along `dir` (grid units, from `origin`) to the first
+// occupied cell within [t_start, t_end], or -1: start at mip level `start_level`, step over empty texels
+// whole, descend into occupied ones; at most `steps` texel visits.
+fn march_voxels(
+    voxels: texture_3d<f32>,
+    grid_dims: vec3<u32>,
+    mip_levels: u32,
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    t_start: f32,
+    t_end: f32,
+    start_level: u32,
+    steps: u32,
+) -> f32 {
+    let inv = safe_inverse(dir);
+    let span = ray_box(origin, inv, vec3<f32>(0.0), vec3<f32>(grid_dims));
+    var t = max(t_start, span.x);
+    let t_max = min(t_end, span.y);
+    let top = mip_levels - 1u;
+    var level = min(start_level, top);
+    for (var i = 0u; i < steps; i++) {
+        if t > t_max {
+            return -1.0;
+        }
+        let p = origin + dir * t;
+        let size = vec3<i32>(voxel_level_size(grid_dims, mip_levels, level));
+        let scale = f32(1u << level);
+        let texel = clamp(vec3<i32>(floor(p * (1.0 / scale))), vec3<i32>(0), size - vec3<i32>(1));
+        if textureLoad(voxels, texel, i32(level)).r > 0.0 {
+            if level == 0u {
+                return t;
+            }
+            level -= 1u;
+        } else {
+            let lo = vec3<f32>(texel) * scale;
+            let exit = ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y;
+            t = max(exit, t) + 1.0e-3;
+            level = min(level + 1u, top);
+        }
+    }
+    return -1.0;
 }
 
 // Octahedral encoding of a unit vector into [-1, 1]^2 (for the denoiser's packed normals).

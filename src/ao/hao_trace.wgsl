@@ -5,8 +5,8 @@
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, interleaved_gradient_noise, hemisphere_direction, orthonormal_basis, ao_falloff, ray_box,
-    safe_inverse, voxel_level_size, octahedral_encode,
+    HaoSettings, interleaved_gradient_noise, hemisphere_direction, orthonormal_basis, ao_falloff,
+    march_voxels, octahedral_encode,
 }
 
 @group(0) @binding(0) var depth_texture: texture_depth_2d;
@@ -15,41 +15,6 @@
 @group(0) @binding(3) var<uniform> settings: HaoSettings;
 @group(0) @binding(4) var ao_out: texture_storage_2d<rgba16float, write>;
 @group(1) @binding(0) var<uniform> view: View;
-
-// cpu/ao.rs: march_voxels. The distance along `dir` (grid units, from `origin`) to the first occupied cell
-// within [t_start, t_end], or -1: start at mip level 2, step over empty texels whole, descend into occupied
-// ones; at most `settings.steps` texel visits.
-fn march_voxels(origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32) -> f32 {
-    let inv = safe_inverse(dir);
-    let span = ray_box(origin, inv, vec3<f32>(0.0), vec3<f32>(settings.grid_dims));
-    var t = max(t_start, span.x);
-    let t_max = min(t_end, span.y);
-    let top = settings.mip_levels - 1u;
-    var level = min(2u, top);
-    for (var i = 0u; i < settings.steps; i++) {
-        if t > t_max {
-            return -1.0;
-        }
-        let p = origin + dir * t;
-        // The level's size from the settings (the texture is padded to a multiple of the coarsest texel), not
-        // from textureDimensions, which Mesa 22's lavapipe gets wrong for levels >= 2 of 3D textures.
-        let size = vec3<i32>(voxel_level_size(settings, level));
-        let scale = f32(1u << level);
-        let texel = clamp(vec3<i32>(floor(p * (1.0 / scale))), vec3<i32>(0), size - vec3<i32>(1));
-        if textureLoad(voxels, texel, i32(level)).r > 0.0 {
-            if level == 0u {
-                return t;
-            }
-            level -= 1u;
-        } else {
-            let lo = vec3<f32>(texel) * scale;
-            let exit = ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y;
-            t = max(exit, t) + 1.0e-3;
-            level = min(level + 1u, top);
-        }
-    }
-    return -1.0;
-}
 
 fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
     let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
@@ -89,7 +54,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {
         let dir = hemisphere_direction(basis, i, settings.rays, rotation);
-        let t = march_voxels(origin, dir, settings.start_offset, t_end);
+        // Start at mip level 2: a surface's neighbourhood is occupied at coarser levels anyway.
+        let t = march_voxels(voxels, settings.grid_dims, settings.mip_levels, origin, dir, settings.start_offset, t_end, 2u, settings.steps);
         if t >= 0.0 {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
             let d = length(origin + dir * (t + 0.5) - surface) * settings.cell_size;

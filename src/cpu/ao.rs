@@ -107,14 +107,23 @@ impl VoxelMips {
     }
 
     /// The distance along `dir` (grid units, from `origin`) to the first occupied cell within
-    /// `[t_start, t_end]`, or `None`, visiting at most `steps` texels (WGSL: `march_voxels`).
-    pub fn march_voxels(&self, origin: Vec3, dir: Vec3, t_start: f32, t_end: f32, steps: u32) -> Option<f32> {
+    /// `[t_start, t_end]`, or `None`: start at level `start_level`, step over empty texels whole, descend
+    /// into occupied ones, visiting at most `steps` texels (WGSL: `march_voxels`).
+    pub fn march_voxels(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_start: f32,
+        t_end: f32,
+        start_level: usize,
+        steps: u32,
+    ) -> Option<f32> {
         let inv = safe_inverse(dir);
         let span = ray_box(origin, inv, Vec3::ZERO, self.dims.as_vec3());
         let mut t = t_start.max(span.x);
         let t_max = t_end.min(span.y);
         let top = self.levels.len() - 1;
-        let mut level = 2.min(top);
+        let mut level = start_level.min(top);
         for _ in 0..steps {
             if t > t_max {
                 return None;
@@ -172,7 +181,7 @@ pub fn voxel_ambient_occlusion(
     let basis = orthonormal_basis(normal);
     for i in 0..s.rays {
         let dir = hemisphere_direction(basis, i, s.rays, rotation);
-        if let Some(t) = mips.march_voxels(origin, dir, s.start_offset, t_end, s.steps) {
+        if let Some(t) = mips.march_voxels(origin, dir, s.start_offset, t_end, 2, s.steps) {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
             let d = (origin + dir * (t + 0.5) - surface).length() * cell_size;
             occlusion += ao_falloff(d, s.max_distance, s.falloff);
@@ -222,16 +231,16 @@ mod tests {
             }
         }
         let mips = VoxelMips::new(&occ, 4);
-        let t = mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 64).unwrap();
+        let t = mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 2, 64).unwrap();
         assert!((t - 27.5).abs() < 0.01, "{t}");
         // Empty space is crossed in few steps: 27 cells with 12 texel visits at most.
-        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 12).is_some());
+        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 2, 12).is_some());
         // Away from the wall, nothing; beyond t_end, nothing.
-        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), -Vec3::X, 0.0, 100.0, 64).is_none());
-        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 20.0, 64).is_none());
+        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), -Vec3::X, 0.0, 100.0, 2, 64).is_none());
+        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 20.0, 2, 64).is_none());
         // A diagonal ray hits too.
         let d = Vec3::new(1.0, 0.3, -0.2).normalize();
-        let t = mips.march_voxels(Vec3::new(2.5, 5.5, 12.5), d, 0.0, 100.0, 64).unwrap();
+        let t = mips.march_voxels(Vec3::new(2.5, 5.5, 12.5), d, 0.0, 100.0, 2, 64).unwrap();
         assert!(((Vec3::new(2.5, 5.5, 12.5) + d * t).x - 30.0).abs() < 0.01);
         // An open floor sees no occlusion; facing the wall from close by does.
         let s =

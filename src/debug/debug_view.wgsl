@@ -2,7 +2,7 @@
 // occlusion alone, or the voxel grid ray-marched from the camera (voxels as shaded boxes, their point counts
 // as a heat map, or static and dynamic voxels in two colors).
 #import bevy_render::view::View
-#import bevy_hao::hao_common::{ray_box, safe_inverse}
+#import bevy_hao::hao_common::march_voxels
 
 struct DebugSettings {
     grid_origin: vec3<f32>,
@@ -33,40 +33,6 @@ struct FullscreenVertexOutput {
     @builtin(position) position: vec4<f32>,
     @location(0) uv: vec2<f32>,
 };
-
-fn level_size(level: u32) -> vec3<u32> {
-    let align = 1u << (settings.mip_levels - 1u);
-    let padded = (settings.grid_dims + vec3<u32>(align - 1u)) / align * align;
-    return padded >> vec3<u32>(level);
-}
-
-// The first occupied cell along the ray (grid space), as hierarchical as the HAO trace; -1 if none.
-fn march(origin: vec3<f32>, dir: vec3<f32>) -> f32 {
-    let inv = safe_inverse(dir);
-    let span = ray_box(origin, inv, vec3<f32>(0.0), vec3<f32>(settings.grid_dims));
-    var t = max(span.x, 0.0);
-    let top = settings.mip_levels - 1u;
-    var level = top;
-    for (var i = 0u; i < 1024u; i++) {
-        if t > span.y {
-            return -1.0;
-        }
-        let p = origin + dir * t;
-        let scale = f32(1u << level);
-        let texel = clamp(vec3<i32>(floor(p * (1.0 / scale))), vec3<i32>(0), vec3<i32>(level_size(level)) - vec3<i32>(1));
-        if textureLoad(voxels, texel, i32(level)).r > 0.0 {
-            if level == 0u {
-                return t;
-            }
-            level -= 1u;
-        } else {
-            let lo = vec3<f32>(texel) * scale;
-            t = max(ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y, t) + 1.0e-4;
-            level = min(level + 1u, top);
-        }
-    }
-    return -1.0;
-}
 
 fn bit(words_static: bool, index: u32) -> bool {
     if words_static {
@@ -100,7 +66,7 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     let near = view.world_from_clip * vec4<f32>(ndc, 1.0, 1.0);
     let dir_world = normalize(near.xyz / near.w - view.world_position);
     let origin = (view.world_position - settings.grid_origin) / settings.cell_size;
-    let t = march(origin, dir_world);
+    let t = march_voxels(voxels, settings.grid_dims, settings.mip_levels, origin, dir_world, 0.0, 1.0e30, 8u, 1024u);
     if t < 0.0 {
         return vec4<f32>(scene.rgb * 0.2, 1.0);
     }
