@@ -11,7 +11,7 @@
 //! faster, the scroll wheel sets the speed); the inspector window edits every setting live and shows the
 //! debug views and GPU times. With `--headless` the view is rendered off screen (on Mesa's lavapipe on a
 //! machine without a GPU) for `--frames` frames and written to `--screenshot`: the README's pictures come
-//! from this.
+//! from this. Without `--headless`, `--screenshot` captures the window, inspector included, and exits.
 //!
 //! The light is a sun through the windows plus an ambient "sky": ambient light is what ambient occlusion
 //! dims (direct sunlight is not), so an interior lit mostly by bounce light is where AO matters.
@@ -95,6 +95,9 @@ fn parse_args() -> Result<Args, String> {
     };
     if a.headless && a.screenshot.is_none() {
         return Err("--headless needs --screenshot OUT.png".into());
+    }
+    if !a.headless && a.screenshot.is_some() && !std::env::args().any(|x| x == "--frames") {
+        a.frames = 120;
     }
     Ok(a)
 }
@@ -263,6 +266,22 @@ fn main() {
             plugins.set(AssetPlugin { file_path: root, meta_check: bevy::asset::AssetMetaCheck::Never, ..default() });
     }
     app.add_plugins((plugins, HaoPlugin, bevy_hao::inspector::HaoInspectorPlugin)).add_systems(Update, fly_camera);
+    if let Some(out) = args.screenshot.clone() {
+        // In a window, --screenshot captures the window (inspector included) after --frames frames, then exits.
+        let frames = args.frames;
+        app.add_systems(
+            Update,
+            move |mut commands: Commands, mut n: Local<usize>, mut exit: MessageWriter<AppExit>| {
+                *n += 1;
+                if *n == frames {
+                    commands.spawn(Screenshot::primary_window()).observe(save_to_disk(out.clone()));
+                }
+                if *n == frames + 30 {
+                    exit.write(AppExit::Success);
+                }
+            },
+        );
+    }
     setup_scene(&mut app, &args, source, camera, None);
     app.run();
 }
