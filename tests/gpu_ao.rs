@@ -412,7 +412,7 @@ fn debug_views_show_ao_voxels_point_counts_and_the_static_dynamic_split() {
     });
     run(&mut app, 6);
     let cam = app.world_mut().query_filtered::<Entity, With<TheCamera>>().single(app.world()).unwrap();
-    let mut pixels = |app: &mut App, view: HaoDebugView| -> Vec<[u8; 3]> {
+    let pixels = |app: &mut App, view: HaoDebugView| -> Vec<[u8; 3]> {
         app.world_mut().entity_mut(cam).insert(view);
         run(app, 3);
         let targets = app.world().resource::<Targets>().clone();

@@ -1,5 +1,6 @@
 //! The HAO pipelines.
 
+use crate::voxel::pipelines::queue_compute;
 use bevy::asset::load_embedded_asset;
 use bevy::prelude::*;
 use bevy::render::render_resource::binding_types::{
@@ -8,7 +9,6 @@ use bevy::render::render_resource::binding_types::{
 use bevy::render::render_resource::*;
 use bevy::render::renderer::{RenderAdapter, RenderDevice, RenderQueue};
 use bevy::render::view::ViewUniform;
-use bevy::shader::ShaderDefVal;
 
 /// The HAO pipelines, layouts, and a 1-voxel texture bound when there is no voxel grid.
 #[derive(Resource)]
@@ -138,20 +138,8 @@ impl FromWorld for HaoPipelines {
             ),
         );
         let cache = world.resource::<PipelineCache>();
-        let queue_pipeline = |label: &'static str,
-                              layout: Vec<BindGroupLayoutDescriptor>,
-                              shader: Handle<Shader>,
-                              entry: &'static str,
-                              defs: Vec<ShaderDefVal>| {
-            cache.queue_compute_pipeline(ComputePipelineDescriptor {
-                label: Some(label.into()),
-                layout,
-                shader,
-                shader_defs: defs,
-                entry_point: Some(entry.into()),
-                ..default()
-            })
-        };
+        let queue_pipeline =
+            |label, layout, shader, entry, defs| queue_compute(cache, label, layout, shader, entry, defs);
         let trace = queue_pipeline(
             "hao_trace",
             vec![trace_layout.clone(), view_layout.clone()],

@@ -187,20 +187,8 @@ impl FromWorld for VoxelizePipelines {
         let texture_defs: Vec<ShaderDefVal> =
             if texture_format == TextureFormat::R8Unorm { vec!["VOXEL_TEXTURE_R8".into()] } else { vec![] };
         let pipeline_cache = world.resource::<PipelineCache>();
-        let queue = |label: &'static str,
-                     layout: Vec<BindGroupLayoutDescriptor>,
-                     shader: Handle<Shader>,
-                     entry: &'static str,
-                     defs: Vec<ShaderDefVal>| {
-            pipeline_cache.queue_compute_pipeline(ComputePipelineDescriptor {
-                label: Some(label.into()),
-                layout,
-                shader,
-                shader_defs: defs,
-                entry_point: Some(entry.into()),
-                ..default()
-            })
-        };
+        let queue =
+            |label, layout, shader, entry, defs| queue_compute(pipeline_cache, label, layout, shader, entry, defs);
         let classify = queue(
             "hao_voxelize_classify",
             vec![slab_layout.clone(), pass_layout.clone()],
@@ -252,4 +240,24 @@ impl FromWorld for VoxelizePipelines {
             dummy,
         }
     }
+}
+
+/// Queues one compute pipeline of bevy_hao: every pass has a label, its layouts, one shader, one
+/// entry point and its shader defs. Shared by the voxelization and the AO pipelines.
+pub(crate) fn queue_compute(
+    cache: &PipelineCache,
+    label: &'static str,
+    layout: Vec<BindGroupLayoutDescriptor>,
+    shader: Handle<Shader>,
+    entry: &'static str,
+    shader_defs: Vec<ShaderDefVal>,
+) -> CachedComputePipelineId {
+    cache.queue_compute_pipeline(ComputePipelineDescriptor {
+        label: Some(label.into()),
+        layout,
+        shader,
+        shader_defs,
+        entry_point: Some(entry.into()),
+        ..default()
+    })
 }
