@@ -20,7 +20,6 @@ mod support;
 use bevy::camera::RenderTarget;
 use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
-use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy::time::TimeUpdateStrategy;
 use bevy_hao::prelude::*;
 use support::scene::{SceneSource, spawn_scene};
@@ -211,21 +210,12 @@ fn main() {
             configure(app);
         });
         support::run(&mut app, frames);
-        let _ = std::fs::remove_file(&out);
         let target = app.world().resource::<ScreenshotTarget>().0.clone();
-        app.world_mut().spawn(Screenshot::image(target)).observe(save_to_disk(out.clone()));
-        for _ in 0..20 {
-            app.update();
-            if std::path::Path::new(&out).exists() {
-                break;
-            }
-        }
-        let errors = support::take_render_errors();
-        let s = support::stats(&app);
-        if !errors.is_empty() || !std::path::Path::new(&out).exists() {
-            eprintln!("error: no screenshot ({errors:?})");
+        if let Err(e) = support::save_screenshot(&mut app, target, &out) {
+            eprintln!("error: no screenshot ({e})");
             std::process::exit(1);
         }
+        let s = support::stats(&app);
         println!(
             "wrote {out}: static grid built {} times in {frames} frames; {} dynamic instances ({} triangles) this frame",
             s.static_rebuilds, s.dynamic_instances, s.dynamic_triangles

@@ -228,22 +228,9 @@ fn main() {
         let setup_args = args.clone();
         let mut app = support::headless_app(|app| setup_scene(app, &setup_args, source, camera, Some(args.size)));
         support::run(&mut app, args.frames);
-        let _ = std::fs::remove_file(&out);
         let target = app.world().resource::<ScreenshotTarget>().0.clone();
-        app.world_mut().spawn(Screenshot::image(target)).observe(save_to_disk(out.clone()));
-        for _ in 0..20 {
-            app.update();
-            if std::path::Path::new(&out).exists() {
-                break;
-            }
-        }
-        let errors = support::take_render_errors();
-        if !errors.is_empty() {
-            eprintln!("error: wgpu errors: {errors:?}");
-            std::process::exit(1);
-        }
-        if !std::path::Path::new(&out).exists() {
-            eprintln!("error: the screenshot was not written");
+        if let Err(e) = support::save_screenshot(&mut app, target, &out) {
+            eprintln!("error: {e}");
             std::process::exit(1);
         }
         let s = support::stats(&app);

@@ -255,6 +255,28 @@ pub fn read_image_f32(app: &mut App, image: Handle<Image>, settle: usize) -> (u3
     (w, h, bytemuck::cast_slice(&bytes).to_vec())
 }
 
+/// Saves `target` (a render-target image) to the PNG file `out` with Bevy's screenshot and runs frames
+/// until the file exists. Fails if wgpu reported errors or the file was not written within 20 frames.
+pub fn save_screenshot(app: &mut App, target: Handle<Image>, out: &str) -> Result<(), String> {
+    use bevy::render::view::screenshot::{Screenshot, save_to_disk};
+    let _ = std::fs::remove_file(out);
+    app.world_mut().spawn(Screenshot::image(target)).observe(save_to_disk(out.to_string()));
+    for _ in 0..20 {
+        app.update();
+        if std::path::Path::new(out).exists() {
+            break;
+        }
+    }
+    let errors = take_render_errors();
+    if !errors.is_empty() {
+        return Err(format!("wgpu errors: {errors:?}"));
+    }
+    if !std::path::Path::new(out).exists() {
+        return Err("the screenshot was not written".into());
+    }
+    Ok(())
+}
+
 /// A render target image that can be read back.
 pub fn target_image(images: &mut Assets<Image>, size: UVec2) -> Handle<Image> {
     let mut image =
