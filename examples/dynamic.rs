@@ -22,7 +22,7 @@ use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hao::prelude::*;
-use support::scene::{SceneSource, spawn_scene};
+use support::scene::{SceneSource, spawn_scene, sun};
 
 #[derive(Component)]
 struct Orbit {
@@ -60,15 +60,7 @@ fn setup(
     spawn_scene(&SceneSource::Builtin("cathedral".into()), &mut commands, &mut meshes, &mut materials, &server)
         .expect("built-in scene");
     commands.spawn(VoxelVolume { resolution: VolumeResolution::Cells(128), ..default() });
-    commands.spawn((
-        DirectionalLight {
-            illuminance: 25_000.0,
-            color: Color::srgb(1.0, 0.93, 0.8),
-            shadow_maps_enabled: true,
-            ..default()
-        },
-        Transform::from_xyz(0.4, 0.55, 0.25).looking_at(Vec3::ZERO, Vec3::Y),
-    ));
+    commands.spawn(sun());
     let red = materials.add(StandardMaterial { base_color: Color::srgb(0.7, 0.2, 0.15), ..default() });
     let sphere = meshes.add(Sphere::new(0.8).mesh().uv(32, 16));
     for k in 0..3 {

@@ -24,7 +24,7 @@ use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_hao::prelude::*;
-use support::scene::{SceneSource, default_camera, spawn_scene};
+use support::scene::{SceneSource, default_camera, spawn_scene, sun};
 
 const USAGE: &str = "usage: sibenik [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--ao hao|ssao|both|off] \
 [--view final|ao|voxels|counts|static-dynamic] [--res 128] [--camera X,Y,Z --look X,Y,Z] \
@@ -128,15 +128,7 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                 }
                 commands.spawn(VoxelVolume { resolution: VolumeResolution::Cells(args.res), ..default() });
                 // A low sun, so that it reaches in through the windows.
-                commands.spawn((
-                    DirectionalLight {
-                        illuminance: 25_000.0,
-                        color: Color::srgb(1.0, 0.93, 0.8),
-                        shadow_maps_enabled: true,
-                        ..default()
-                    },
-                    Transform::from_xyz(0.4, 0.55, 0.25).looking_at(Vec3::ZERO, Vec3::Y),
-                ));
+                commands.spawn(sun());
                 let (yaw, pitch, _) = camera.rotation.to_euler(EulerRot::YXZ);
                 let image = target.map(|size| support::target_image(&mut images, size));
                 if let Some(image) = &image {

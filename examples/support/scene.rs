@@ -191,6 +191,20 @@ pub fn spawn_scene(
     Ok(spawned)
 }
 
+/// The examples' sun: a low, warm directional light with shadows, so that it reaches in through the
+/// cathedral's windows and leaves the rest to ambient light, where AO shows.
+pub fn sun() -> impl Bundle {
+    (
+        DirectionalLight {
+            illuminance: 25_000.0,
+            color: Color::srgb(1.0, 0.93, 0.8),
+            shadow_maps_enabled: true,
+            ..default()
+        },
+        Transform::from_xyz(0.4, 0.55, 0.25).looking_at(Vec3::ZERO, Vec3::Y),
+    )
+}
+
 /// A camera position inside a scene's bounds, looking along its longest horizontal axis: right for the
 /// interiors (the cathedral, Sibenik, Sponza), and a view from outside for an object.
 pub fn default_camera(bounds: (Vec3, Vec3), interior: bool) -> Transform {
