@@ -3,8 +3,13 @@
 //! ```text
 //! cargo run --release --example ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
 //!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
-//!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--out ao_compare.png]
+//!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--world] [--out ao_compare.png]
 //! ```
+//!
+//! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 128^3 following the
+//! camera) or `fit` (one grid fitted to the static scene, `--res` cells on its longest axis). `--world`
+//! puts the scene inside a generated level 1 km across (a ground and distant buildings: see
+//! `support::scene::big_world`), which the reference traces too.
 //!
 //! One headless app (Mesa's lavapipe on a machine without a GPU) renders the same view with three cameras:
 //! HAO alone (voxel rays only), HAO with its near field (the minimum with Bevy's SSAO), and Bevy's SSAO
@@ -34,11 +39,14 @@ struct Args {
     quality: HaoQuality,
     camera: Option<(Vec3, Vec3)>,
     outside: bool,
+    fit: bool,
+    world: bool,
     out: String,
 }
 
 const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
-[--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] [--out ao_compare.png]";
+[--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] \
+[--volume cascades|fit] [--world] [--out ao_compare.png]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -51,6 +59,8 @@ fn parse_args() -> Result<Args, String> {
         quality: HaoQuality::Medium,
         camera: None,
         outside: false,
+        fit: false,
+        world: false,
         out: "ao_compare.png".into(),
     };
     let (mut eye, mut look) = (None, None);
@@ -79,6 +89,14 @@ fn parse_args() -> Result<Args, String> {
             "--camera" => eye = Some(support::args::vec3(&value("--camera")?)?),
             "--look" => look = Some(support::args::vec3(&value("--look")?)?),
             "--outside" => a.outside = true,
+            "--world" => a.world = true,
+            "--volume" => {
+                a.fit = match value("--volume")?.as_str() {
+                    "cascades" => false,
+                    "fit" => true,
+                    v => return Err(format!("unknown volume {v} (cascades or fit)")),
+                }
+            }
             "--out" => a.out = value("--out")?,
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
@@ -113,11 +131,15 @@ fn main() {
         eprintln!("error: {e}");
         std::process::exit(1)
     });
-    let triangles = source.triangles().unwrap_or_else(|e| {
+    let mut triangles = source.triangles().unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)
     });
     let bounds = triangles.bounds().expect("a scene with triangles");
+    let world_parts = if args.world { support::scene::big_world(bounds, 1000.0) } else { Vec::new() };
+    for p in &world_parts {
+        triangles.append(p, Default::default());
+    }
     let camera = match args.camera {
         Some((eye, look)) => Transform::from_translation(eye).looking_at(look, Vec3::Y),
         None => default_camera(bounds, !args.outside),
@@ -140,9 +162,11 @@ fn main() {
     let (size, res) = (args.size, args.res);
     let setup_source = source.clone();
     let setup_hao = hao.clone();
+    let fit = args.fit;
     let mut app = support::headless_app(move |app| {
         let source = setup_source.clone();
         let hao = setup_hao.clone();
+        let world_parts = world_parts.clone();
         app.insert_resource(bevy::light::GlobalAmbientLight { brightness: 300.0, ..default() });
         app.add_systems(
             Startup,
@@ -154,15 +178,24 @@ fn main() {
                 if let Err(e) = spawn_scene(&source, &mut commands, &mut meshes, &mut materials, &server) {
                     panic!("{e}");
                 }
-                let margin = (bounds.1 - bounds.0).max_element() * 0.02;
-                commands.spawn(VoxelVolume {
-                    bounds: VolumeBounds::World {
-                        min: bounds.0 - Vec3::splat(margin),
-                        max: bounds.1 + Vec3::splat(margin),
-                    },
-                    resolution: VolumeResolution::Cells(res),
-                    ..default()
-                });
+                let ground = materials.add(StandardMaterial { perceptual_roughness: 1.0, ..default() });
+                for p in &world_parts {
+                    commands.spawn((
+                        Mesh3d(meshes.add(support::scene::bevy_mesh(p, false))),
+                        MeshMaterial3d(ground.clone()),
+                        StaticOccluder,
+                    ));
+                }
+                if fit {
+                    let margin = (bounds.1 - bounds.0).max_element() * 0.02;
+                    commands.spawn(VoxelVolume {
+                        bounds: VolumeBounds::FitStaticScene { margin },
+                        resolution: VolumeResolution::Cells(res),
+                        ..default()
+                    });
+                } else {
+                    commands.spawn(VoxelVolume::default());
+                }
                 let mut outputs = Vec::new();
                 for k in 0..3 {
                     let debug = HaoDebugImages::new(&mut images, size);
@@ -293,9 +326,15 @@ fn main() {
         pixels.len(),
         offscreen.len()
     );
+    let volume = if args.fit {
+        format!("one grid fitted to the static scene, {} cells on its longest axis", args.res)
+    } else {
+        "4 cascades of 128^3 following the camera (the default)".to_string()
+    };
+    let world = if args.world { ", inside a generated 1 km level" } else { "" };
     println!(
-        "HAO: {:?}, max distance {}, voxel grid {} cells on its longest axis; reference: {} rays per pixel\n",
-        args.quality, args.max_distance, args.res, args.rays
+        "HAO: {:?}, max distance {}, voxel volume: {volume}{world}; reference: {} rays per pixel\n",
+        args.quality, args.max_distance, args.rays
     );
     println!("| AO | mean abs. error, all pixels | mean abs. error, off-screen/hidden occluders | mean AO |");
     println!("|---|---:|---:|---:|");

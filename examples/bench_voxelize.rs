@@ -16,7 +16,14 @@
 //!    includes copying the static grid) and of resolving the region it covers.
 //!
 //! Each is printed as a median beside the median of Bevy's depth prepass (`early prepass`) measured in the
-//! same frames, and as a ratio to it. Times on a software rasterizer such as lavapipe are not GPU times:
+//! same frames, and as a ratio to it.
+//!
+//! With `--cascades`, each mesh is also put in the plugin's default volume (4 cascades of 128^3 following
+//! the camera) with the camera inside it, moving along its longest horizontal axis, in three phases: at
+//! walking speed (1.4 units a second at 60 frames a second), at running speed (6 units a second), and
+//! teleporting 500 units away and back every 10 frames. For each it prints the mean GPU time per frame of
+//! the static updates (`hao/voxelize_static`: the slabs the cascades scroll into) and of the resolve, the
+//! worst single frame, and the cells voxelized per frame, beside the depth prepass. Times on a software rasterizer such as lavapipe are not GPU times:
 //! quote them only as ratios of one run, and absolute figures only from a real GPU.
 
 mod support;
@@ -32,7 +39,7 @@ use bevy_hao::prelude::*;
 use bevy_hao::voxel::RebuildStaticVoxels;
 
 const USAGE: &str = "usage: bench_voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--frames 30] [--size 1280x720] \
-[--mode centroid|conservative]";
+[--mode centroid|conservative] [--cascades]";
 
 struct Args {
     inputs: Vec<String>,
@@ -40,6 +47,7 @@ struct Args {
     frames: usize,
     size: UVec2,
     injection: VoxelInjection,
+    cascades: bool,
 }
 
 fn parse_args() -> Result<Args, String> {
@@ -49,6 +57,7 @@ fn parse_args() -> Result<Args, String> {
         frames: 30,
         size: UVec2::new(1280, 720),
         injection: VoxelInjection::Centroid,
+        cascades: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -66,6 +75,7 @@ fn parse_args() -> Result<Args, String> {
                     m => return Err(format!("unknown mode {m}")),
                 }
             }
+            "--cascades" => a.cascades = true,
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
             s => a.inputs.push(s.to_string()),
@@ -80,7 +90,56 @@ fn parse_args() -> Result<Args, String> {
 #[derive(Component)]
 struct Subject;
 
-/// Builds the app for one mesh at one resolution.
+#[derive(Component)]
+struct TheCamera;
+
+/// A camera path: the offset from the start at frame `k`.
+type CameraPath = fn(usize) -> Vec3;
+
+/// The cascades' phases: the camera moves along `axis` each frame as `path` says, for `frames` frames.
+/// Returns, per span, the mean GPU ms per frame (frames without the pass count as 0) and the worst frame,
+/// and the mean cells voxelized per frame.
+fn measure_moving(
+    app: &mut App,
+    frames: usize,
+    axis: Vec3,
+    path: CameraPath,
+    spans: &[&str],
+) -> (Vec<(f64, f64)>, f64) {
+    let start =
+        app.world_mut().query_filtered::<&Transform, With<TheCamera>>().single(app.world()).unwrap().translation;
+    let mut last: Vec<Option<std::time::Instant>> = spans
+        .iter()
+        .map(|s| support::diagnostic_measurement(app, &format!("render/{s}/elapsed_gpu")).map(|m| m.0))
+        .collect();
+    let mut sums = vec![(0.0f64, 0.0f64); spans.len()];
+    let mut cells = 0u64;
+    // A few frames after the last move, for the timestamps to arrive.
+    for k in 0..frames + 4 {
+        if k < frames {
+            let offset = path(k);
+            let mut q = app.world_mut().query_filtered::<&mut Transform, With<TheCamera>>();
+            q.single_mut(app.world_mut()).unwrap().translation = start + axis * offset.x + Vec3::Y * offset.y;
+        }
+        app.update();
+        if k < frames {
+            cells += support::stats(app).cascades.iter().map(|c| c.static_cells_last_frame).sum::<u64>();
+        }
+        for (i, span) in spans.iter().enumerate() {
+            if let Some((t, v)) = support::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu"))
+                && last[i] != Some(t)
+            {
+                last[i] = Some(t);
+                sums[i].0 += v;
+                sums[i].1 = sums[i].1.max(v);
+            }
+        }
+    }
+    let mean = sums.into_iter().map(|(s, m)| (s / frames as f64, m)).collect();
+    (mean, cells as f64 / frames as f64)
+}
+
+/// Builds the app for one mesh at one resolution (`res == 0`: the default cascades, the camera inside).
 fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection) -> App {
     let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
@@ -100,9 +159,10 @@ fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection
                 .with_inserted_indices(bevy::mesh::Indices::U32(indices.clone()));
                 m.duplicate_vertices();
                 m.compute_flat_normals();
+                let bounds = if res == 0 { VolumeBounds::default() } else { VolumeBounds::World { min: lo, max: hi } };
                 commands.spawn(VoxelVolume {
-                    bounds: VolumeBounds::World { min: lo, max: hi },
-                    resolution: VolumeResolution::Cells(res),
+                    bounds,
+                    resolution: VolumeResolution::Cells(res.max(1)),
                     injection,
                     point_budget: u32::MAX,
                     ..default()
@@ -116,15 +176,25 @@ fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection
                 let center = (lo + hi) / 2.0;
                 let radius = (hi - lo).length() / 2.0;
                 let target = images.add(Image::new_target_texture(size.x, size.y, TextureFormat::Rgba8UnormSrgb, None));
-                commands.spawn((
+                let transform = if res == 0 {
+                    support::scene::default_camera((lo, hi), true)
+                } else {
+                    Transform::from_translation(center + Vec3::new(0.6, 0.4, 1.0).normalize() * radius * 2.2)
+                        .looking_at(center, Vec3::Y)
+                };
+                let mut camera = commands.spawn((
                     Camera3d::default(),
                     RenderTarget::Image(target.into()),
                     DepthPrepass,
                     Msaa::Off,
                     Tonemapping::None,
-                    Transform::from_translation(center + Vec3::new(0.6, 0.4, 1.0).normalize() * radius * 2.2)
-                        .looking_at(center, Vec3::Y),
+                    transform,
+                    TheCamera,
                 ));
+                if res == 0 {
+                    // The cascades follow a camera with HAO.
+                    camera.insert(HybridAmbientOcclusion::default());
+                }
                 commands.spawn((
                     DirectionalLight::default(),
                     Transform::from_xyz(1.0, 2.0, 1.0).looking_at(Vec3::ZERO, Vec3::Y),
@@ -163,6 +233,8 @@ fn main() {
     };
     let mut adapter = String::new();
     let mut rows = Vec::new();
+    let mut cascade_rows: Vec<String> = Vec::new();
+    let mut memory = String::new();
     for input in &args.inputs {
         let loaded = match load_mesh(input) {
             Ok(l) => l,
@@ -171,6 +243,55 @@ fn main() {
                 std::process::exit(1);
             }
         };
+        if args.cascades {
+            eprintln!("{} in the default cascades...", loaded.name);
+            let mut app = app_for(&loaded.mesh, 0, args.size, args.injection);
+            let mut frames = 0;
+            while support::stats(&app).static_rebuilds == 0 && frames < 120 {
+                app.update();
+                frames += 1;
+            }
+            support::run(&mut app, 5);
+            let (lo, hi) = loaded.mesh.bounds().unwrap();
+            let axis = if hi.x - lo.x >= hi.z - lo.z { -Vec3::X } else { -Vec3::Z };
+            let prepass = "early prepass";
+            let spans = ["hao/voxelize_static", "hao/resolve", prepass];
+            let walk: CameraPath = |k| Vec3::X * (1.4 / 60.0) * k as f32;
+            let run: CameraPath = |k| Vec3::X * (6.0 / 60.0) * k as f32;
+            let teleport: CameraPath = |k| if (k / 10) % 2 == 1 { Vec3::X * 500.0 } else { Vec3::ZERO };
+            for (phase, path) in
+                [("walking, 1.4/s", walk), ("running, 6/s", run), ("teleport 500 every 10 frames", teleport)]
+            {
+                let (m, cells) = measure_moving(&mut app, args.frames.max(60), axis, path, &spans);
+                let p = m[2].0;
+                for (pass, (mean, worst)) in [("voxelize_static (scroll)", m[0]), ("resolve", m[1])] {
+                    cascade_rows.push(format!(
+                        "| {} | {phase} | {pass} | {cells:.0} | {mean:.3} | {worst:.3} | {p:.3} | {:.2} | {:.2} |",
+                        loaded.name,
+                        if p > 0.0 { mean / p } else { f64::NAN },
+                        if p > 0.0 { worst / p } else { f64::NAN },
+                    ));
+                }
+                // Back to the start, settled.
+                measure_moving(&mut app, 8, axis, |_| Vec3::ZERO, &spans);
+            }
+            let s = support::stats(&app);
+            let bytes: u64 = s.cascades.iter().map(|c| c.bytes.total()).sum();
+            memory = format!(
+                "{} cascades of {}^3, {:.1} MB in all (occupancy bits {:.1} MB, texture with mips {:.1} MB, point counts {:.1} MB)",
+                s.cascades.len(),
+                s.grid.map_or(0, |g| g.dims.x),
+                bytes as f64 / 1.0e6,
+                s.cascades.iter().map(|c| c.bytes.occupancy).sum::<u64>() as f64 / 1.0e6,
+                s.cascades.iter().map(|c| c.bytes.texture).sum::<u64>() as f64 / 1.0e6,
+                s.cascades.iter().map(|c| c.bytes.point_counts).sum::<u64>() as f64 / 1.0e6,
+            );
+            let errors = support::take_render_errors();
+            if !errors.is_empty() {
+                eprintln!("error: wgpu errors: {errors:?}");
+                std::process::exit(1);
+            }
+        }
         for &res in &args.resolutions {
             eprintln!("{} at {res}...", loaded.name);
             let mut app = app_for(&loaded.mesh, res, args.size, args.injection);
@@ -227,5 +348,15 @@ fn main() {
     println!("|---|---:|---|---:|---:|---|---:|---:|---:|");
     for r in rows {
         println!("{r}");
+    }
+    if !cascade_rows.is_empty() {
+        println!("\nThe default cascades, the camera moving ({memory}):\n");
+        println!(
+            "| mesh | camera | pass | cells voxelized per frame | mean GPU ms per frame | worst frame ms | depth prepass median ms | mean / prepass | worst / prepass |"
+        );
+        println!("|---|---|---|---:|---:|---:|---:|---:|---:|");
+        for r in cascade_rows {
+            println!("{r}");
+        }
     }
 }

@@ -60,6 +60,21 @@ impl From<VoxelInjection> for cpu::InjectionMode {
 #[derive(Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Debug, PartialEq)]
 pub enum VolumeBounds {
+    /// The default: `cascades` grids of `cells^3` cells centred on the camera, each with twice the cell size
+    /// of the one inside it (`finest_cell_size` for the first), so that HAO works in a world of any size at
+    /// a bounded memory cost. The grids follow the camera that has [`crate::HybridAmbientOcclusion`] (the
+    /// active one of lowest `Camera::order`, if several: the plugin warns once; other cameras trace into the
+    /// same cascades). When the camera moves, only the slabs of cells that come into a cascade are
+    /// voxelized again (the grids wrap around); a jump of a whole cascade or more rebuilds it.
+    /// [`VoxelVolume::resolution`] is not used. See [`crate::cpu::cascade`].
+    FollowCamera {
+        /// Cascade levels, 1 to 8.
+        cascades: u32,
+        /// Cells per axis of every cascade: a multiple of 8, at least 16.
+        cells: u32,
+        /// World-space cell size of the finest cascade.
+        finest_cell_size: f32,
+    },
     /// The world-space bounds of all static occluders, grown by `margin` (world units) on every side.
     /// Refitted when the static scene changes. Dynamic occluders outside it are clipped.
     FitStaticScene {
@@ -75,7 +90,13 @@ pub enum VolumeBounds {
     },
 }
 
-/// How fine the voxel grid is.
+impl Default for VolumeBounds {
+    fn default() -> Self {
+        VolumeBounds::FollowCamera { cascades: 4, cells: 128, finest_cell_size: 0.125 }
+    }
+}
+
+/// How fine a single voxel grid is ([`VolumeBounds::FitStaticScene`] and [`VolumeBounds::World`]).
 #[derive(Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Debug, PartialEq)]
 pub enum VolumeResolution {
@@ -88,7 +109,8 @@ pub enum VolumeResolution {
 
 /// The voxel volume: where the grid is, how fine, and how geometry is voxelized into it. Put it on any
 /// entity (one per app: if there are several, the first found is used and the plugin warns). Without one,
-/// [`VoxelVolume::default()`] is used: fitted to the static scene, 128 cells along its longest axis.
+/// [`VoxelVolume::default()`] is used: 4 camera-following cascades of 128^3 cells, the finest with cells of
+/// 0.125 world units (16 units across), the coarsest 1 unit (128 across).
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct VoxelVolume {
@@ -105,20 +127,21 @@ pub struct VoxelVolume {
     /// Most sub-triangle points generated per frame (static rebuild and dynamic geometry together);
     /// more are dropped with a warning. Equation 5 estimates the need of each mesh.
     pub point_budget: u32,
-    /// Keep a per-voxel point count (multi-valued voxelization; 4 bytes per voxel, twice). Turned off with
-    /// a warning if the count buffers would exceed the device's storage-binding limit.
+    /// Keep a per-voxel point count (multi-valued voxelization; 4 bytes per voxel, twice; off by default,
+    /// since cascades have millions of voxels). Turned off with a warning if the count buffers would exceed
+    /// the device's storage-binding limit.
     pub point_counts: bool,
 }
 
 impl Default for VoxelVolume {
     fn default() -> Self {
         Self {
-            bounds: VolumeBounds::FitStaticScene { margin: 0.5 },
+            bounds: VolumeBounds::default(),
             resolution: VolumeResolution::Cells(128),
             gamma: 1.0,
             injection: VoxelInjection::Centroid,
             point_budget: 32 << 20,
-            point_counts: true,
+            point_counts: false,
         }
     }
 }
@@ -127,6 +150,16 @@ impl VoxelVolume {
     /// The CPU settings equivalent to this volume's gamma and injection mode.
     pub fn voxelize_settings(&self) -> cpu::VoxelizeSettings {
         cpu::VoxelizeSettings { gamma: self.gamma, mode: self.injection.into() }
+    }
+
+    /// The cascades' shape, for [`VolumeBounds::FollowCamera`].
+    pub fn cascade_shape(&self) -> Option<cpu::CascadeShape> {
+        match self.bounds {
+            VolumeBounds::FollowCamera { cascades, cells, finest_cell_size } => {
+                Some(cpu::CascadeShape { levels: cascades, cells, finest_cell_size })
+            }
+            _ => None,
+        }
     }
 
     /// The grid for given world bounds (the static scene's, for [`VolumeBounds::FitStaticScene`]).

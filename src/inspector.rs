@@ -211,12 +211,40 @@ fn inspector_window(
         ui.heading("Voxel volume");
         match volumes.iter_mut().next() {
             Some((_, mut volume)) => {
-                let mut cells = match volume.resolution {
-                    VolumeResolution::Cells(n) => n,
-                    VolumeResolution::CellSize(_) => assets.as_ref().map_or(128, |a| a.grid.dims.max_element()),
-                };
-                if ui.add(egui::Slider::new(&mut cells, 16..=512).text("cells (longest axis)")).changed() {
-                    volume.resolution = VolumeResolution::Cells(cells);
+                let mut follow = matches!(volume.bounds, crate::components::VolumeBounds::FollowCamera { .. });
+                if ui.checkbox(&mut follow, "cascades follow the camera").changed() {
+                    volume.bounds = if follow {
+                        crate::components::VolumeBounds::default()
+                    } else {
+                        crate::components::VolumeBounds::FitStaticScene { margin: 0.5 }
+                    };
+                }
+                if let crate::components::VolumeBounds::FollowCamera { cascades, cells, finest_cell_size } =
+                    &mut volume.bounds
+                {
+                    let mut c = *cascades;
+                    if ui.add(egui::Slider::new(&mut c, 1..=8).text("cascades")).changed() {
+                        *cascades = c;
+                    }
+                    let mut n = *cells / 8;
+                    if ui.add(egui::Slider::new(&mut n, 2..=48).text("cells per axis / 8")).changed() {
+                        *cells = n * 8;
+                    }
+                    let mut size = *finest_cell_size;
+                    if ui
+                        .add(egui::Slider::new(&mut size, 0.01..=2.0).logarithmic(true).text("finest cell size"))
+                        .changed()
+                    {
+                        *finest_cell_size = size;
+                    }
+                } else {
+                    let mut cells = match volume.resolution {
+                        VolumeResolution::Cells(n) => n,
+                        VolumeResolution::CellSize(_) => assets.as_ref().map_or(128, |a| a.grid.dims.max_element()),
+                    };
+                    if ui.add(egui::Slider::new(&mut cells, 16..=512).text("cells (longest axis)")).changed() {
+                        volume.resolution = VolumeResolution::Cells(cells);
+                    }
                 }
                 ui.add(egui::Slider::new(&mut volume.gamma, 0.25..=8.0).logarithmic(true).text("gamma"));
                 ui.horizontal(|ui| {
@@ -233,7 +261,7 @@ fn inspector_window(
                 ui.checkbox(&mut volume.point_counts, "per-voxel point counts");
             }
             None => {
-                ui.label("default volume (fitted to the static scene, 128 cells)");
+                ui.label("default volume (4 cascades of 128^3 following the camera)");
                 if ui.button("add a VoxelVolume to edit").clicked() {
                     commands.spawn(VoxelVolume::default());
                 }
@@ -247,6 +275,17 @@ fn inspector_window(
             None => {
                 ui.label("no voxel grid");
             }
+        }
+        for (l, c) in s.cascades.iter().enumerate() {
+            ui.label(format!(
+                "level {l}: cell {:.3}, window at {}, {} cells voxelized last frame, {} scrolls, {} rebuilds, {:.1} MB",
+                c.cell_size,
+                c.window_min,
+                c.static_cells_last_frame,
+                c.scrolls,
+                c.rebuilds,
+                c.bytes.total() as f64 / 1.0e6
+            ));
         }
         if let Some(v) = count.voxels {
             ui.label(format!("voxels set: {v}"));

@@ -6,7 +6,12 @@ use std::collections::HashMap;
 use std::path::Path;
 
 /// Import modules, in dependency order.
-const MODULES: &[&str] = &["src/voxel/voxelize_common.wgsl", "src/voxel/voxelize_pass.wgsl", "src/ao/hao_common.wgsl"];
+const MODULES: &[&str] = &[
+    "src/voxel/voxelize_common.wgsl",
+    "src/voxel/voxelize_pass.wgsl",
+    "src/voxel/voxel_grid.wgsl",
+    "src/ao/hao_common.wgsl",
+];
 
 /// Bevy's modules our shaders import, relative to the `bevy_render` crate's root.
 const BEVY_RENDER_MODULES: &[&str] = &["src/view/view.wgsl"];
@@ -35,6 +40,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxelize_classify.wgsl", vec![vec![]]),
         ("src/voxel/voxelize_scan.wgsl", vec![vec![]]),
         ("src/voxel/voxelize_expand.wgsl", vec![vec![]]),
+        ("src/voxel/voxel_clear.wgsl", vec![vec![]]),
         ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
         ("src/voxel/voxel_mip.wgsl", texture_variants),
         ("src/ao/hao_trace.wgsl", vec![vec![]]),

@@ -33,6 +33,7 @@ fn volume() -> VoxelVolume {
     VoxelVolume {
         bounds: VolumeBounds::World { min: Vec3::new(-8.0, -1.0, -8.0), max: Vec3::new(8.0, 7.0, 8.0) },
         resolution: VolumeResolution::Cells(64),
+        point_counts: true,
         ..default()
     }
 }
@@ -66,6 +67,17 @@ fn scene_app_with(
     deferred: bool,
     extra: impl Fn(&mut Commands, &mut Assets<Mesh>, Handle<StandardMaterial>) + Send + Sync + 'static,
 ) -> App {
+    scene_app_in(camera, ao, deferred, volume(), extra)
+}
+
+/// [`scene_app_with`] with a given voxel volume.
+fn scene_app_in(
+    camera: Transform,
+    ao: Ao,
+    deferred: bool,
+    volume: VoxelVolume,
+    extra: impl Fn(&mut Commands, &mut Assets<Mesh>, Handle<StandardMaterial>) + Send + Sync + 'static,
+) -> App {
     headless_app(move |app| {
         let ao = ao.clone();
         if deferred {
@@ -83,7 +95,7 @@ fn scene_app_with(
                     perceptual_roughness: 1.0,
                     ..default()
                 });
-                commands.spawn(volume());
+                commands.spawn(volume);
                 commands.spawn((
                     box_at(&mut meshes, Vec3::new(16.0, 0.2, 16.0)),
                     MeshMaterial3d(material.clone()),
@@ -328,21 +340,18 @@ fn ao_dims_indirect_light_only_and_removing_it_restores_bevys_behaviour() {
     assert!(take_render_errors().is_empty());
 }
 
-#[test]
-fn the_gpu_trace_matches_its_cpu_twin() {
-    use bevy_hao::cpu::ao::{TraceSettings, VoxelMips, interleaved_gradient_noise, voxel_ambient_occlusion};
-    let _gpu = gpu_lock();
-    let settings = HybridAmbientOcclusion { denoise_radius: 0, ..hao_settings() };
-    let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
-    let mut app = scene_app(camera, Ao::Hao(settings.clone()), walls);
-    run(&mut app, 8);
+/// Holds the GPU's noisy AO (no denoise) against the CPU twin traced through `levels`, pixel by pixel.
+/// Returns the levels the pixels' first rays start in.
+fn assert_trace_matches_cpu(
+    app: &mut App,
+    settings: &HybridAmbientOcclusion,
+    levels: &[bevy_hao::cpu::ao::TraceLevel],
+) -> std::collections::BTreeMap<usize, usize> {
+    use bevy_hao::cpu::ao::{TraceSettings, interleaved_gradient_noise, ray_start_level, voxel_ambient_occlusion};
     let targets = app.world().resource::<Targets>().clone();
-    let (w, h, gpu_ao) = read_image_f32(&mut app, targets.debug.ao.clone(), 2);
-    let (_, _, depth) = read_image_f32(&mut app, targets.debug.depth.clone(), 0);
-    let (_, _, _, normal_bytes) = read_image(&mut app, targets.debug.normal.clone(), 0);
-    let occupancy = read_occupancy(&mut app);
-    let assets = grid_assets(&app).unwrap();
-    let mips = VoxelMips::new(&occupancy, assets.mip_levels);
+    let (w, h, gpu_ao) = read_image_f32(app, targets.debug.ao.clone(), 2);
+    let (_, _, depth) = read_image_f32(app, targets.debug.depth.clone(), 0);
+    let (_, _, _, normal_bytes) = read_image(app, targets.debug.normal.clone(), 0);
     let mut q = app.world_mut().query_filtered::<(&Camera, &GlobalTransform), With<TheCamera>>();
     let (cam, transform) = q.single(app.world()).unwrap();
     let world_from_clip = transform.to_matrix() * cam.clip_from_view().inverse();
@@ -355,8 +364,8 @@ fn the_gpu_trace_matches_its_cpu_twin() {
         intensity: settings.intensity,
         start_offset: settings.start_offset,
     };
-    let grid = assets.grid;
     let (mut sum, mut count, mut far) = (0.0, 0, 0);
+    let mut used = std::collections::BTreeMap::new();
     for y in 0..h {
         for x in 0..w {
             let i = (y * w + x) as usize;
@@ -378,8 +387,8 @@ fn the_gpu_trace_matches_its_cpu_twin() {
                 interleaved_gradient_noise(pf, 0),
                 interleaved_gradient_noise(Vec2::new(pf.y, pf.x) + Vec2::new(17.0, 59.0), 0),
             );
-            let surface = (world - grid.origin) / grid.cell_size;
-            let cpu = voxel_ambient_occlusion(&mips, surface, normal, grid.cell_size, rotation, &trace);
+            *used.entry(ray_start_level(levels, world, trace.max_distance, 0, rotation)).or_insert(0) += 1;
+            let cpu = voxel_ambient_occlusion(levels, world, normal, rotation, &trace);
             let d = (cpu - gpu_ao[i]).abs();
             sum += d;
             count += 1;
@@ -390,10 +399,79 @@ fn the_gpu_trace_matches_its_cpu_twin() {
         }
     }
     let mean = sum / count as f32;
-    println!("{count} pixels: mean |CPU - GPU| = {mean:.4}, {far} differ by more than one ray");
+    println!("{count} pixels: mean |CPU - GPU| = {mean:.4}, {far} differ by more than one ray; start levels {used:?}");
     assert!(count > 1000);
     assert!(mean < 0.005, "{mean}");
     assert!(far * 100 <= count, "{far} of {count}");
+    used
+}
+
+#[test]
+fn the_gpu_trace_matches_its_cpu_twin() {
+    use bevy_hao::cpu::ao::{TraceLevel, VoxelMips};
+    let _gpu = gpu_lock();
+    let settings = HybridAmbientOcclusion { denoise_radius: 0, ..hao_settings() };
+    let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
+    let mut app = scene_app(camera, Ao::Hao(settings.clone()), walls);
+    run(&mut app, 8);
+    let occupancy = read_occupancy(&mut app);
+    let assets = grid_assets(&app).unwrap();
+    let mips = VoxelMips::new(&occupancy, assets.mip_levels);
+    let grid = assets.grid;
+    let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
+    assert_trace_matches_cpu(&mut app, &settings, &levels);
+    assert!(take_render_errors().is_empty());
+}
+
+/// Cascades of 64^3 with 0.25 m cells at the finest: 16, 32 and 64 m across.
+fn small_cascades() -> VoxelVolume {
+    VoxelVolume { bounds: VolumeBounds::FollowCamera { cascades: 3, cells: 64, finest_cell_size: 0.25 }, ..default() }
+}
+
+/// A long floor with the L of walls near the camera and a row of pillars going away from it.
+fn walls_and_pillars(commands: &mut Commands, meshes: &mut Assets<Mesh>, material: Handle<StandardMaterial>) {
+    walls(commands, meshes, material.clone());
+    commands.spawn((
+        box_at(meshes, Vec3::new(8.0, 0.2, 60.0)),
+        MeshMaterial3d(material.clone()),
+        Transform::from_xyz(0.0, -0.1, -30.0),
+        StaticOccluder,
+    ));
+    for k in 0..10 {
+        commands.spawn((
+            box_at(meshes, Vec3::new(0.6, 2.5, 0.6)),
+            MeshMaterial3d(material.clone()),
+            Transform::from_xyz(1.5 - (k % 2) as f32 * 3.0, 1.25, -2.0 - 4.0 * k as f32),
+            StaticOccluder,
+        ));
+    }
+}
+
+#[test]
+fn the_gpu_trace_matches_its_cpu_twin_across_cascades() {
+    use bevy_hao::cpu::ao::{TraceLevel, VoxelMips};
+    let _gpu = gpu_lock();
+    let settings = HybridAmbientOcclusion { denoise_radius: 0, ..hao_settings() };
+    // Low over the floor, looking down the row of pillars: the view reaches from the finest cascade to the
+    // coarsest.
+    let camera = Transform::from_xyz(0.5, 2.0, 4.0).looking_at(Vec3::new(0.0, 0.0, -20.0), Vec3::Y);
+    let mut app = scene_app_in(camera, Ao::Hao(settings.clone()), false, small_cascades(), walls_and_pillars);
+    run(&mut app, 8);
+    let cascades = read_cascades(&mut app, false);
+    let mips: Vec<VoxelMips> =
+        cascades.iter().map(|c| VoxelMips::new(&c.occupancy, bevy_hao::cpu::cascade::CASCADE_MIP_LEVELS)).collect();
+    let levels: Vec<TraceLevel> = cascades
+        .iter()
+        .zip(&mips)
+        .map(|(c, m)| TraceLevel {
+            origin: Vec3::ZERO,
+            cell_size: c.level.cell_size,
+            window_min: c.level.window_min,
+            mips: m,
+        })
+        .collect();
+    let used = assert_trace_matches_cpu(&mut app, &settings, &levels);
+    assert!(used.len() >= 2, "the view spans {used:?}");
     assert!(take_render_errors().is_empty());
 }
 
@@ -458,4 +536,103 @@ fn hao_dims_ambient_light_in_deferred_rendering_too() {
     println!("deferred, ambient only: mean {:.1} with HAO, {:.1} without", mean(&with), mean(&without));
     assert!(mean(&without) > 20.0, "the deferred image is lit");
     assert!(mean(&with) < mean(&without) - 5.0, "HAO darkens ambient light in deferred rendering");
+}
+
+/// A room 10 x 4 x 10 m with a doorway, a skylight and two pillars (world-space parts), on the test floor.
+fn room() -> Vec<bevy_hao::cpu::TriangleMesh> {
+    use bevy_hao::meshes::builtin::cuboid;
+    vec![
+        cuboid(Vec3::new(-5.0, 0.0, -5.3), Vec3::new(5.0, 4.0, -5.0)),
+        cuboid(Vec3::new(-5.3, 0.0, -5.3), Vec3::new(-5.0, 4.0, 5.3)),
+        cuboid(Vec3::new(5.0, 0.0, -5.3), Vec3::new(5.3, 4.0, 5.3)),
+        cuboid(Vec3::new(-5.0, 0.0, 5.0), Vec3::new(1.0, 4.0, 5.3)),
+        cuboid(Vec3::new(2.5, 0.0, 5.0), Vec3::new(5.0, 4.0, 5.3)),
+        cuboid(Vec3::new(1.0, 2.5, 5.0), Vec3::new(2.5, 4.0, 5.3)),
+        cuboid(Vec3::new(-5.3, 4.0, -5.3), Vec3::new(5.3, 4.3, -1.0)),
+        cuboid(Vec3::new(-5.3, 4.0, 1.0), Vec3::new(5.3, 4.3, 5.3)),
+        cuboid(Vec3::new(-5.3, 4.0, -1.0), Vec3::new(-1.0, 4.3, 1.0)),
+        cuboid(Vec3::new(1.0, 4.0, -1.0), Vec3::new(5.3, 4.3, 1.0)),
+        cuboid(Vec3::new(-2.5, 0.0, -2.5), Vec3::new(-1.9, 4.0, -1.9)),
+        cuboid(Vec3::new(1.9, 0.0, -2.5), Vec3::new(2.5, 4.0, -1.9)),
+        cuboid(Vec3::new(-1.0, 0.0, -4.0), Vec3::new(1.0, 0.8, -3.0)),
+    ]
+}
+
+/// HAO (denoised, as PBR reads it) against a ray-traced reference of `parts` plus the test floor, from a
+/// camera inside the room: the mean absolute error over the view.
+fn room_error(parts: Vec<bevy_hao::cpu::TriangleMesh>, volume: VoxelVolume) -> f32 {
+    use bevy_hao::meshes::builtin::cuboid;
+    use support::reference::{ReferenceScene, reference_ao};
+    let hao = HybridAmbientOcclusion::default();
+    let camera = Transform::from_xyz(3.5, 1.7, 3.5).looking_at(Vec3::new(-3.0, 0.6, -3.0), Vec3::Y);
+    let spawn_parts = parts.clone();
+    let mut app = scene_app_in(camera, Ao::Hao(hao.clone()), false, volume, move |commands, meshes, material| {
+        for p in &spawn_parts {
+            commands.spawn((
+                Mesh3d(meshes.add(bevy_mesh(p, Layout::U32))),
+                MeshMaterial3d(material.clone()),
+                StaticOccluder,
+            ));
+        }
+    });
+    run(&mut app, 10);
+    let targets = app.world().resource::<Targets>().clone();
+    let (w, h, ao) = read_image_f32(&mut app, targets.debug.ao.clone(), 2);
+    let (_, _, depth) = read_image_f32(&mut app, targets.debug.depth.clone(), 0);
+    let (_, _, _, normal_bytes) = read_image(&mut app, targets.debug.normal.clone(), 0);
+    let mut q = app.world_mut().query_filtered::<(&Camera, &GlobalTransform), With<TheCamera>>();
+    let (cam, transform) = q.single(app.world()).unwrap();
+    let world_from_clip = transform.to_matrix() * cam.clip_from_view().inverse();
+    assert!(take_render_errors().is_empty());
+    let mut all = bevy_hao::cpu::TriangleMesh::default();
+    all.append(&cuboid(Vec3::new(-8.0, -0.2, -8.0), Vec3::new(8.0, 0.0, 8.0)), Default::default());
+    for p in &parts {
+        all.append(p, Default::default());
+    }
+    let scene = ReferenceScene::new(&all);
+    let (mut sum, mut n) = (0.0, 0);
+    for i in 0..(w * h) as usize {
+        if depth[i] <= 0.0 {
+            continue;
+        }
+        let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
+        let ndc = Vec3::new((x + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y + 0.5) / h as f32 * 2.0, depth[i]);
+        let c = &normal_bytes[i * 8..i * 8 + 6];
+        let f = |k: usize| support::f16_to_f32(u16::from_le_bytes([c[k], c[k + 1]]));
+        let normal = Vec3::new(f(0), f(2), f(4)).normalize();
+        let rotation = Vec2::new((i as f32 * 0.618_034).fract(), (i as f32 * 0.414_213_5).fract());
+        let r = reference_ao(
+            &scene,
+            world_from_clip.project_point3(ndc),
+            normal,
+            64,
+            rotation,
+            hao.max_distance,
+            hao.falloff,
+            hao.intensity,
+            1.0e-3,
+            |_| false,
+        );
+        sum += (ao[i] - r.ao).abs();
+        n += 1;
+    }
+    assert!(n > 1000);
+    sum / n as f32
+}
+
+#[test]
+fn a_building_in_a_one_kilometre_world_keeps_its_hao() {
+    let _gpu = gpu_lock();
+    let building = (Vec3::new(-8.0, -0.2, -8.0), Vec3::new(8.0, 4.3, 8.0));
+    let mut world = room();
+    world.extend(support::scene::big_world(building, 1000.0));
+    let alone = room_error(room(), VoxelVolume::default());
+    let in_world = room_error(world.clone(), VoxelVolume::default());
+    // What the cascades replace: one grid fitted to the whole static scene, whose cells are now 8 m wide.
+    let fitted = room_error(world, VoxelVolume { bounds: VolumeBounds::FitStaticScene { margin: 0.5 }, ..default() });
+    println!(
+        "HAO error against the reference: room alone {alone:.4}, in a 1 km world {in_world:.4}; one fitted grid {fitted:.4}"
+    );
+    assert!(in_world <= alone * 1.1, "in the world {in_world} vs alone {alone}");
+    assert!(fitted > in_world * 1.5, "a fitted grid ({fitted}) should lose the room's occlusion");
 }

@@ -17,7 +17,7 @@ use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::settings::{Backends, RenderCreation, WgpuSettings};
 use bevy::render::storage::ShaderBuffer;
 use bevy::window::ExitCondition;
-use bevy_hao::cpu::{TriangleMesh, VoxelOccupancy};
+use bevy_hao::cpu::{TriangleMesh, VoxelGrid, VoxelOccupancy};
 use bevy_hao::voxel::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
 use std::sync::{Arc, Mutex, MutexGuard};
 
@@ -164,6 +164,49 @@ pub fn read_static_occupancy(app: &mut App) -> VoxelOccupancy {
     VoxelOccupancy::from_words(assets.grid, &words, None).expect("occupancy buffer too short")
 }
 
+/// One cascade level as the GPU has it: its window, and its occupancy (the frame's, or the static grid's)
+/// unwrapped from the level's toroidal storage into window order (cell `(0, 0, 0)` = the window's min).
+pub struct CascadeReadback {
+    /// The level's window and counters.
+    pub level: bevy_hao::voxel::CascadeLevelStats,
+    /// The window as a grid (origin at its min corner).
+    pub grid: VoxelGrid,
+    /// Its occupancy in window order.
+    pub occupancy: VoxelOccupancy,
+}
+
+/// Every cascade level of the frame's occupancy (`static_only`: of the static grid), unwrapped.
+pub fn read_cascades(app: &mut App, static_only: bool) -> Vec<CascadeReadback> {
+    let assets = grid_assets(app).expect("no voxel grid");
+    let buffer = if static_only { assets.static_occupancy.clone() } else { assets.occupancy.clone() };
+    let bytes = read_buffer(app, buffer, 3);
+    let words: Vec<u32> = bytemuck::cast_slice(&bytes).to_vec();
+    let d = assets.grid.dims;
+    let level_voxels = assets.grid.voxel_count() as u32;
+    stats(app)
+        .cascades
+        .iter()
+        .enumerate()
+        .map(|(l, level)| {
+            let grid = VoxelGrid::new(level.window_min.as_vec3() * level.cell_size, level.cell_size, d).unwrap();
+            let occupancy = VoxelOccupancy::new(grid, false);
+            let wrap = level.window_min.rem_euclid(d.as_ivec3()).as_uvec3();
+            for z in 0..d.z {
+                for y in 0..d.y {
+                    for x in 0..d.x {
+                        let p = (UVec3::new(x, y, z) + wrap) % d;
+                        let i = l as u32 * level_voxels + p.x + d.x * (p.y + d.y * p.z);
+                        if words[(i >> 5) as usize] >> (i & 31) & 1 == 1 {
+                            occupancy.set(UVec3::new(x, y, z));
+                        }
+                    }
+                }
+            }
+            CascadeReadback { level: *level, grid, occupancy }
+        })
+        .collect()
+}
+
 /// How a test mesh stores its data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Layout {
@@ -208,6 +251,15 @@ pub fn bevy_mesh(mesh: &TriangleMesh, layout: Layout) -> Mesh {
 pub fn diagnostic(app: &App, path: &str) -> Option<f64> {
     let store = app.world().resource::<bevy::diagnostic::DiagnosticsStore>();
     store.get(&bevy::diagnostic::DiagnosticPath::new(path.to_string())).and_then(|d| d.value())
+}
+
+/// The latest measurement of a diagnostic and when it was taken (to tell new measurements from old).
+pub fn diagnostic_measurement(app: &App, path: &str) -> Option<(std::time::Instant, f64)> {
+    let store = app.world().resource::<bevy::diagnostic::DiagnosticsStore>();
+    store
+        .get(&bevy::diagnostic::DiagnosticPath::new(path.to_string()))
+        .and_then(|d| d.measurement())
+        .map(|m| (m.time, m.value))
 }
 
 /// The recorded history of a diagnostic (oldest first; Bevy keeps the latest 120 or so).

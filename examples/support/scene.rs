@@ -223,3 +223,43 @@ pub fn default_camera(bounds: (Vec3, Vec3), interior: bool) -> Transform {
     let target = center - axis * (0.3 * length) + Vec3::Y * (lo.y + 0.3 * size.y - center.y);
     Transform::from_translation(eye).looking_at(target, Vec3::Y)
 }
+
+/// A generated game-sized level around a building whose bounds are `building`: a ground `size` world
+/// units square under it (its top just below the building's lowest point) and a ring of blocky buildings
+/// 150 to 450 units away. The parts are world-space meshes: the level is `size` across (1 km for
+/// `ao_compare --world`), far larger than any cascade.
+pub fn big_world(building: (Vec3, Vec3), size: f32) -> Vec<TriangleMesh> {
+    use bevy_hao::meshes::builtin::cuboid;
+    let (lo, hi) = building;
+    let center = (lo + hi) / 2.0;
+    let half = size / 2.0;
+    let ground_top = lo.y - 0.01 * (hi - lo).max_element().max(1.0);
+    // The ground: a flat grid of 20-unit tiles, as a terrain is built (a plane cut into long strips
+    // would cost the uniform subdivision pattern n^2 points per sliver).
+    let tiles = (size / 20.0).ceil().max(1.0) as u32;
+    let tile = size / tiles as f32;
+    let mut ground = TriangleMesh::default();
+    for i in 0..=tiles {
+        for j in 0..=tiles {
+            let (x, z) = (center.x - half + i as f32 * tile, center.z - half + j as f32 * tile);
+            ground.positions.push(Vec3::new(x, ground_top, z));
+        }
+    }
+    for i in 0..tiles {
+        for j in 0..tiles {
+            let k = |a: u32, b: u32| a * (tiles + 1) + b;
+            ground.triangles.push([k(i, j), k(i, j + 1), k(i + 1, j)]);
+            ground.triangles.push([k(i + 1, j), k(i, j + 1), k(i + 1, j + 1)]);
+        }
+    }
+    let mut parts = vec![ground];
+    let far = (150.0f32).min(half * 0.3);
+    for k in 0..12 {
+        let angle = k as f32 * 0.52 + 0.3;
+        let distance = far + (k % 4) as f32 * (half - far) * 0.25;
+        let (w, h) = (12.0 + (k % 3) as f32 * 8.0, 8.0 + (k % 5) as f32 * 6.0);
+        let c = Vec3::new(center.x + angle.cos() * distance, ground_top, center.z + angle.sin() * distance);
+        parts.push(cuboid(c - Vec3::new(w, 0.0, w) / 2.0, c + Vec3::new(w / 2.0, h, w / 2.0)));
+    }
+    parts
+}

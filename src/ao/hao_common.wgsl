@@ -1,26 +1,20 @@
-// Hybrid ambient occlusion: what the trace pass and the CPU twin (`bevy_hao::cpu::ao`) share: the settings,
-// the ray directions (cosine-weighted, stratified, rotated per pixel), the distance falloff, and the march
-// through the voxel texture with empty-space skipping on its max-reduced mips.
+// Hybrid ambient occlusion: what the HAO passes and the CPU twin (`bevy_hao::cpu::ao`) share: the settings,
+// the ray directions (cosine-weighted, stratified, rotated per pixel) and the distance falloff. The march
+// through the voxel levels is `bevy_hao::voxel_grid`'s.
 #define_import_path bevy_hao::hao_common
 
 // src/ao/prepare.rs: `GpuHaoSettings`
 struct HaoSettings {
-    grid_origin: vec3<f32>,
-    cell_size: f32,
-    grid_dims: vec3<u32>,
-    mip_levels: u32,
     rays: u32,
     steps: u32,
     max_distance: f32,
     falloff: f32,
     intensity: f32,
     start_offset: f32,
-    grid_valid: u32,
     frame: u32,
     near_field: u32,
     half_resolution: u32,
     denoise_radius: u32,
-    _pad: u32,
 }
 
 const PI: f32 = 3.141592653589793;
@@ -59,74 +53,6 @@ fn hemisphere_direction(basis: mat3x3<f32>, i: u32, count: u32, rotation: vec2<f
 fn ao_falloff(distance: f32, max_distance: f32, falloff: f32) -> f32 {
     let x = clamp(distance / max_distance, 0.0, 1.0);
     return pow(1.0 - x, falloff);
-}
-
-// The [t_enter, t_exit] of a ray (grid space) in the box [lo, hi]; empty if t_enter > t_exit.
-fn ray_box(origin: vec3<f32>, inv_dir: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>) -> vec2<f32> {
-    let t0 = (lo - origin) * inv_dir;
-    let t1 = (hi - origin) * inv_dir;
-    let tmin = min(t0, t1);
-    let tmax = max(t0, t1);
-    return vec2<f32>(max(max(tmin.x, tmin.y), tmin.z), min(min(tmax.x, tmax.y), tmax.z));
-}
-
-// cpu/ao.rs: safe_inverse. 1 / d with zero components replaced by a huge value of the same sign.
-fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
-    let big = vec3<f32>(1.0e30);
-    let s = select(vec3<f32>(-1.0), vec3<f32>(1.0), d >= vec3<f32>(0.0));
-    return select(1.0 / d, s * big, abs(d) < vec3<f32>(1.0e-30));
-}
-
-// cpu/ao.rs: VoxelMips level sizes. The voxel texture's size at `level`: the grid's dimensions rounded up
-// to a multiple of the coarsest texel (2^(mip_levels - 1) cells), halved `level` times. (Computed, not
-// queried: Mesa 22's lavapipe returns wrong textureDimensions for levels >= 2 of 3D textures.)
-fn voxel_level_size(grid_dims: vec3<u32>, mip_levels: u32, level: u32) -> vec3<u32> {
-    let align = 1u << (mip_levels - 1u);
-    let padded = (grid_dims + vec3<u32>(align - 1u)) / align * align;
-    return padded >> vec3<u32>(level);
-}
-
-// cpu/ao.rs: VoxelMips::march_voxels. The distance along `dir` (grid units, from `origin`) to the first
-// occupied cell within [t_start, t_end], or -1: start at mip level `start_level`, step over empty texels
-// whole, descend into occupied ones; at most `steps` texel visits.
-fn march_voxels(
-    voxels: texture_3d<f32>,
-    grid_dims: vec3<u32>,
-    mip_levels: u32,
-    origin: vec3<f32>,
-    dir: vec3<f32>,
-    t_start: f32,
-    t_end: f32,
-    start_level: u32,
-    steps: u32,
-) -> f32 {
-    let inv = safe_inverse(dir);
-    let span = ray_box(origin, inv, vec3<f32>(0.0), vec3<f32>(grid_dims));
-    var t = max(t_start, span.x);
-    let t_max = min(t_end, span.y);
-    let top = mip_levels - 1u;
-    var level = min(start_level, top);
-    for (var i = 0u; i < steps; i++) {
-        if t > t_max {
-            return -1.0;
-        }
-        let p = origin + dir * t;
-        let size = vec3<i32>(voxel_level_size(grid_dims, mip_levels, level));
-        let scale = f32(1u << level);
-        let texel = clamp(vec3<i32>(floor(p * (1.0 / scale))), vec3<i32>(0), size - vec3<i32>(1));
-        if textureLoad(voxels, texel, i32(level)).r > 0.0 {
-            if level == 0u {
-                return t;
-            }
-            level -= 1u;
-        } else {
-            let lo = vec3<f32>(texel) * scale;
-            let exit = ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y;
-            t = max(exit, t) + 1.0e-3;
-            level = min(level + 1u, top);
-        }
-    }
-    return -1.0;
 }
 
 // Octahedral encoding of a unit vector into [-1, 1]^2 (for the denoiser's packed normals).

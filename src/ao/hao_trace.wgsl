@@ -2,18 +2,18 @@
 // from the surface (position from the depth prepass, normal from the normal prepass) through the voxel
 // texture, with empty-space skipping on its max-reduced mips. Writes the noisy AO (1 = open, 0 = occluded)
 // with the pixel's view depth and octahedral normal, which the denoiser weighs by.
-// CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`.
+// CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`. The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, interleaved_gradient_noise, hemisphere_direction, orthonormal_basis, ao_falloff,
-    march_voxels, octahedral_encode,
+    octahedral_encode,
 }
+#import bevy_hao::voxel_grid::{voxel_grid, ray_start_level, march_cascades}
 
 @group(0) @binding(0) var depth_texture: texture_depth_2d;
 @group(0) @binding(1) var normal_texture: texture_2d<f32>;
-@group(0) @binding(2) var voxels: texture_3d<f32>;
-@group(0) @binding(3) var<uniform> settings: HaoSettings;
-@group(0) @binding(4) var ao_out: texture_storage_2d<rgba16float, write>;
+@group(0) @binding(2) var<uniform> settings: HaoSettings;
+@group(0) @binding(3) var ao_out: texture_storage_2d<rgba16float, write>;
 @group(1) @binding(0) var<uniform> view: View;
 
 fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
@@ -41,24 +41,24 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let normal = normalize(textureLoad(normal_texture, pixel, 0).xyz * 2.0 - 1.0);
     let view_depth = -(view.view_from_world * vec4<f32>(world, 1.0)).z;
     let packed_normal = octahedral_encode(normal);
-    if settings.grid_valid == 0u {
+    if voxel_grid.level_count == 0u {
         textureStore(ao_out, gid.xy, vec4<f32>(1.0, view_depth, packed_normal));
         return;
     }
-    let surface = (world - settings.grid_origin) / settings.cell_size;
-    let origin = surface + normal * settings.start_offset;
     let pf = vec2<f32>(pixel);
     let rotation = vec2<f32>(interleaved_gradient_noise(pf, settings.frame), interleaved_gradient_noise(pf.yx + vec2<f32>(17.0, 59.0), settings.frame));
-    let t_end = settings.max_distance / settings.cell_size;
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {
         let dir = hemisphere_direction(basis, i, settings.rays, rotation);
-        // Start at mip level 2: a surface's neighbourhood is occupied at coarser levels anyway.
-        let t = march_voxels(voxels, settings.grid_dims, settings.mip_levels, origin, dir, settings.start_offset, t_end, 2u, settings.steps);
-        if t >= 0.0 {
+        // The finest level that holds the ray's reach (blended across its border), then coarser ones.
+        let start = ray_start_level(world, settings.max_distance, i, rotation);
+        let origin = world + normal * (settings.start_offset * voxel_grid.levels[start].cell_size);
+        let hit = march_cascades(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
+        if hit.x >= 0.0 {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
-            let d = length(origin + dir * (t + 0.5) - surface) * settings.cell_size;
+            let cell = voxel_grid.levels[u32(hit.y)].cell_size;
+            let d = length(origin + dir * (hit.x + 0.5 * cell) - world);
             occlusion += ao_falloff(d, settings.max_distance, settings.falloff);
         }
     }

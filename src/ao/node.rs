@@ -3,6 +3,7 @@
 
 use super::pipelines::HaoPipelines;
 use super::prepare::{HaoBindGroups, HaoDebugBindGroup, HaoViewResources};
+use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings};
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::*;
@@ -17,10 +18,12 @@ fn groups(size: UVec2) -> (u32, u32) {
 pub fn hao(
     view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset)>,
     pipelines: Res<HaoPipelines>,
+    voxel_grid: Option<Res<VoxelGridBindings>>,
     cache: Res<PipelineCache>,
     mut ctx: RenderContext,
 ) {
     let (res, bind_groups, view_offset) = view.into_inner();
+    let Some(voxel_grid) = voxel_grid else { return };
     let (Some(trace), Some(horizontal), Some(vertical), Some(apply)) = (
         cache.get_compute_pipeline(pipelines.trace),
         cache.get_compute_pipeline(pipelines.denoise_horizontal),
@@ -40,6 +43,7 @@ pub fn hao(
         pass.set_pipeline(trace);
         pass.set_bind_group(0, &bind_groups.trace, &[]);
         pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
+        pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
         let (x, y) = groups(res.trace_size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);

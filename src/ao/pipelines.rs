@@ -1,16 +1,17 @@
 //! The HAO pipelines.
 
 use crate::voxel::pipelines::queue_compute;
+use crate::voxel::voxel_grid_layout;
 use bevy::asset::load_embedded_asset;
 use bevy::prelude::*;
 use bevy::render::render_resource::binding_types::{
-    texture_2d, texture_3d, texture_depth_2d, texture_storage_2d, uniform_buffer, uniform_buffer_sized,
+    texture_2d, texture_depth_2d, texture_storage_2d, uniform_buffer, uniform_buffer_sized,
 };
 use bevy::render::render_resource::*;
-use bevy::render::renderer::{RenderAdapter, RenderDevice, RenderQueue};
+use bevy::render::renderer::RenderAdapter;
 use bevy::render::view::ViewUniform;
 
-/// The HAO pipelines, layouts, and a 1-voxel texture bound when there is no voxel grid.
+/// The HAO pipelines and layouts.
 #[derive(Resource)]
 pub struct HaoPipelines {
     /// Group 1 of trace and denoise: the view uniform.
@@ -37,8 +38,6 @@ pub struct HaoPipelines {
     pub debug_copy: CachedComputePipelineId,
     /// The format of Bevy's SSAO texture on this adapter (as `bevy_pbr::ssao` chooses it).
     pub ssao_format: TextureFormat,
-    /// An empty 1x1x1 voxel texture.
-    pub empty_voxels: TextureView,
 }
 
 impl FromWorld for HaoPipelines {
@@ -54,25 +53,6 @@ impl FromWorld for HaoPipelines {
         } else {
             TextureFormat::R32Float
         };
-        let device = world.resource::<RenderDevice>();
-        let queue = world.resource::<RenderQueue>();
-        let empty_voxels = device
-            .create_texture_with_data(
-                queue,
-                &TextureDescriptor {
-                    label: Some("hao_empty_voxels"),
-                    size: Extent3d { width: 1, height: 1, depth_or_array_layers: 1 },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: TextureDimension::D3,
-                    format: TextureFormat::R32Float,
-                    usage: TextureUsages::TEXTURE_BINDING,
-                    view_formats: &[],
-                },
-                TextureDataOrder::default(),
-                &[0; 4],
-            )
-            .create_view(&TextureViewDescriptor::default());
         let unfilterable = TextureSampleType::Float { filterable: false };
         let view_layout = BindGroupLayoutDescriptor::new(
             "hao_view_layout",
@@ -85,7 +65,6 @@ impl FromWorld for HaoPipelines {
                 (
                     texture_depth_2d(),
                     texture_2d(unfilterable),
-                    texture_3d(unfilterable),
                     uniform_buffer_sized(false, None),
                     texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
                 ),
@@ -142,7 +121,7 @@ impl FromWorld for HaoPipelines {
             |label, layout, shader, entry, defs| queue_compute(cache, label, layout, shader, entry, defs);
         let trace = queue_pipeline(
             "hao_trace",
-            vec![trace_layout.clone(), view_layout.clone()],
+            vec![trace_layout.clone(), view_layout.clone(), voxel_grid_layout()],
             load_embedded_asset!(world, "hao_trace.wgsl"),
             "trace",
             vec![],
@@ -189,7 +168,6 @@ impl FromWorld for HaoPipelines {
             apply,
             debug_copy,
             ssao_format,
-            empty_voxels,
         }
     }
 }

@@ -2,7 +2,6 @@
 
 use super::pipelines::HaoPipelines;
 use super::settings::{HaoDebugImages, HybridAmbientOcclusion};
-use crate::voxel::extract::ExtractedVoxelGrid;
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
 use bevy::prelude::*;
@@ -18,14 +17,6 @@ use bytemuck::{Pod, Zeroable};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct GpuHaoSettings {
-    /// World position of the grid's min corner.
-    pub grid_origin: [f32; 3],
-    /// World size of a cell.
-    pub cell_size: f32,
-    /// Cells per axis.
-    pub grid_dims: [u32; 3],
-    /// Mip levels of the voxel texture.
-    pub mip_levels: u32,
     /// Rays per pixel.
     pub rays: u32,
     /// Texel visits per ray.
@@ -38,8 +29,6 @@ pub struct GpuHaoSettings {
     pub intensity: f32,
     /// Ray start offset, cells.
     pub start_offset: f32,
-    /// 1 if there is a voxel grid.
-    pub grid_valid: u32,
     /// Noise frame (0 unless TAA jitters the view).
     pub frame: u32,
     /// 1 to take the minimum with SSAO.
@@ -48,8 +37,6 @@ pub struct GpuHaoSettings {
     pub half_resolution: u32,
     /// Bilateral filter radius.
     pub denoise_radius: u32,
-    /// Padding.
-    pub _pad: u32,
 }
 
 /// A view's HAO textures and settings.
@@ -93,7 +80,6 @@ pub fn prepare_hao_textures(
     mut commands: Commands,
     mut texture_cache: ResMut<TextureCache>,
     device: Res<RenderDevice>,
-    grid: Res<ExtractedVoxelGrid>,
     views: Query<(Entity, &ExtractedCamera, &HybridAmbientOcclusion, Has<TemporalJitter>)>,
     mut frame: Local<u32>,
 ) {
@@ -120,24 +106,17 @@ pub fn prepare_hao_textures(
         let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
         let filtered = texture(&mut texture_cache, "hao_filtered_texture", trace_size, TextureFormat::Rgba16Float);
         let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
-        let g = grid.0.as_ref();
         let settings = GpuHaoSettings {
-            grid_origin: g.map_or([0.0; 3], |g| g.grid.origin.to_array()),
-            cell_size: g.map_or(1.0, |g| g.grid.cell_size),
-            grid_dims: g.map_or([1; 3], |g| g.grid.dims.to_array()),
-            mip_levels: g.map_or(1, |g| g.mip_levels),
             rays,
             steps,
             max_distance: hao.max_distance.max(1.0e-4),
             falloff: hao.falloff.max(0.0),
             intensity: hao.intensity.max(0.0),
             start_offset: hao.start_offset.max(0.0),
-            grid_valid: g.is_some() as u32,
             frame: if jitter { *frame } else { 0 },
             near_field: hao.near_field as u32,
             half_resolution: half as u32,
             denoise_radius: hao.denoise_radius.min(8),
-            _pad: 0,
         };
         let settings = device.create_buffer_with_data(&BufferInitDescriptor {
             label: Some("hao_settings"),
@@ -156,18 +135,11 @@ pub fn prepare_hao_bind_groups(
     pipelines: Res<HaoPipelines>,
     cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
-    grid: Res<ExtractedVoxelGrid>,
     images: Res<RenderAssets<GpuImage>>,
     views: Query<(Entity, &HaoViewResources, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
     debug_views: Query<(Entity, &HaoDebugImages, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
 ) {
     let Some(view_binding) = view_uniforms.uniforms.binding() else { return };
-    let voxels = grid
-        .0
-        .as_ref()
-        .and_then(|g| images.get(&g.texture))
-        .map(|i| &i.texture_view)
-        .unwrap_or(&pipelines.empty_voxels);
     for (entity, res, prepass, ssao) in &views {
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
         let ssao_view = &ssao.screen_space_ambient_occlusion_texture.default_view;
@@ -179,13 +151,7 @@ pub fn prepare_hao_bind_groups(
         let trace = device.create_bind_group(
             "hao_trace_bind_group",
             &cache.get_bind_group_layout(&pipelines.trace_layout),
-            &BindGroupEntries::sequential((
-                depth,
-                normal,
-                voxels,
-                res.settings.as_entire_binding(),
-                &res.noisy.default_view,
-            )),
+            &BindGroupEntries::sequential((depth, normal, res.settings.as_entire_binding(), &res.noisy.default_view)),
         );
         let denoise_horizontal = device.create_bind_group(
             "hao_denoise_horizontal_bind_group",

@@ -106,9 +106,14 @@ impl VoxelMips {
         v[(c.x + s.x * (c.y + s.y * c.z)) as usize]
     }
 
+    /// The cells per axis of level 0 (the occupancy's dimensions).
+    pub fn dims(&self) -> UVec3 {
+        self.dims
+    }
+
     /// The distance along `dir` (grid units, from `origin`) to the first occupied cell within
     /// `[t_start, t_end]`, or `None`: start at level `start_level`, step over empty texels whole, descend
-    /// into occupied ones, visiting at most `steps` texels (WGSL: `march_voxels`).
+    /// into occupied ones, visiting at most `steps` texels.
     pub fn march_voxels(
         &self,
         origin: Vec3,
@@ -118,23 +123,38 @@ impl VoxelMips {
         start_level: usize,
         steps: u32,
     ) -> Option<f32> {
+        self.march_level(origin, dir, t_start, t_end, start_level, steps).hit
+    }
+
+    /// [`Self::march_voxels`], also telling how many texel visits were left (WGSL: `march_level`).
+    pub fn march_level(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t_start: f32,
+        t_end: f32,
+        start_level: usize,
+        steps: u32,
+    ) -> MarchResult {
         let inv = safe_inverse(dir);
         let span = ray_box(origin, inv, Vec3::ZERO, self.dims.as_vec3());
         let mut t = t_start.max(span.x);
         let t_max = t_end.min(span.y);
         let top = self.levels.len() - 1;
         let mut level = start_level.min(top);
-        for _ in 0..steps {
+        let mut left = steps;
+        while left > 0 {
             if t > t_max {
-                return None;
+                return MarchResult { hit: None, steps_left: left };
             }
+            left -= 1;
             let p = origin + dir * t;
             let scale = (1u32 << level) as f32;
             let size = self.levels[level].0.as_ivec3();
             let texel = (p * (1.0 / scale)).floor().as_ivec3().clamp(IVec3::ZERO, size - IVec3::ONE);
             if self.load(texel, level) {
                 if level == 0 {
-                    return Some(t);
+                    return MarchResult { hit: Some(t), steps_left: left };
                 }
                 level -= 1;
             } else {
@@ -144,7 +164,107 @@ impl VoxelMips {
                 level = (level + 1).min(top);
             }
         }
-        None
+        MarchResult { hit: None, steps_left: 0 }
+    }
+}
+
+/// What a march through one level found (WGSL: `MarchResult`, with `t < 0` for no hit).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MarchResult {
+    /// The distance to the first occupied cell, in the level's cells.
+    pub hit: Option<f32>,
+    /// Texel visits left.
+    pub steps_left: u32,
+}
+
+/// One level of the voxel volume as the trace reads it (WGSL: `VoxelLevel` of `voxel_grid.wgsl`): a single
+/// grid, or one cascade level with its occupancy stored relative to its window.
+#[derive(Clone, Copy)]
+pub struct TraceLevel<'a> {
+    /// World position of lattice cell 0 (the world origin for cascades, the grid's min corner otherwise).
+    pub origin: Vec3,
+    /// World-space cell size.
+    pub cell_size: f32,
+    /// The lattice cell at the window's min corner (0 for a single grid).
+    pub window_min: IVec3,
+    /// The window's occupancy pyramid.
+    pub mips: &'a VoxelMips,
+}
+
+impl TraceLevel<'_> {
+    /// World space to the window's cells (WGSL: `level_position`).
+    pub fn level_position(&self, world: Vec3) -> Vec3 {
+        (world - self.origin) / self.cell_size - self.window_min.as_vec3()
+    }
+}
+
+/// A surface may start its rays in a cascade level when it lies this far inside the level's window, as a
+/// fraction of the AO's `max_distance` (rays that leave the window go on in the next level).
+pub const CASCADE_REACH: f32 = 0.5;
+
+/// The width, in the level's cells, of the band over which rays move from one level to the next.
+pub const CASCADE_BLEND_CELLS: f32 = 8.0;
+
+/// How many of a surface point's rays may start in a level (WGSL: `level_weight`): 1 when the point lies
+/// at least [`CASCADE_REACH`] of the max distance inside the window, falling to 0 over
+/// [`CASCADE_BLEND_CELLS`] cells towards its border. `p` in the window's cells.
+pub fn level_weight(p: Vec3, dims: UVec3, cell_size: f32, max_distance: f32) -> f32 {
+    let margin = p.min(dims.as_vec3() - p).min_element();
+    let reach = CASCADE_REACH * max_distance / cell_size;
+    ((margin - reach) / CASCADE_BLEND_CELLS).clamp(0.0, 1.0)
+}
+
+/// The level ray `i` starts in (WGSL: `ray_start_level`): the finest whose [`level_weight`] exceeds the
+/// ray's own number in `[0, 1)`, so that across the blend band rays move to the coarser level in proportion
+/// and no seam shows; the coarsest level takes what no finer one does.
+pub fn ray_start_level(levels: &[TraceLevel], world: Vec3, max_distance: f32, i: u32, rotation: Vec2) -> usize {
+    let u = (i as f32 * 0.754_877_7 + rotation.x + rotation.y).fract();
+    let last = levels.len() - 1;
+    for (l, level) in levels[..last].iter().enumerate() {
+        let w = level_weight(level.level_position(world), level.mips.dims(), level.cell_size, max_distance);
+        if w > u {
+            return l;
+        }
+    }
+    last
+}
+
+/// The world-space distance along `dir` from `origin` to the first occupied voxel within `t_end` (world
+/// units), and the level it is in, starting in level `start` at `t_start` of its cells, or `None` (WGSL:
+/// `march_cascades`). A ray that leaves a level's window goes on in the next coarser level from where it
+/// left (so an occluder just across the border occludes).
+pub fn march_cascades(
+    levels: &[TraceLevel],
+    origin: Vec3,
+    dir: Vec3,
+    start: usize,
+    t_start: f32,
+    t_end: f32,
+    steps: u32,
+) -> Option<(f32, usize)> {
+    let inv = safe_inverse(dir);
+    let mut level = start;
+    let mut t0 = t_start;
+    let mut left = steps;
+    loop {
+        let lv = &levels[level];
+        let o = lv.level_position(origin);
+        let t1 = t_end / lv.cell_size;
+        let r = lv.mips.march_level(o, dir, t0, t1, 2, left);
+        if let Some(t) = r.hit {
+            return Some((t * lv.cell_size, level));
+        }
+        left = r.steps_left;
+        if left == 0 || level + 1 >= levels.len() {
+            return None;
+        }
+        let exit = ray_box(o, inv, Vec3::ZERO, lv.mips.dims().as_vec3()).y;
+        if exit >= t1 {
+            return None;
+        }
+        let next = &levels[level + 1];
+        t0 = exit.max(t0) * lv.cell_size / next.cell_size;
+        level += 1;
     }
 }
 
@@ -165,25 +285,24 @@ pub struct TraceSettings {
     pub start_offset: f32,
 }
 
-/// Voxel ambient occlusion at one surface point (WGSL: the body of `trace`): `surface` and `normal` in grid
-/// space, `cell_size` in world units. 1 = open, 0 = occluded.
+/// Voxel ambient occlusion at one world-space surface point (WGSL: the body of `trace`), through the levels
+/// of the volume (one for a single grid). 1 = open, 0 = occluded.
 pub fn voxel_ambient_occlusion(
-    mips: &VoxelMips,
-    surface: Vec3,
+    levels: &[TraceLevel],
+    world: Vec3,
     normal: Vec3,
-    cell_size: f32,
     rotation: Vec2,
     s: &TraceSettings,
 ) -> f32 {
-    let origin = surface + normal * s.start_offset;
-    let t_end = s.max_distance / cell_size;
     let mut occlusion = 0.0;
     let basis = orthonormal_basis(normal);
     for i in 0..s.rays {
         let dir = hemisphere_direction(basis, i, s.rays, rotation);
-        if let Some(t) = mips.march_voxels(origin, dir, s.start_offset, t_end, 2, s.steps) {
+        let start = ray_start_level(levels, world, s.max_distance, i, rotation);
+        let origin = world + normal * (s.start_offset * levels[start].cell_size);
+        if let Some((t, level)) = march_cascades(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps) {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
-            let d = (origin + dir * (t + 0.5) - surface).length() * cell_size;
+            let d = (origin + dir * (t + 0.5 * levels[level].cell_size) - world).length();
             occlusion += ao_falloff(d, s.max_distance, s.falloff);
         }
     }
@@ -245,9 +364,51 @@ mod tests {
         // An open floor sees no occlusion; facing the wall from close by does.
         let s =
             TraceSettings { rays: 64, steps: 64, max_distance: 8.0, falloff: 1.0, intensity: 1.0, start_offset: 1.0 };
-        let open = voxel_ambient_occlusion(&mips, Vec3::new(10.5, 10.5, 10.5), -Vec3::X, 1.0, Vec2::ZERO, &s);
-        let near = voxel_ambient_occlusion(&mips, Vec3::new(28.0, 10.5, 10.5), Vec3::X, 1.0, Vec2::ZERO, &s);
+        let level = [TraceLevel { origin: Vec3::ZERO, cell_size: 1.0, window_min: IVec3::ZERO, mips: &mips }];
+        let open = voxel_ambient_occlusion(&level, Vec3::new(10.5, 10.5, 10.5), -Vec3::X, Vec2::ZERO, &s);
+        let near = voxel_ambient_occlusion(&level, Vec3::new(28.0, 10.5, 10.5), Vec3::X, Vec2::ZERO, &s);
         assert_eq!(open, 1.0);
         assert!(near < 0.6, "{near}");
+    }
+
+    #[test]
+    fn rays_go_on_in_the_coarser_cascade_and_an_occluder_across_the_border_occludes() {
+        // Level 0: 32 cells of 1 over [0, 32]^3; level 1: 32 cells of 2 over [-16, 48]^3.
+        let g0 = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(32)).unwrap();
+        let g1 = VoxelGrid::new(Vec3::splat(-16.0), 2.0, UVec3::splat(32)).unwrap();
+        let (o0, o1) = (VoxelOccupancy::new(g0, false), VoxelOccupancy::new(g1, false));
+        // A wall at x = 40 (outside level 0) and one at x = 33 (just across its border).
+        for y in 0..32 {
+            for z in 0..32 {
+                o1.set(UVec3::new(28, y, z));
+                o1.set(UVec3::new(24, y, z));
+            }
+        }
+        let (m0, m1) = (VoxelMips::new(&o0, 4), VoxelMips::new(&o1, 4));
+        let levels = [
+            TraceLevel { origin: Vec3::ZERO, cell_size: 1.0, window_min: IVec3::ZERO, mips: &m0 },
+            TraceLevel { origin: Vec3::ZERO, cell_size: 2.0, window_min: IVec3::splat(-8), mips: &m1 },
+        ];
+        // From x = 20 along +x: no hit in level 0, then the wall at x = 32..34 in level 1, about 12 away.
+        let (t, level) = march_cascades(&levels, Vec3::new(20.0, 16.5, 16.5), Vec3::X, 0, 0.0, 30.0, 64).unwrap();
+        assert_eq!(level, 1);
+        assert!((t - 12.0).abs() <= 2.0, "{t}");
+        // Within the max distance only.
+        assert!(march_cascades(&levels, Vec3::new(20.0, 16.5, 16.5), Vec3::X, 0, 0.0, 8.0, 64).is_none());
+        // A floor point just inside level 0's border, facing the wall across it, is occluded; deep inside the
+        // level, facing away, it is open.
+        let s =
+            TraceSettings { rays: 64, steps: 64, max_distance: 8.0, falloff: 1.0, intensity: 1.0, start_offset: 1.0 };
+        let near = voxel_ambient_occlusion(&levels, Vec3::new(29.0, 16.5, 16.5), Vec3::X, Vec2::new(0.3, 0.7), &s);
+        let open = voxel_ambient_occlusion(&levels, Vec3::new(16.0, 16.5, 16.5), -Vec3::X, Vec2::new(0.3, 0.7), &s);
+        assert!(near < 0.85, "{near}");
+        assert_eq!(open, 1.0);
+        // The start level moves from 0 to 1 across the blend band near level 0's border.
+        let starts: Vec<usize> = (0..64)
+            .map(|i| {
+                ray_start_level(&levels, Vec3::new(2.0 + 1.0 * 14.0 * (i % 2) as f32, 16.0, 16.0), 4.0, i, Vec2::ZERO)
+            })
+            .collect();
+        assert!(starts.iter().step_by(2).all(|&l| l == 1) && starts.iter().skip(1).step_by(2).all(|&l| l == 0));
     }
 }

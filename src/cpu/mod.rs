@@ -13,6 +13,7 @@
 //!   ground truth.
 //! * [`metrics`]: bias, excess voxels and the six-direction watertight ray test; [`bias_model`]: equation 3.
 //! * [`binvox`]: export and import of the widely used binvox format.
+//! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
 //!   through the voxel grid with empty-space skipping).
 //!
@@ -37,6 +38,7 @@
 pub mod ao;
 pub mod bias_model;
 pub mod binvox;
+pub mod cascade;
 pub mod grid;
 pub mod ground_truth;
 pub mod mesh;
@@ -47,6 +49,7 @@ pub mod voxelize;
 
 pub use bias_model::BiasModel;
 pub use binvox::{Binvox, read_binvox, write_binvox};
+pub use cascade::{CascadeError, CascadeLevel, CascadeShape, cascade_window, entered_regions};
 pub use grid::{GridError, VoxelGrid, VoxelOccupancy, cell_of_point};
 pub use ground_truth::{GroundTruthStats, ground_truth_mesh, ground_truth_mesh_with_cuts, ground_truth_triangle};
 pub use mesh::{MeshStats, TriangleMesh};
@@ -57,8 +60,9 @@ pub use tessellation::{
     subdivision_count, tessellation_factors,
 };
 pub use voxelize::{
-    InjectionMode, VoxelizeSettings, VoxelizeStats, grid_space_position, triangle_is_degenerate, voxelize,
-    voxelize_mesh, voxelize_triangle,
+    InjectionMode, InjectionRegion, VoxelizeSettings, VoxelizeStats, grid_space_position, lattice_cell,
+    triangle_is_degenerate, voxelize, voxelize_mesh, voxelize_mesh_in_region, voxelize_triangle,
+    voxelize_triangle_in_region,
 };
 
 #[cfg(test)]

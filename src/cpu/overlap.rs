@@ -5,7 +5,7 @@
 //! ties far below a cell's precision; the WGSL twin (`triangle_box_overlap` in `voxelize_common.wgsl`) runs
 //! the same axes in `f32`.
 
-use glam::{DVec3, UVec3, Vec3};
+use glam::{DVec3, IVec3, UVec3, Vec3};
 
 /// A triangle prepared for repeated overlap tests against unit cells of the grid.
 #[derive(Debug, Clone, Copy)]
@@ -36,6 +36,12 @@ impl OverlapTriangle {
     /// Whether the triangle overlaps the closed cell `[c, c+1]^3` (WGSL: `triangle_box_overlap`).
     #[inline]
     pub fn overlaps_cell(&self, cell: UVec3) -> bool {
+        self.overlaps_lattice_cell(cell.as_ivec3())
+    }
+
+    /// [`Self::overlaps_cell`] for a cell of the lattice that may lie below the grid's origin (a cascade's).
+    #[inline]
+    pub fn overlaps_lattice_cell(&self, cell: IVec3) -> bool {
         let center = cell.as_dvec3() + DVec3::splat(0.5);
         triangle_box_overlap(&self.v, &self.edges, self.normal, center, 0.5)
     }

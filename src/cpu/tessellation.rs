@@ -27,7 +27,7 @@
 //! The centroid (equation 2) of the up triangle of cell `(i, j)` is the lattice point
 //! `((3i+1)/3, (3j+1)/3)`, of the down triangle `((3i+2)/3, (3j+2)/3)`: integer numerators over `3n`.
 
-use glam::{UVec3, Vec2, Vec3};
+use glam::{Vec2, Vec3};
 
 /// The largest subdivision count `n` (segments per edge) the voxelizer accepts; larger triangles are
 /// skipped and counted as oversize.
@@ -184,7 +184,8 @@ pub fn sub_triangle_vertices(v0: Vec3, e1: Vec3, e2: Vec3, inv_n: f32, sub: SubT
     }
 }
 
-/// Where a grid-space triangle stands against the grid box `[0, dims]`.
+/// Where a grid-space triangle stands against a box of the lattice (the grid box `[0, dims]`, or the
+/// region of it being voxelized).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum GridPlacement {
     /// Entirely inside (closed box).
@@ -195,15 +196,16 @@ pub enum GridPlacement {
     Crossing,
 }
 
-/// Classifies a triangle's bounding box against the grid box (WGSL: `grid_placement`).
+/// Classifies a triangle's bounding box against the closed box `[box_min, box_max]` of grid space (WGSL:
+/// `grid_placement`).
 #[inline]
-pub fn grid_placement(v0: Vec3, v1: Vec3, v2: Vec3, dims: UVec3) -> GridPlacement {
+pub fn grid_placement(v0: Vec3, v1: Vec3, v2: Vec3, box_min: Vec3, box_max: Vec3) -> GridPlacement {
     let lo = v0.min(v1).min(v2);
     let hi = v0.max(v1).max(v2);
-    let d = dims.as_vec3();
-    if hi.x < 0.0 || hi.y < 0.0 || hi.z < 0.0 || lo.x > d.x || lo.y > d.y || lo.z > d.z {
+    let (b, d) = (box_min, box_max);
+    if hi.x < b.x || hi.y < b.y || hi.z < b.z || lo.x > d.x || lo.y > d.y || lo.z > d.z {
         GridPlacement::Outside
-    } else if lo.x >= 0.0 && lo.y >= 0.0 && lo.z >= 0.0 && hi.x <= d.x && hi.y <= d.y && hi.z <= d.z {
+    } else if lo.x >= b.x && lo.y >= b.y && lo.z >= b.z && hi.x <= d.x && hi.y <= d.y && hi.z <= d.z {
         GridPlacement::Inside
     } else {
         GridPlacement::Crossing
@@ -213,11 +215,18 @@ pub fn grid_placement(v0: Vec3, v1: Vec3, v2: Vec3, dims: UVec3) -> GridPlacemen
 /// Most vertices a triangle clipped by 6 half-planes can have.
 pub const CLIP_MAX_VERTICES: usize = 9;
 
-/// The lattice rectangle covering the part of a triangle that lies inside the grid box, padded by one
-/// lattice cell on each side against rounding (WGSL: `clipped_lattice_range`). The triangle (in lattice
-/// coordinates `(a, b)`) is clipped by the six half-planes `0 <= p_k(a, b) <= dims_k` with Sutherland-Hodgman;
-/// `None` if nothing is left.
-pub fn clipped_lattice_range(v0: Vec3, e1: Vec3, e2: Vec3, n: u32, dims: UVec3) -> Option<LatticeRange> {
+/// The lattice rectangle covering the part of a triangle that lies inside the box `[box_min, box_max]` of
+/// grid space, padded by one lattice cell on each side against rounding (WGSL: `clipped_lattice_range`). The
+/// triangle (in lattice coordinates `(a, b)`) is clipped by the six half-planes
+/// `box_min_k <= p_k(a, b) <= box_max_k` with Sutherland-Hodgman; `None` if nothing is left.
+pub fn clipped_lattice_range(
+    v0: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    n: u32,
+    box_min: Vec3,
+    box_max: Vec3,
+) -> Option<LatticeRange> {
     let nf = n as f32;
     let inv_n = 1.0 / nf;
     let mut poly = [Vec2::ZERO; CLIP_MAX_VERTICES + 1];
@@ -226,15 +235,14 @@ pub fn clipped_lattice_range(v0: Vec3, e1: Vec3, e2: Vec3, n: u32, dims: UVec3) 
     poly[1] = Vec2::new(nf, 0.0);
     poly[2] = Vec2::new(0.0, nf);
     let mut count = 3usize;
-    let d = dims.as_vec3();
     for plane in 0..6u32 {
         let axis = (plane >> 1) as usize;
         let upper = (plane & 1) == 1;
         // f(a, b) = c0 + c1 a + c2 b >= 0
         let (c0, c1, c2) = if upper {
-            (d[axis] - v0[axis], -e1[axis] * inv_n, -e2[axis] * inv_n)
+            (box_max[axis] - v0[axis], -e1[axis] * inv_n, -e2[axis] * inv_n)
         } else {
-            (v0[axis], e1[axis] * inv_n, e2[axis] * inv_n)
+            (v0[axis] - box_min[axis], e1[axis] * inv_n, e2[axis] * inv_n)
         };
         let mut out = 0usize;
         for k in 0..count {
@@ -361,18 +369,18 @@ mod tests {
 
     #[test]
     fn placement_and_clipping() {
-        let dims = UVec3::new(8, 8, 8);
+        let dims = (Vec3::ZERO, Vec3::splat(8.0));
         let inside = [Vec3::splat(1.0), Vec3::new(7.0, 1.0, 1.0), Vec3::new(1.0, 8.0, 1.0)];
-        assert_eq!(grid_placement(inside[0], inside[1], inside[2], dims), GridPlacement::Inside);
+        assert_eq!(grid_placement(inside[0], inside[1], inside[2], dims.0, dims.1), GridPlacement::Inside);
         let outside = [Vec3::splat(-3.0), Vec3::new(-1.0, -3.0, -3.0), Vec3::new(-3.0, -1.0, -3.0)];
-        assert_eq!(grid_placement(outside[0], outside[1], outside[2], dims), GridPlacement::Outside);
+        assert_eq!(grid_placement(outside[0], outside[1], outside[2], dims.0, dims.1), GridPlacement::Outside);
         // A huge floor triangle at y = 4 covering the grid, whose lattice is mostly outside it.
         let (v0, v1, v2) =
             (Vec3::new(-1000.0, 4.0, -1000.0), Vec3::new(3000.0, 4.0, -1000.0), Vec3::new(-1000.0, 4.0, 3000.0));
-        assert_eq!(grid_placement(v0, v1, v2, dims), GridPlacement::Crossing);
+        assert_eq!(grid_placement(v0, v1, v2, dims.0, dims.1), GridPlacement::Crossing);
         let n = subdivision_count(&tessellation_factors(v0, v1, v2, 1.0));
         assert_eq!(n, 4000);
-        let r = clipped_lattice_range(v0, v1 - v0, v2 - v0, n, dims).unwrap();
+        let r = clipped_lattice_range(v0, v1 - v0, v2 - v0, n, dims.0, dims.1).unwrap();
         // The 8 x 8 cells of the grid at lattice 1000..1008, padded by one (and by rounding at most one more):
         // about 10 x 10 cells, not 4000 x 4000.
         for (start, len) in [(r.u_start, r.width), (r.v_start, r.height)] {
@@ -380,8 +388,14 @@ mod tests {
         }
         // A triangle crossing the boundary only in its bounding box can still miss the grid after clipping.
         let (a, b, c) = (Vec3::new(-10.0, 0.5, 4.0), Vec3::new(-10.0, 0.5, -10.0), Vec3::new(4.0, 0.5, -10.0));
-        assert_eq!(grid_placement(a, b, c, dims), GridPlacement::Crossing);
+        assert_eq!(grid_placement(a, b, c, dims.0, dims.1), GridPlacement::Crossing);
         let n = subdivision_count(&tessellation_factors(a, b, c, 1.0));
-        assert_eq!(clipped_lattice_range(a, b - a, c - a, n, dims), None);
+        assert_eq!(clipped_lattice_range(a, b - a, c - a, n, dims.0, dims.1), None);
+        // A box away from the origin (a cascade's slab): the floor clipped to x in [1000, 1008] covers
+        // lattice columns near 2000.
+        let r =
+            clipped_lattice_range(v0, v1 - v0, v2 - v0, 4000, Vec3::new(1000.0, 0.0, 0.0), Vec3::new(1008.0, 8.0, 8.0))
+                .unwrap();
+        assert!((1998..=1999).contains(&r.u_start) && r.width <= 11, "{r:?}");
     }
 }

@@ -19,7 +19,7 @@
 //! [`MAX_SUB_TRIANGLES_PER_TRIANGLE`] sub-triangles. Parts of a triangle outside the grid are clipped away
 //! before enumeration ([`clipped_lattice_range`]), so a huge triangle costs only what lies inside.
 
-use super::grid::{VoxelGrid, VoxelOccupancy, cell_of_point};
+use super::grid::{VoxelGrid, VoxelOccupancy};
 use super::mesh::TriangleMesh;
 use super::overlap::OverlapTriangle;
 use super::tessellation::*;
@@ -146,8 +146,78 @@ pub fn grid_space_position(grid_from_local: &Affine3A, p: Vec3) -> Vec3 {
     Vec3::from(m.x_axis * p.x + m.y_axis * p.y + m.z_axis * p.z + grid_from_local.translation)
 }
 
+/// The box of lattice cells a voxelization writes, and how lattice cells map to the occupancy's storage:
+/// the whole grid ([`InjectionRegion::whole`]), or a part of a cascade level whose window may start anywhere
+/// in an unbounded lattice (WGSL: the region fields of `VoxelizeParams`).
+///
+/// A point belongs to the cell `floor(p)` whatever the region: voxelizing a box in pieces sets the same
+/// cells as voxelizing it whole, which is what lets a cascade re-voxelize only the slabs it scrolls into.
+/// The one exception is the closed upper faces of a single grid (`closed_max`): a point exactly on them
+/// belongs to the last cell, as [`super::grid::cell_of_point`] has it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct InjectionRegion {
+    /// First lattice cell of the box.
+    pub min: IVec3,
+    /// One past the last lattice cell of the box.
+    pub max: IVec3,
+    /// The lattice cell stored at cell `(0, 0, 0)` of the occupancy (a level's window min corner).
+    pub window_min: IVec3,
+    /// Planes on which a point belongs to the cell below (a grid's upper faces); `IVec3::MAX` for none.
+    pub closed_max: IVec3,
+}
+
+impl InjectionRegion {
+    /// The whole of a single grid of `dims` cells, closed on its upper faces.
+    pub fn whole(dims: UVec3) -> Self {
+        let d = dims.as_ivec3();
+        Self { min: IVec3::ZERO, max: d, window_min: IVec3::ZERO, closed_max: d }
+    }
+
+    /// The box as grid-space floats, for placement and clipping.
+    #[inline]
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        (self.min.as_vec3(), self.max.as_vec3())
+    }
+
+    /// Whether the box holds no cell.
+    pub fn is_empty(&self) -> bool {
+        self.max.cmple(self.min).any()
+    }
+}
+
+/// The lattice cell a grid-space point injects into, or `None` if it lies outside the region (or is NaN)
+/// (WGSL: `lattice_cell`).
+#[inline]
+pub fn lattice_cell(p: Vec3, region: &InjectionRegion) -> Option<IVec3> {
+    let (lo, hi) = region.bounds();
+    // Written so that NaN fails every comparison and is rejected.
+    if !(p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z) {
+        return None;
+    }
+    let floor = p.floor().as_ivec3();
+    let cell = IVec3::select(p.cmpeq(region.closed_max.as_vec3()), floor - IVec3::ONE, floor);
+    (cell.cmpge(region.min).all() && cell.cmplt(region.max).all()).then_some(cell)
+}
+
+/// The index in an occupancy of `dims` cells of a lattice cell inside the region.
+#[inline]
+fn storage_index(cell: IVec3, region: &InjectionRegion, dims: UVec3) -> u32 {
+    linear_index((cell - region.window_min).as_uvec3(), dims)
+}
+
 /// Voxelizes one grid-space triangle into `out`. Returns what it did.
 pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelOccupancy) -> VoxelizeStats {
+    voxelize_triangle_in_region(v, settings, &InjectionRegion::whole(out.grid().dims), out)
+}
+
+/// Voxelizes one grid-space triangle into the cells of `region`, stored in `out` relative to the region's
+/// window. Returns what it did.
+pub fn voxelize_triangle_in_region(
+    v: [Vec3; 3],
+    settings: &VoxelizeSettings,
+    region: &InjectionRegion,
+    out: &VoxelOccupancy,
+) -> VoxelizeStats {
     let mut stats = VoxelizeStats { triangles: 1, ..Default::default() };
     let [v0, v1, v2] = v;
     if !(v0.is_finite() && v1.is_finite() && v2.is_finite()) {
@@ -159,7 +229,8 @@ pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelO
         return stats;
     }
     let dims = out.grid().dims;
-    let placement = grid_placement(v0, v1, v2, dims);
+    let (box_min, box_max) = region.bounds();
+    let placement = grid_placement(v0, v1, v2, box_min, box_max);
     if placement == GridPlacement::Outside {
         stats.outside = 1;
         return stats;
@@ -173,7 +244,7 @@ pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelO
             stats.oversize = 1;
             return stats;
         }
-        _ => match clipped_lattice_range(v0, e1, e2, n, dims) {
+        _ => match clipped_lattice_range(v0, e1, e2, n, box_min, box_max) {
             Some(r) => r,
             None => {
                 stats.outside = 1;
@@ -196,8 +267,8 @@ pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelO
                 let Some(sub) = sub_triangle(&range, s) else { continue };
                 stats.sub_triangles += 1;
                 let p = sub_triangle_centroid(v0, e1, e2, inv_3n, sub);
-                if let Some(cell) = cell_of_point(p, dims) {
-                    out.inject_voxel(linear_index(cell, dims));
+                if let Some(cell) = lattice_cell(p, region) {
+                    out.inject_voxel(storage_index(cell, region, dims));
                     stats.injected += 1;
                 }
             }
@@ -209,14 +280,14 @@ pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelO
                 let Some(sub) = sub_triangle(&range, s) else { continue };
                 stats.sub_triangles += 1;
                 let [a, b, c] = sub_triangle_vertices(v0, e1, e2, inv_n, sub);
-                let (lo, hi) = conservative_candidate_cells(a, b, c, dims);
+                let (lo, hi) = conservative_candidate_cells(a, b, c, region);
                 for z in lo.z..=hi.z {
                     for y in lo.y..=hi.y {
                         for x in lo.x..=hi.x {
-                            let cell = UVec3::new(x as u32, y as u32, z as u32);
+                            let cell = IVec3::new(x, y, z);
                             stats.overlap_tests += 1;
-                            if parent.overlaps_cell(cell) {
-                                out.inject_voxel(linear_index(cell, dims));
+                            if parent.overlaps_lattice_cell(cell) {
+                                out.inject_voxel(storage_index(cell, region, dims));
                                 stats.injected += 1;
                             }
                         }
@@ -229,11 +300,11 @@ pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelO
 }
 
 /// The inclusive cell range a sub-triangle can touch: its bounds padded by [`CONSERVATIVE_PAD`], clamped to
-/// the grid (empty, `lo > hi`, if it misses the grid). WGSL: `conservative_candidate_cells`.
+/// the region (empty, `lo > hi`, if it misses it). WGSL: `conservative_candidate_cells`.
 #[inline]
-pub fn conservative_candidate_cells(a: Vec3, b: Vec3, c: Vec3, dims: UVec3) -> (IVec3, IVec3) {
-    let lo = (a.min(b).min(c) - Vec3::splat(CONSERVATIVE_PAD)).floor().as_ivec3().max(IVec3::ZERO);
-    let hi = (a.max(b).max(c) + Vec3::splat(CONSERVATIVE_PAD)).floor().as_ivec3().min(dims.as_ivec3() - IVec3::ONE);
+pub fn conservative_candidate_cells(a: Vec3, b: Vec3, c: Vec3, region: &InjectionRegion) -> (IVec3, IVec3) {
+    let lo = (a.min(b).min(c) - Vec3::splat(CONSERVATIVE_PAD)).floor().as_ivec3().max(region.min);
+    let hi = (a.max(b).max(c) + Vec3::splat(CONSERVATIVE_PAD)).floor().as_ivec3().min(region.max - IVec3::ONE);
     (lo, hi)
 }
 
@@ -292,6 +363,20 @@ pub fn voxelize_mesh(
 ) -> VoxelizeStats {
     for_each_grid_triangle(mesh, grid_from_local, |v| match v {
         Some(v) => voxelize_triangle(v, settings, out),
+        None => VoxelizeStats { triangles: 1, invalid: 1, ..Default::default() },
+    })
+}
+
+/// Voxelizes a mesh into the cells of `region` of `out` (see [`InjectionRegion`]), on all cores.
+pub fn voxelize_mesh_in_region(
+    mesh: &TriangleMesh,
+    grid_from_local: Affine3A,
+    settings: &VoxelizeSettings,
+    region: &InjectionRegion,
+    out: &VoxelOccupancy,
+) -> VoxelizeStats {
+    for_each_grid_triangle(mesh, grid_from_local, |v| match v {
+        Some(v) => voxelize_triangle_in_region(v, settings, region, out),
         None => VoxelizeStats { triangles: 1, invalid: 1, ..Default::default() },
     })
 }

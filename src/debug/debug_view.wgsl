@@ -2,32 +2,29 @@
 // occlusion alone, or the voxel grid ray-marched from the camera (voxels as shaded boxes, their point counts
 // as a heat map, or static and dynamic voxels in two colors).
 #import bevy_render::view::View
-#import bevy_hao::hao_common::march_voxels
+#import bevy_hao::voxel_grid::{voxel_grid, finest_level_containing, march_cascades, level_position}
 
 struct DebugSettings {
-    grid_origin: vec3<f32>,
-    cell_size: f32,
-    grid_dims: vec3<u32>,
-    mip_levels: u32,
     mode: u32,
     has_counts: u32,
-    grid_valid: u32,
     has_ao: u32,
+    _pad: u32,
 }
 
 const MODE_AO: u32 = 1u;
 const MODE_VOXELS: u32 = 2u;
 const MODE_POINT_COUNTS: u32 = 3u;
 const MODE_STATIC_DYNAMIC: u32 = 4u;
+const MODE_CASCADES: u32 = 5u;
 
 @group(0) @binding(0) var<uniform> view: View;
-@group(0) @binding(1) var voxels: texture_3d<f32>;
-@group(0) @binding(2) var<storage, read> occupancy: array<u32>;
-@group(0) @binding(3) var<storage, read> static_occupancy: array<u32>;
-@group(0) @binding(4) var<storage, read> point_counts: array<u32>;
-@group(0) @binding(5) var ambient_occlusion: texture_2d<f32>;
-@group(0) @binding(6) var<uniform> settings: DebugSettings;
-@group(0) @binding(7) var source: texture_2d<f32>;
+@group(0) @binding(1) var<storage, read> occupancy: array<u32>;
+@group(0) @binding(2) var<storage, read> static_occupancy: array<u32>;
+@group(0) @binding(3) var<storage, read> point_counts: array<u32>;
+@group(0) @binding(4) var ambient_occlusion: texture_2d<f32>;
+@group(0) @binding(5) var<uniform> settings: DebugSettings;
+@group(0) @binding(6) var source: texture_2d<f32>;
+// The voxel levels are bound at group 2 (`bevy_hao::voxel_grid`).
 
 struct FullscreenVertexOutput {
     @builtin(position) position: vec4<f32>,
@@ -58,20 +55,27 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
         let ao = textureLoad(ambient_occlusion, vec2<i32>(in.position.xy), 0).r;
         return vec4<f32>(vec3<f32>(ao), 1.0);
     }
-    if settings.grid_valid == 0u {
+    if voxel_grid.level_count == 0u {
         return scene * 0.25;
     }
-    // A primary ray through the pixel, in grid space.
+    // A primary ray through the pixel, from the camera (a perspective view) or from the near plane along
+    // the view direction (an orthographic one).
     let ndc = vec2<f32>(in.uv.x * 2.0 - 1.0, 1.0 - in.uv.y * 2.0);
-    let near = view.world_from_clip * vec4<f32>(ndc, 1.0, 1.0);
-    let dir_world = normalize(near.xyz / near.w - view.world_position);
-    let origin = (view.world_position - settings.grid_origin) / settings.cell_size;
-    let t = march_voxels(voxels, settings.grid_dims, settings.mip_levels, origin, dir_world, 0.0, 1.0e30, 8u, 1024u);
-    if t < 0.0 {
+    let near4 = view.world_from_clip * vec4<f32>(ndc, 1.0, 1.0);
+    let far4 = view.world_from_clip * vec4<f32>(ndc, 1.0e-6, 1.0);
+    let near = near4.xyz / near4.w;
+    let dir_world = normalize(far4.xyz / far4.w - near);
+    let start = finest_level_containing(near);
+    let hit = march_cascades(near, dir_world, start, 0.0, 1.0e30, 1024u);
+    if hit.x < 0.0 {
         return vec4<f32>(scene.rgb * 0.2, 1.0);
     }
+    let level = u32(hit.y);
+    let l = voxel_grid.levels[level];
+    let t = hit.x / l.cell_size;
+    let origin = level_position(level, near);
     let entry = origin + dir_world * t;
-    let cell = vec3<u32>(clamp(vec3<i32>(floor(origin + dir_world * (t + 1.0e-3))), vec3<i32>(0), vec3<i32>(settings.grid_dims) - vec3<i32>(1)));
+    let cell = vec3<u32>(clamp(vec3<i32>(floor(origin + dir_world * (t + 1.0e-3))), vec3<i32>(0), vec3<i32>(l.dims) - vec3<i32>(1)));
     // The face the ray entered through: the coordinate closest to a cell face.
     let f = abs(entry - round(entry));
     var shade = 0.55;
@@ -86,7 +90,8 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     // Cell edges as lines, so voxels read as boxes.
     let e = abs(fract(uv) - 0.5);
     let edge = select(1.0, 0.7, max(e.x, e.y) > 0.44);
-    let index = cell.x + settings.grid_dims.x * (cell.y + settings.grid_dims.y * cell.z);
+    let physical = (cell + l.wrap) % l.dims;
+    let index = level * l.dims.x * l.dims.y * l.dims.z + physical.x + l.dims.x * (physical.y + l.dims.y * physical.z);
     var color = vec3<f32>(0.92, 0.9, 0.85);
     if settings.mode == MODE_POINT_COUNTS {
         if settings.has_counts != 0u {
@@ -97,6 +102,8 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
         }
     } else if settings.mode == MODE_STATIC_DYNAMIC {
         color = select(vec3<f32>(1.0, 0.55, 0.15), vec3<f32>(0.35, 0.6, 1.0), bit(true, index));
+    } else if settings.mode == MODE_CASCADES {
+        color = heat(f32(level) / 4.0) * 0.7 + vec3<f32>(0.3);
     }
     return vec4<f32>(color * shade * edge, 1.0);
 }

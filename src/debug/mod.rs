@@ -6,6 +6,7 @@
 //! static grid's bits and the point counts for the colors.
 
 use crate::voxel::extract::ExtractedVoxelGrid;
+use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
 use bevy::asset::{embedded_asset, load_embedded_asset};
 use bevy::core_pipeline::FullscreenShader;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
@@ -16,12 +17,11 @@ use bevy::prelude::*;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, texture_2d, texture_3d, uniform_buffer, uniform_buffer_sized,
+    storage_buffer_read_only_sized, texture_2d, uniform_buffer, uniform_buffer_sized,
 };
 use bevy::render::render_resource::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::storage::GpuShaderBuffer;
-use bevy::render::texture::GpuImage;
 use bevy::render::view::{ViewTarget, ViewUniform, ViewUniformOffset, ViewUniforms};
 use bevy::render::{GpuResourceAppExt, Render, RenderApp, RenderSystems};
 use bytemuck::{Pod, Zeroable};
@@ -42,12 +42,14 @@ pub enum HaoDebugView {
     PointCounts,
     /// Static voxels blue, voxels set by dynamic geometry alone orange.
     StaticDynamic,
+    /// Voxels tinted by the cascade level that holds them (finest white, then yellow, green, cyan, ...).
+    Cascades,
 }
 
 impl HaoDebugView {
     /// All views, in the inspector's order.
-    pub const ALL: [HaoDebugView; 5] =
-        [Self::Final, Self::AmbientOcclusion, Self::Voxels, Self::PointCounts, Self::StaticDynamic];
+    pub const ALL: [HaoDebugView; 6] =
+        [Self::Final, Self::AmbientOcclusion, Self::Voxels, Self::PointCounts, Self::StaticDynamic, Self::Cascades];
 
     fn mode(self) -> u32 {
         match self {
@@ -56,6 +58,7 @@ impl HaoDebugView {
             Self::Voxels => 2,
             Self::PointCounts => 3,
             Self::StaticDynamic => 4,
+            Self::Cascades => 5,
         }
     }
 }
@@ -83,14 +86,10 @@ impl Plugin for HaoDebugViewPlugin {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct GpuDebugSettings {
-    grid_origin: [f32; 3],
-    cell_size: f32,
-    grid_dims: [u32; 3],
-    mip_levels: u32,
     mode: u32,
     has_counts: u32,
-    grid_valid: u32,
     has_ao: u32,
+    _pad: u32,
 }
 
 /// The debug view pipelines (one per target format) and placeholders for missing inputs.
@@ -99,8 +98,8 @@ pub struct DebugViewPipelines {
     layout: BindGroupLayoutDescriptor,
     shader: Handle<Shader>,
     vertex: VertexState,
+    empty_layout: BindGroupLayoutDescriptor,
     pipelines: HashMap<TextureFormat, CachedRenderPipelineId>,
-    empty_voxels: TextureView,
     empty_2d: TextureView,
     empty_buffer: Buffer,
 }
@@ -135,7 +134,6 @@ impl FromWorld for DebugViewPipelines {
                 ShaderStages::FRAGMENT,
                 (
                     uniform_buffer::<ViewUniform>(true),
-                    texture_3d(unfilterable),
                     storage_buffer_read_only_sized(false, None),
                     storage_buffer_read_only_sized(false, None),
                     storage_buffer_read_only_sized(false, None),
@@ -155,8 +153,8 @@ impl FromWorld for DebugViewPipelines {
             layout,
             shader: load_embedded_asset!(world, "debug_view.wgsl"),
             vertex: world.resource::<FullscreenShader>().to_vertex_state(),
+            empty_layout: BindGroupLayoutDescriptor::new("hao_debug_view_empty_layout", &[]),
             pipelines: HashMap::default(),
-            empty_voxels: texture(TextureDimension::D3),
             empty_2d: texture(TextureDimension::D2),
             empty_buffer,
         }
@@ -188,7 +186,7 @@ fn prepare_debug_views(
         let pipeline = *p.pipelines.entry(format).or_insert_with(|| {
             cache.queue_render_pipeline(RenderPipelineDescriptor {
                 label: Some("hao_debug_view".into()),
-                layout: vec![p.layout.clone()],
+                layout: vec![p.layout.clone(), p.empty_layout.clone(), voxel_grid_layout()],
                 vertex: p.vertex.clone(),
                 fragment: Some(FragmentState {
                     shader: p.shader.clone(),
@@ -198,16 +196,12 @@ fn prepare_debug_views(
                 ..default()
             })
         });
-        let g = grid.0.as_ref();
+        let g = grid.assets.as_ref();
         let settings = GpuDebugSettings {
-            grid_origin: g.map_or([0.0; 3], |g| g.grid.origin.to_array()),
-            cell_size: g.map_or(1.0, |g| g.grid.cell_size),
-            grid_dims: g.map_or([1; 3], |g| g.grid.dims.to_array()),
-            mip_levels: g.map_or(1, |g| g.mip_levels),
             mode: view.mode(),
             has_counts: g.is_some_and(|g| g.point_counts.is_some()) as u32,
-            grid_valid: g.is_some() as u32,
             has_ao: has_ao as u32,
+            _pad: 0,
         };
         let settings = device.create_buffer_with_data(&BufferInitDescriptor {
             label: Some("hao_debug_view_settings"),
@@ -229,8 +223,8 @@ fn debug_view(
     pipelines: Res<DebugViewPipelines>,
     cache: Res<PipelineCache>,
     grid: Res<ExtractedVoxelGrid>,
+    voxel_grid: Option<Res<VoxelGridBindings>>,
     buffers: Res<RenderAssets<GpuShaderBuffer>>,
-    images: Res<RenderAssets<GpuImage>>,
     view_uniforms: Res<ViewUniforms>,
     mut ctx: RenderContext,
 ) {
@@ -240,14 +234,14 @@ fn debug_view(
     else {
         return;
     };
-    let g = grid.0.as_ref();
+    let Some(voxel_grid) = voxel_grid else { return };
+    let g = grid.assets.as_ref();
     let buffer = |h: Option<&Handle<bevy::render::storage::ShaderBuffer>>| {
         h.and_then(|h| buffers.get(h)).map(|b| b.buffer.clone())
     };
     let occupancy = buffer(g.map(|g| &g.occupancy)).unwrap_or_else(|| pipelines.empty_buffer.clone());
     let static_occupancy = buffer(g.map(|g| &g.static_occupancy)).unwrap_or_else(|| pipelines.empty_buffer.clone());
     let counts = buffer(g.and_then(|g| g.point_counts.as_ref())).unwrap_or_else(|| pipelines.empty_buffer.clone());
-    let voxels = g.and_then(|g| images.get(&g.texture)).map(|i| &i.texture_view).unwrap_or(&pipelines.empty_voxels);
     let ao = ssao.map(|s| &s.screen_space_ambient_occlusion_texture.default_view).unwrap_or(&pipelines.empty_2d);
     let post = target.post_process_write();
     let bind_group = ctx.render_device().create_bind_group(
@@ -255,7 +249,6 @@ fn debug_view(
         &cache.get_bind_group_layout(&pipelines.layout),
         &BindGroupEntries::sequential((
             view_binding,
-            voxels,
             occupancy.as_entire_binding(),
             static_occupancy.as_entire_binding(),
             counts.as_entire_binding(),
@@ -263,6 +256,11 @@ fn debug_view(
             res.settings.as_entire_binding(),
             post.source,
         )),
+    );
+    let empty = ctx.render_device().create_bind_group(
+        "hao_debug_view_empty_bind_group",
+        &cache.get_bind_group_layout(&pipelines.empty_layout),
+        &[],
     );
     let mut pass = ctx.command_encoder().begin_render_pass(&RenderPassDescriptor {
         label: Some("hao_debug_view"),
@@ -279,5 +277,7 @@ fn debug_view(
     });
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, &bind_group, &[view_offset.offset]);
+    pass.set_bind_group(1, &empty, &[]);
+    pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
     pass.draw(0..3, 0..1);
 }

@@ -14,7 +14,8 @@ use bevy::render::renderer::{RenderAdapter, RenderDevice};
 use bevy::render::storage::ShaderBuffer;
 use std::sync::{Arc, Mutex};
 
-use super::stats::{COUNTER_WORDS, VoxelizeCounters};
+use super::stats::VoxelizeCounters;
+use crate::ao::HybridAmbientOcclusion;
 
 /// Mip levels of the voxel texture at most (level `l` covers `2^l` cells per axis per texel).
 pub const MAX_VOXEL_MIPS: u32 = 5;
@@ -27,8 +28,15 @@ pub const MAX_VOXEL_MIPS: u32 = 5;
 /// 32 voxels per `u32` word. Read them back with Bevy's `Readback::buffer`.
 #[derive(Resource, Clone, Debug)]
 pub struct VoxelGridAssets {
-    /// The grid: origin, cell size, dimensions.
+    /// The grid of one level: for a single grid, the grid itself; for cascades, the storage of one cascade
+    /// (origin at the world origin, the finest cell size, `cells^3` dimensions). The buffers hold
+    /// [`Self::levels`] such grids one after the other; a cascade level is stored toroidally (lattice cell `c`
+    /// of its window at `c mod cells`).
     pub grid: VoxelGrid,
+    /// Levels: 1 for a single grid, the cascade count for cascades.
+    pub levels: u32,
+    /// The cascades' shape, if the volume follows the camera.
+    pub cascades: Option<cpu::CascadeShape>,
     /// Gamma and injection mode.
     pub settings: cpu::VoxelizeSettings,
     /// Most points per frame.
@@ -47,13 +55,55 @@ pub struct VoxelGridAssets {
     pub texture_format: TextureFormat,
     /// Its mip level count.
     pub mip_levels: u32,
-    /// Its size: the grid's dimensions rounded up to a multiple of `2^(mip_levels - 1)`, so that every mip
-    /// texel covers exactly `2^level` cells per axis (the padding is empty).
+    /// The size of one level in it: the grid's dimensions rounded up to a multiple of `2^(mip_levels - 1)`,
+    /// so that every mip texel covers exactly `2^level` cells per axis (the padding is empty). Levels are
+    /// stacked along z: level `l` starts at texel `z = l * texture_size.z`.
     pub texture_size: UVec3,
     /// The voxelization statistics counters (see [`VoxelizeCounters`]).
     pub counters: Handle<ShaderBuffer>,
     /// Bumped whenever the assets are replaced (the render world then rebuilds the static grid).
     pub generation: u64,
+}
+
+/// The world position the cascades are centred on this frame (the camera's), or `None`.
+#[derive(Resource, Clone, Copy, Default, Debug, PartialEq)]
+pub struct VoxelVolumeFocus(pub Option<Vec3>);
+
+/// One cascade level as it stands (see [`VoxelizationStatsData::cascades`]).
+#[derive(Clone, Copy, Default, Debug, PartialEq)]
+pub struct CascadeLevelStats {
+    /// World-space cell size.
+    pub cell_size: f32,
+    /// The lattice cell at the window's min corner.
+    pub window_min: IVec3,
+    /// Cells voxelized again for static geometry in the last frame (entered slabs, changed regions).
+    pub static_cells_last_frame: u64,
+    /// Static cells voxelized again since the start.
+    pub static_cells_total: u64,
+    /// Times the level was rebuilt whole (a new volume, a teleport, a forced rebuild).
+    pub rebuilds: u64,
+    /// Times the level scrolled (moved by less than its size).
+    pub scrolls: u64,
+    /// GPU memory of the level, bytes: occupancy bits (static and frame), texture with mips, point counts.
+    pub bytes: LevelBytes,
+}
+
+/// GPU memory of one level, bytes.
+#[derive(Clone, Copy, Default, Debug, PartialEq, Eq)]
+pub struct LevelBytes {
+    /// Occupancy bits, static and frame copies.
+    pub occupancy: u64,
+    /// The 3D texture's share, all mips.
+    pub texture: u64,
+    /// Point counts, static and frame copies (0 when off).
+    pub point_counts: u64,
+}
+
+impl LevelBytes {
+    /// All of it.
+    pub fn total(&self) -> u64 {
+        self.occupancy + self.texture + self.point_counts
+    }
 }
 
 /// What the plugin knows about voxelization, shared by the main and render worlds: counters of CPU-side
@@ -64,8 +114,10 @@ pub struct VoxelizationStats(pub(crate) Arc<Mutex<VoxelizationStatsData>>);
 /// The figures behind [`VoxelizationStats`].
 #[derive(Clone, Default, Debug, PartialEq)]
 pub struct VoxelizationStatsData {
-    /// The grid in use, if any.
+    /// The grid in use, if any (for cascades, one cascade's storage: see [`VoxelGridAssets::grid`]).
     pub grid: Option<VoxelGrid>,
+    /// The cascade levels and what they did (one entry for a single grid).
+    pub cascades: Vec<CascadeLevelStats>,
     /// Times the static grid has been voxelized (a new grid, or a change to the static set).
     pub static_rebuilds: u64,
     /// Frames in which the voxelization passes ran (static, dynamic or resolve).
@@ -172,6 +224,30 @@ pub(crate) fn promote_moved_occluders(
     *last = seen;
 }
 
+/// The camera the cascades follow: the active camera with [`HybridAmbientOcclusion`] of lowest order
+/// (ties: lowest entity). Warns once when there are several.
+pub(crate) fn update_voxel_focus(
+    cameras: Query<(Entity, &Camera, &GlobalTransform), With<HybridAmbientOcclusion>>,
+    mut focus: ResMut<VoxelVolumeFocus>,
+    mut warned: Local<bool>,
+) {
+    let mut active: Vec<_> = cameras.iter().filter(|(_, c, _)| c.is_active).collect();
+    active.sort_by_key(|(e, c, _)| (c.order, *e));
+    if active.len() > 1 && !*warned {
+        warn!(
+            "bevy_hao: {} cameras have HybridAmbientOcclusion; the voxel cascades follow {} (lowest Camera::order), \
+             and the others trace into the same cascades",
+            active.len(),
+            active[0].0
+        );
+        *warned = true;
+    }
+    let p = active.first().map(|(_, _, t)| t.translation()).filter(|p| p.is_finite());
+    if focus.0 != p {
+        focus.0 = p;
+    }
+}
+
 /// Computes the grid the [`VoxelVolume`] asks for, checks it against the device's limits, and replaces the
 /// [`VoxelGridAssets`] when it changed.
 #[allow(clippy::too_many_arguments)]
@@ -206,65 +282,93 @@ pub(crate) fn update_voxel_volume(
         warn!("bevy_hao: more than one VoxelVolume; using the first");
         reported.0 = Some("several".into());
     }
-    let bounds = match volume.bounds {
-        VolumeBounds::World { min, max } => Some((min, max)),
-        VolumeBounds::FitStaticScene { margin } => {
-            let mut acc: Option<(Vec3, Vec3)> = None;
-            for (transform, aabb, visible, s, d, p) in &occluders {
-                if !visible.get() || occluder_is_dynamic(s, d, p) {
-                    continue;
-                }
-                let (lo, hi) = world_aabb(aabb, transform);
-                acc = Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-            }
-            acc.map(|(lo, hi)| (lo - Vec3::splat(margin.max(0.0)), hi + Vec3::splat(margin.max(0.0))))
-        }
-    };
     let remove = |commands: &mut Commands| {
         if current.is_some() {
             commands.remove_resource::<VoxelGridAssets>();
-            stats.update(|s| s.grid = None);
+            stats.update(|s| {
+                s.grid = None;
+                s.cascades.clear();
+            });
         }
         for e in &readbacks {
             commands.entity(e).despawn();
         }
     };
-    let Some((min, max)) = bounds else {
-        // Nothing static to fit to yet.
-        remove(&mut commands);
-        return;
-    };
-    let grid = match volume.grid_for_bounds(min, max) {
-        Ok(g) => g,
-        Err(e) => {
-            report(&mut reported, format!("bevy_hao: the voxel volume is invalid ({e}); voxel occlusion is off"));
+    let shape = volume.cascade_shape();
+    let (grid, levels, mip_levels) = if let Some(shape) = shape {
+        let grid = shape.validate().and_then(|_| {
+            VoxelGrid::new(Vec3::ZERO, shape.finest_cell_size, UVec3::splat(shape.cells))
+                .map_err(cpu::CascadeError::Grid)
+        });
+        match grid {
+            Ok(g) => (g, shape.levels, cpu::cascade::CASCADE_MIP_LEVELS),
+            Err(e) => {
+                report(
+                    &mut reported,
+                    format!("bevy_hao: the voxel cascades are invalid ({e}); voxel occlusion is off"),
+                );
+                remove(&mut commands);
+                return;
+            }
+        }
+    } else {
+        let bounds = match volume.bounds {
+            VolumeBounds::World { min, max } => Some((min, max)),
+            VolumeBounds::FitStaticScene { margin } => {
+                let mut acc: Option<(Vec3, Vec3)> = None;
+                for (transform, aabb, visible, s, d, p) in &occluders {
+                    if !visible.get() || occluder_is_dynamic(s, d, p) {
+                        continue;
+                    }
+                    let (lo, hi) = world_aabb(aabb, transform);
+                    acc = Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+                }
+                acc.map(|(lo, hi)| (lo - Vec3::splat(margin.max(0.0)), hi + Vec3::splat(margin.max(0.0))))
+            }
+            VolumeBounds::FollowCamera { .. } => unreachable!("handled above"),
+        };
+        let Some((min, max)) = bounds else {
+            // Nothing static to fit to yet.
             remove(&mut commands);
             return;
+        };
+        match volume.grid_for_bounds(min, max) {
+            Ok(g) => (g, 1, (32 - g.dims.max_element().leading_zeros()).clamp(1, MAX_VOXEL_MIPS)),
+            Err(e) => {
+                report(&mut reported, format!("bevy_hao: the voxel volume is invalid ({e}); voxel occlusion is off"));
+                remove(&mut commands);
+                return;
+            }
         }
     };
     let limits = device.limits();
-    let mip_levels = (32 - grid.dims.max_element().leading_zeros()).clamp(1, MAX_VOXEL_MIPS);
     let align = 1u32 << (mip_levels - 1);
     let texture_size = (grid.dims + UVec3::splat(align - 1)) / align * align;
-    let words_bytes = grid.occupancy_word_count() as u64 * 4;
-    let counts_bytes = grid.voxel_count() * 4;
+    let level_words = grid.occupancy_word_count() as u64;
+    let words_bytes = level_words * 4 * levels as u64;
+    let counts_bytes = grid.voxel_count() * 4 * levels as u64;
     let binding_limit = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
-    let refusal = if texture_size.max_element() > limits.max_texture_dimension_3d {
+    let refusal = if texture_size.max_element().max(texture_size.z * levels) > limits.max_texture_dimension_3d {
         Some(format!(
-            "a {}x{}x{} voxel grid exceeds the device's Limits::max_texture_dimension_3d ({})",
+            "{levels} voxel grid level(s) of {}x{}x{} exceed the device's Limits::max_texture_dimension_3d ({})",
             grid.dims.x, grid.dims.y, grid.dims.z, limits.max_texture_dimension_3d
         ))
     } else if words_bytes > binding_limit {
         Some(format!(
-            "a {}x{}x{} voxel grid needs {words_bytes} bytes of occupancy bits, over the device's \
+            "{levels} voxel grid level(s) of {}x{}x{} need {words_bytes} bytes of occupancy bits, over the device's \
              Limits::max_storage_buffer_binding_size ({})",
             grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
         ))
+    } else if shape.is_some() && !grid.voxel_count().is_multiple_of(32) {
+        Some("cascade levels must hold a multiple of 32 voxels".to_string())
     } else {
         None
     };
     if let Some(msg) = refusal {
-        report(&mut reported, format!("bevy_hao: {msg}; lower VoxelVolume::resolution. Voxel occlusion is off"));
+        report(
+            &mut reported,
+            format!("bevy_hao: {msg}; lower VoxelVolume's resolution or cascades. Voxel occlusion is off"),
+        );
         remove(&mut commands);
         return;
     }
@@ -273,8 +377,8 @@ pub(crate) fn update_voxel_volume(
         report(
             &mut reported,
             format!(
-                "bevy_hao: per-voxel point counts for a {}x{}x{} grid need {counts_bytes} bytes, over the device's \
-                 Limits::max_storage_buffer_binding_size ({}); point counts are off",
+                "bevy_hao: per-voxel point counts for {levels} level(s) of {}x{}x{} need {counts_bytes} bytes, over the \
+                 device's Limits::max_storage_buffer_binding_size ({}); point counts are off",
                 grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
             ),
         );
@@ -284,6 +388,8 @@ pub(crate) fn update_voxel_volume(
     let texture_format = voxel_texture_format(&adapter);
     if let Some(cur) = &current
         && cur.grid == grid
+        && cur.levels == levels
+        && cur.cascades == shape
         && cur.point_counts.is_some() == point_counts
         && cur.settings == settings
         && cur.point_budget == volume.point_budget
@@ -299,7 +405,11 @@ pub(crate) fn update_voxel_volume(
         data: None,
         texture_descriptor: TextureDescriptor {
             label: Some("hao_voxel_texture"),
-            size: Extent3d { width: texture_size.x, height: texture_size.y, depth_or_array_layers: texture_size.z },
+            size: Extent3d {
+                width: texture_size.x,
+                height: texture_size.y,
+                depth_or_array_layers: texture_size.z * levels,
+            },
             mip_level_count: mip_levels,
             sample_count: 1,
             dimension: TextureDimension::D3,
@@ -313,6 +423,8 @@ pub(crate) fn update_voxel_volume(
     };
     let assets = VoxelGridAssets {
         grid,
+        levels,
+        cascades: shape,
         settings,
         point_budget: volume.point_budget,
         occupancy: buffer(words_bytes, &mut buffers),
@@ -323,7 +435,7 @@ pub(crate) fn update_voxel_volume(
         texture_format,
         mip_levels,
         texture_size,
-        counters: buffer(COUNTER_WORDS as u64 * 4, &mut buffers),
+        counters: buffer(super::stats::counter_words(levels) as u64 * 4, &mut buffers),
         generation: *generation,
     };
     for e in &readbacks {
@@ -336,9 +448,25 @@ pub(crate) fn update_voxel_volume(
             Name::new("hao voxel counters readback"),
         ))
         .observe(read_voxelize_counters);
-    stats.update(|s| s.grid = Some(grid));
+    let texel_bytes = texture_format.block_copy_size(None).unwrap_or(4) as u64;
+    let level_texels: u64 = (0..mip_levels).map(|m| (texture_size >> m).as_u64vec3().element_product()).sum();
+    let bytes = LevelBytes {
+        occupancy: 2 * level_words * 4,
+        texture: level_texels * texel_bytes,
+        point_counts: if point_counts { 2 * grid.voxel_count() * 4 } else { 0 },
+    };
+    stats.update(|s| {
+        s.grid = Some(grid);
+        s.cascades = (0..levels)
+            .map(|l| CascadeLevelStats {
+                cell_size: shape.map_or(grid.cell_size, |c| c.cell_size(l)),
+                bytes,
+                ..default()
+            })
+            .collect();
+    });
     debug!(
-        "bevy_hao: voxel grid {}x{}x{}, cell {} at {}",
+        "bevy_hao: voxel grid {levels} x {}x{}x{}, cell {} at {}",
         grid.dims.x, grid.dims.y, grid.dims.z, grid.cell_size, grid.origin
     );
     commands.insert_resource(assets);
@@ -356,11 +484,7 @@ fn report(reported: &mut ReportedVolume, msg: String) {
 /// exceeded or triangles were too large to voxelize.
 fn read_voxelize_counters(event: On<ReadbackComplete>, stats: Res<VoxelizationStats>) {
     let words: Vec<u32> = event.data.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
-    if words.len() < COUNTER_WORDS {
-        return;
-    }
-    let static_counters = VoxelizeCounters::from_words(&words[0..]);
-    let dynamic_counters = VoxelizeCounters::from_words(&words[super::stats::COUNTER_BLOCK..]);
+    let Some((static_counters, dynamic_counters)) = super::stats::decode_counters(&words) else { return };
     stats.update(|s| {
         for (name, new, old) in [("static", &static_counters, &s.static_counters), ("dynamic", &dynamic_counters, &s.dynamic_counters)] {
             if new.budget_exceeded && !old.budget_exceeded {

@@ -73,7 +73,12 @@ pub(crate) fn estimate_point_budget(
         let entry = *cache.entry(id).or_insert_with(|| meshes.get(id).and_then(mesh_edge_stats));
         let Some((triangles, edge)) = entry else { continue };
         let scale = transform.compute_transform().scale.abs().max_element() as f64;
-        let points = expected_point_count(triangles, edge * scale, cell, gamma).max(triangles as f64);
+        // Every level a mesh overlaps voxelizes it (at most all of them, each with twice the cell size).
+        let points: f64 = (0..assets.levels)
+            .map(|l| {
+                expected_point_count(triangles, edge * scale, cell * (1u64 << l) as f64, gamma).max(triangles as f64)
+            })
+            .sum();
         if occluder_is_dynamic(s, d, p) {
             dynamic_points += points;
         } else {

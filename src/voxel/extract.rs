@@ -4,7 +4,7 @@
 //! `RenderMeshInstances`, which hold no CPU transforms when meshes are built on the GPU, and which are culled
 //! to the views: an occluder behind the camera must still be voxelized.
 
-use super::assets::{VoxelGridAssets, occluder_is_dynamic, world_aabb};
+use super::assets::{VoxelGridAssets, VoxelVolumeFocus, occluder_is_dynamic, world_aabb};
 use crate::components::*;
 use bevy::camera::primitives::Aabb;
 use bevy::math::Affine3A;
@@ -13,9 +13,14 @@ use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
 use bevy::render::Extract;
 
-/// The grid's assets, extracted each frame (`None` while there is no valid grid).
+/// The grid's assets (`None` while there is no valid grid) and the cascades' focus, extracted each frame.
 #[derive(Resource, Default)]
-pub struct ExtractedVoxelGrid(pub Option<VoxelGridAssets>);
+pub struct ExtractedVoxelGrid {
+    /// The assets.
+    pub assets: Option<VoxelGridAssets>,
+    /// Where the cascades are centred.
+    pub focus: Option<Vec3>,
+}
 
 /// One occluding mesh instance.
 #[derive(Clone, Debug)]
@@ -62,8 +67,12 @@ pub fn count_rebuild_requests(
 }
 
 /// Extracts the grid assets.
-pub fn extract_voxel_grid(mut commands: Commands, assets: Extract<Option<Res<VoxelGridAssets>>>) {
-    commands.insert_resource(ExtractedVoxelGrid(assets.as_deref().cloned()));
+pub fn extract_voxel_grid(
+    mut commands: Commands,
+    assets: Extract<Option<Res<VoxelGridAssets>>>,
+    focus: Extract<Res<VoxelVolumeFocus>>,
+) {
+    commands.insert_resource(ExtractedVoxelGrid { assets: assets.as_deref().cloned(), focus: focus.0 });
 }
 
 /// Extracts the visible (in the hierarchy, not per view) occluding mesh instances.

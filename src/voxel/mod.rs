@@ -2,20 +2,29 @@
 //!
 //! Every frame, before the cameras render (Bevy 0.19's `RenderGraph` schedule, before `camera_driver`):
 //!
-//! 1. **voxelize static** (only when the static set changed): `classify` (one invocation per triangle, read
+//! The volume is a set of *levels*: one grid ([`crate::VolumeBounds::FitStaticScene`],
+//! [`crate::VolumeBounds::World`]) or the cascades that follow the camera (the default; see
+//! [`crate::cpu::cascade`]). Each frame places the levels, then:
+//!
+//! 1. **voxelize static** (only the regions that changed: the slabs a cascade scrolled into, the boxes
+//!    where a static occluder was added, moved, changed or removed, whole levels when rebuilt): `clear`, then
+//!    `classify` (one invocation per triangle, read
 //!    from the mesh allocator's slabs: equation 1, and small triangles injected at once), `scan` (prefix
 //!    sums over the queued big triangles, and the point budget), `expand` (indirect, one invocation per
 //!    sub-triangle of the big triangles) into the static occupancy bits and point counts;
 //! 2. **voxelize dynamic**: the static grid copied into the frame's grid, then the same three passes for
-//!    dynamic geometry on top;
-//! 3. **resolve**: the frame's bits into the 3D voxel texture over the region that changed, and its
+//!    dynamic geometry on top, once per level it overlaps;
+//! 3. **resolve**: the frame's bits into the 3D voxel texture over the boxes that changed, and its
 //!    max-reduced mips.
+//!
+//! Sampling passes bind [`VoxelGridBindings`] at [`VOXEL_GRID_GROUP`] and import `bevy_hao::voxel_grid`.
 //!
 //! The CPU twin of passes 1 and 2 is [`mod@crate::cpu::voxelize`]; the WGSL files beside this module name their
 //! functions after it. GPU time spans: `hao/voxelize_static`, `hao/voxelize_dynamic`, `hao/resolve` (add
 //! Bevy's `RenderDiagnosticsPlugin` to see them).
 
 pub mod assets;
+pub mod bindings;
 pub mod budget;
 pub mod extract;
 pub mod pass;
@@ -23,7 +32,10 @@ pub mod pipelines;
 pub mod prepare;
 pub mod stats;
 
-pub use assets::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
+pub use assets::{
+    CascadeLevelStats, LevelBytes, VoxelGridAssets, VoxelVolumeFocus, VoxelizationStats, VoxelizationStatsData,
+};
+pub use bindings::{VOXEL_GRID_GROUP, VoxelGridBindings, VoxelGridLayout, voxel_grid_layout};
 pub use extract::RebuildStaticVoxels;
 pub use stats::VoxelizeCounters;
 
@@ -47,6 +59,8 @@ impl Plugin for VoxelizationPlugin {
     fn build(&self, app: &mut App) {
         load_shader_library!(app, "voxelize_common.wgsl");
         load_shader_library!(app, "voxelize_pass.wgsl");
+        load_shader_library!(app, "voxel_grid.wgsl");
+        embedded_asset!(app, "voxel_clear.wgsl");
         embedded_asset!(app, "voxelize_classify.wgsl");
         embedded_asset!(app, "voxelize_scan.wgsl");
         embedded_asset!(app, "voxelize_expand.wgsl");
@@ -95,9 +109,14 @@ impl Plugin for VoxelizationPlugin {
             s.large_threshold = s.large_threshold.min(max_binding);
         }
         let stats = assets::VoxelizationStats::default();
-        app.insert_resource(stats.clone()).add_systems(
+        app.insert_resource(stats.clone()).init_resource::<assets::VoxelVolumeFocus>().add_systems(
             PostUpdate,
-            (assets::promote_moved_occluders, assets::update_voxel_volume, budget::estimate_point_budget)
+            (
+                assets::promote_moved_occluders,
+                assets::update_voxel_focus,
+                assets::update_voxel_volume,
+                budget::estimate_point_budget,
+            )
                 .chain()
                 .after(bevy::transform::TransformSystems::Propagate)
                 .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds),
@@ -109,8 +128,14 @@ impl Plugin for VoxelizationPlugin {
             .init_resource::<extract::ExtractedVoxelGrid>()
             .init_resource::<prepare::VoxelizeState>()
             .init_gpu_resource::<pipelines::VoxelizePipelines>()
+            .init_gpu_resource::<bindings::VoxelGridLayout>()
             .add_systems(ExtractSchedule, (extract::extract_voxel_grid, extract::extract_voxel_occluders))
-            .add_systems(Render, prepare::prepare_voxelize.in_set(RenderSystems::PrepareBindGroups))
+            .add_systems(
+                Render,
+                (prepare::prepare_voxelize, bindings::prepare_voxel_grid_bindings)
+                    .chain()
+                    .in_set(RenderSystems::PrepareBindGroups),
+            )
             .add_systems(RenderGraph, pass::voxelize.in_set(RenderGraphSystems::Render).before(camera_driver));
     }
 }

@@ -2,8 +2,8 @@
 //! render, so that every view's sampling pass sees this frame's grid.
 
 use super::pipelines::VoxelizePipelines;
-use super::prepare::{VoxelizeFrame, VoxelizePass};
-use super::stats::{COUNTER_BLOCK, FRAME_POINTS_USED};
+use super::prepare::{StaticClear, VoxelizeFrame, VoxelizePass};
+use super::stats::FRAME_POINTS_USED;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::*;
@@ -17,7 +17,6 @@ fn record_pass(
     label: &'static str,
 ) {
     let [classify, scan, expand] = pipelines;
-    encoder.clear_buffer(&frame.counters, pass.counter_base as u64 * 4, Some(COUNTER_BLOCK as u64 * 4));
     {
         let mut cpass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some(label), timestamp_writes: None });
@@ -47,8 +46,8 @@ fn record_pass(
     }
 }
 
-/// Voxelizes: the static grid when it must be rebuilt, then this frame's copy of it with the dynamic
-/// geometry on top, then the voxel texture over the region that changed.
+/// Voxelizes: the static regions that changed (cleared, then voxelized again), then this frame's copy of
+/// the static grid with the dynamic geometry on top, then the voxel texture over the boxes that changed.
 pub fn voxelize(
     frame: Option<Res<VoxelizeFrame>>,
     pipelines: Res<VoxelizePipelines>,
@@ -56,10 +55,11 @@ pub fn voxelize(
     mut ctx: RenderContext,
 ) {
     let Some(frame) = frame else { return };
-    let (Some(classify), Some(scan), Some(expand), Some(resolve), Some(mip)) = (
+    let (Some(classify), Some(scan), Some(expand), Some(clear), Some(resolve), Some(mip)) = (
         cache.get_compute_pipeline(pipelines.classify),
         cache.get_compute_pipeline(pipelines.scan),
         cache.get_compute_pipeline(pipelines.expand),
+        cache.get_compute_pipeline(pipelines.clear),
         cache.get_compute_pipeline(pipelines.resolve),
         cache.get_compute_pipeline(pipelines.mip),
     ) else {
@@ -69,15 +69,34 @@ pub fn voxelize(
     let diagnostics = diagnostics.as_deref();
     let encoder = ctx.command_encoder();
     encoder.clear_buffer(&frame.counters, FRAME_POINTS_USED as u64 * 4, Some(4));
+    for (base, words) in &frame.clear_counters {
+        encoder.clear_buffer(&frame.counters, *base as u64 * 4, Some(*words as u64 * 4));
+    }
 
-    if let Some(pass) = &frame.static_pass {
+    if !frame.static_passes.is_empty() {
         let span = diagnostics.time_span(ctx.command_encoder(), "hao/voxelize_static");
         let encoder = ctx.command_encoder();
-        encoder.clear_buffer(&frame.static_occupancy, 0, None);
-        if let Some((static_counts, _)) = &frame.counts {
-            encoder.clear_buffer(static_counts, 0, None);
+        for s in &frame.static_passes {
+            match &s.clear {
+                StaticClear::Level { occupancy, counts } => {
+                    encoder.clear_buffer(&frame.static_occupancy, occupancy.0, Some(occupancy.1));
+                    if let (Some((static_counts, _)), Some(c)) = (&frame.counts, counts) {
+                        encoder.clear_buffer(static_counts, c.0, Some(c.1));
+                    }
+                }
+                StaticClear::Region(w) => {
+                    let mut cpass = encoder.begin_compute_pass(&ComputePassDescriptor {
+                        label: Some("hao_voxel_clear"),
+                        timestamp_writes: None,
+                    });
+                    cpass.set_pipeline(clear);
+                    cpass.set_bind_group(0, &frame.empty_bind_group, &[]);
+                    cpass.set_bind_group(1, &s.pass.bind_group, &[]);
+                    cpass.dispatch_workgroups(w.x.max(1), w.y.max(1), w.z.max(1));
+                }
+            }
+            record_pass(encoder, &s.pass, &frame, [classify, scan, expand], "hao_voxelize_static");
         }
-        record_pass(encoder, pass, &frame, [classify, scan, expand], "hao_voxelize_static");
         span.end(ctx.command_encoder());
     }
 
@@ -87,29 +106,33 @@ pub fn voxelize(
     if let Some((static_counts, counts)) = &frame.counts {
         encoder.copy_buffer_to_buffer(static_counts, 0, counts, 0, counts.size());
     }
-    if let Some(pass) = &frame.dynamic_pass {
+    for pass in &frame.dynamic_passes {
         record_pass(encoder, pass, &frame, [classify, scan, expand], "hao_voxelize_dynamic");
     }
     span.end(ctx.command_encoder());
 
     let span = diagnostics.time_span(ctx.command_encoder(), "hao/resolve");
-    {
-        let encoder = ctx.command_encoder();
-        let mut cpass = encoder
-            .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_voxel_resolve"), timestamp_writes: None });
-        cpass.set_pipeline(resolve);
-        cpass.set_bind_group(0, &frame.resolve.bind_group, &[]);
-        let w = frame.resolve.workgroups;
-        cpass.dispatch_workgroups(w.x, w.y, w.z);
-    }
-    // One pass per level: each reads the level the previous one wrote.
-    for (bind_group, w) in &frame.resolve.mips {
-        let encoder = ctx.command_encoder();
-        let mut cpass =
-            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_voxel_mip"), timestamp_writes: None });
-        cpass.set_pipeline(mip);
-        cpass.set_bind_group(0, bind_group, &[]);
-        cpass.dispatch_workgroups(w.x.max(1), w.y.max(1), w.z.max(1));
+    for work in &frame.resolve {
+        {
+            let encoder = ctx.command_encoder();
+            let mut cpass = encoder.begin_compute_pass(&ComputePassDescriptor {
+                label: Some("hao_voxel_resolve"),
+                timestamp_writes: None,
+            });
+            cpass.set_pipeline(resolve);
+            cpass.set_bind_group(0, &work.bind_group, &[]);
+            let w = work.workgroups;
+            cpass.dispatch_workgroups(w.x.max(1), w.y.max(1), w.z.max(1));
+        }
+        // One pass per level: each reads the level the previous one wrote.
+        for (bind_group, w) in &work.mips {
+            let encoder = ctx.command_encoder();
+            let mut cpass = encoder
+                .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_voxel_mip"), timestamp_writes: None });
+            cpass.set_pipeline(mip);
+            cpass.set_bind_group(0, bind_group, &[]);
+            cpass.dispatch_workgroups(w.x.max(1), w.y.max(1), w.z.max(1));
+        }
     }
     span.end(ctx.command_encoder());
 }

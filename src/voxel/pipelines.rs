@@ -49,40 +49,46 @@ pub struct GpuSlabGroup {
     pub _pad: u32,
 }
 
-/// Per-pass settings (WGSL `VoxelizeParams`).
+/// Per-pass settings (WGSL `VoxelizeParams`): the level, the region of it to inject into, and how its
+/// cells are stored.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct GpuVoxelizeParams {
-    /// Grid dimensions.
-    pub dims: [u32; 3],
+pub(crate) struct GpuVoxelizeParams {
+    pub region_min: [i32; 3],
     /// 0: centroid, 1: conservative.
     pub mode: u32,
+    pub region_max: [i32; 3],
     /// The effective gamma.
     pub gamma: f32,
+    pub window_min: [i32; 3],
     /// Most points per frame.
     pub point_budget: u32,
+    pub closed_max: [i32; 3],
     /// Whether point counts are written.
     pub store_counts: u32,
+    pub wrap: [u32; 3],
     /// First counter of this pass's block.
     pub counter_base: u32,
+    pub dims: [u32; 3],
+    pub voxel_base: u32,
 }
 
-/// A region of a texture level (WGSL `ResolveParams` / `MipParams`).
+/// A box of one level to resolve into the texture, at one mip (WGSL `LevelRegion`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct GpuRegionParams {
-    /// First texel.
-    pub region_min: [u32; 3],
-    /// Padding.
+pub(crate) struct GpuLevelRegion {
+    pub region_min: [i32; 3],
+    pub texture_z: u32,
+    pub region_max: [i32; 3],
+    pub voxel_base: u32,
+    pub window_min: [i32; 3],
     pub _pad0: u32,
-    /// One past the last texel.
-    pub region_max: [u32; 3],
-    /// Padding.
+    pub wrap: [u32; 3],
     pub _pad1: u32,
-    /// Grid dimensions (resolve) or the source level's size (mip).
-    pub size: [u32; 3],
-    /// Padding.
+    pub dims: [u32; 3],
     pub _pad2: u32,
+    pub size: [u32; 3],
+    pub _pad3: u32,
 }
 
 /// Size of WGSL `BigTriangle` in bytes.
@@ -111,14 +117,19 @@ pub struct VoxelizePipelines {
     pub scan: CachedComputePipelineId,
     /// Pass 3.
     pub expand: CachedComputePipelineId,
+    /// Clears a box of a level before it is voxelized again.
+    pub clear: CachedComputePipelineId,
     /// Bits to texture.
     pub resolve: CachedComputePipelineId,
     /// Texture mips.
     pub mip: CachedComputePipelineId,
     /// The voxel texture's format.
     pub texture_format: TextureFormat,
-    /// A 16-byte storage buffer bound where a mesh has no index slab or point counts are off.
+    /// A 16-byte storage buffer bound (read only) where a mesh has no index slab.
     pub dummy: Buffer,
+    /// A 16-byte storage buffer bound (read-write) where point counts are off: not `dummy`, since one
+    /// buffer may not be bound both ways in one dispatch.
+    pub dummy_counts: Buffer,
 }
 
 impl FromWorld for VoxelizePipelines {
@@ -127,6 +138,12 @@ impl FromWorld for VoxelizePipelines {
         let device = world.resource::<RenderDevice>();
         let dummy = device.create_buffer(&BufferDescriptor {
             label: Some("hao_dummy_storage"),
+            size: 16,
+            usage: BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let dummy_counts = device.create_buffer(&BufferDescriptor {
+            label: Some("hao_dummy_counts"),
             size: 16,
             usage: BufferUsages::STORAGE,
             mapped_at_creation: false,
@@ -210,6 +227,13 @@ impl FromWorld for VoxelizePipelines {
             "expand",
             vec![],
         );
+        let clear = queue(
+            "hao_voxel_clear",
+            vec![empty_layout.clone(), pass_layout.clone()],
+            load_embedded_asset!(world, "voxel_clear.wgsl"),
+            "clear_region",
+            vec![],
+        );
         let resolve = queue(
             "hao_voxel_resolve",
             vec![resolve_layout.clone()],
@@ -234,10 +258,12 @@ impl FromWorld for VoxelizePipelines {
             classify,
             scan,
             expand,
+            clear,
             resolve,
             mip,
             texture_format,
             dummy,
+            dummy_counts,
         }
     }
 }

@@ -1,13 +1,14 @@
-//! Prepare: resolve this frame's occluders to mesh slabs, decide what needs voxelizing (the static grid only
-//! when the static set changed; dynamic geometry every frame), and build the buffers and bind groups of the
-//! passes.
+//! Prepare: place this frame's levels (a single grid, or the cascades around the camera), resolve the
+//! occluders to mesh slabs, decide what needs voxelizing (static geometry only in the regions that changed:
+//! slabs a cascade scrolled into, boxes where a static occluder changed, whole levels when rebuilt; dynamic
+//! geometry every frame in every level it overlaps), and build the buffers and bind groups of the passes.
 
-use super::assets::{VoxelGridAssets, VoxelizationStats};
+use super::assets::{CascadeLevelStats, VoxelGridAssets, VoxelizationStats};
 use super::extract::{ExtractedOccluder, ExtractedOccluders, ExtractedVoxelGrid};
 use super::pipelines::*;
-use super::stats::{DYNAMIC_COUNTER_BASE, STATIC_COUNTER_BASE};
-use crate::cpu::{InjectionMode, VoxelGrid};
-use bevy::math::Affine3A;
+use super::stats::{STATIC_REGION_SLOTS, counter_base};
+use crate::cpu::{self, InjectionMode, VoxelGrid};
+use bevy::math::{Affine3A, IVec3};
 use bevy::mesh::VertexFormat;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
@@ -20,30 +21,152 @@ use bevy::render::storage::GpuShaderBuffer;
 use bevy::render::texture::GpuImage;
 use std::hash::{Hash, Hasher};
 
-/// A box of cells, `[min, max)`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct CellRegion {
-    /// First cell.
-    pub min: UVec3,
-    /// One past the last cell.
-    pub max: UVec3,
+/// A box of lattice cells, `[min, max)`.
+pub(crate) type CellBox = (IVec3, IVec3);
+
+fn union(a: CellBox, b: CellBox) -> CellBox {
+    (a.0.min(b.0), a.1.max(b.1))
 }
 
-impl CellRegion {
-    fn union(self, o: CellRegion) -> CellRegion {
-        CellRegion { min: self.min.min(o.min), max: self.max.max(o.max) }
+fn intersect(a: CellBox, b: CellBox) -> Option<CellBox> {
+    let r = (a.0.max(b.0), a.1.min(b.1));
+    r.0.cmplt(r.1).all().then_some(r)
+}
+
+/// Workgroups of 4x4x4 covering a box.
+fn groups4(b: CellBox) -> UVec3 {
+    ((b.1 - b.0).max(IVec3::ZERO).as_uvec3() + UVec3::splat(3)) / 4
+}
+
+fn cells(b: CellBox) -> u64 {
+    (b.1 - b.0).max(IVec3::ZERO).as_u64vec3().element_product()
+}
+
+/// One level of the volume as placed this frame: a single grid, or a cascade with its window.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct LevelLayout {
+    /// World position of lattice cell 0.
+    pub origin: Vec3,
+    /// World-space cell size.
+    pub cell_size: f32,
+    /// Cells of the window.
+    pub dims: UVec3,
+    /// Texels of the level in the texture at mip 0.
+    pub size: UVec3,
+    /// The lattice cell at the window's min corner.
+    pub window_min: IVec3,
+    /// Stored toroidally (a cascade) rather than as a plain grid.
+    pub toroidal: bool,
+    /// The level's first voxel in the occupancy and count buffers.
+    pub voxel_base: u32,
+    /// The level's first texel along z in the texture.
+    pub texture_z: u32,
+}
+
+impl LevelLayout {
+    /// World space to the level's lattice.
+    pub fn grid_from_world(&self) -> Affine3A {
+        if self.toroidal {
+            Affine3A::from_scale(Vec3::splat(1.0 / self.cell_size))
+        } else {
+            VoxelGrid { origin: self.origin, cell_size: self.cell_size, dims: self.dims }.grid_from_world()
+        }
     }
-    fn full(dims: UVec3) -> CellRegion {
-        CellRegion { min: UVec3::ZERO, max: dims }
+
+    /// Where the window's min corner is stored.
+    pub fn wrap(&self) -> UVec3 {
+        if self.toroidal { self.window_min.rem_euclid(self.dims.as_ivec3()).as_uvec3() } else { UVec3::ZERO }
     }
+
+    /// The window as a box of cells.
+    pub fn window(&self) -> CellBox {
+        (self.window_min, self.window_min + self.dims.as_ivec3())
+    }
+
+    /// The injection region of a box of the window (cpu: `InjectionRegion`).
+    pub fn region(&self, b: CellBox) -> cpu::InjectionRegion {
+        cpu::InjectionRegion {
+            min: b.0,
+            max: b.1,
+            window_min: self.window_min,
+            closed_max: if self.toroidal { IVec3::MAX } else { self.dims.as_ivec3() },
+        }
+    }
+
+    /// The cells of the window a world-space box touches, padded by a cell.
+    pub fn cells_of_box(&self, min: Vec3, max: Vec3) -> Option<CellBox> {
+        let g = self.grid_from_world();
+        let lo = g.transform_point3(min).floor() - Vec3::ONE;
+        let hi = g.transform_point3(max).ceil() + Vec3::ONE;
+        if !(lo.is_finite() && hi.is_finite()) {
+            return Some(self.window());
+        }
+        let (w0, w1) = self.window();
+        let lo = lo.clamp(w0.as_vec3(), w1.as_vec3()).as_ivec3();
+        let hi = hi.clamp(w0.as_vec3(), w1.as_vec3()).as_ivec3();
+        lo.cmplt(hi).all().then_some((lo, hi))
+    }
+
+    /// The world-space box of a box of cells.
+    fn world_box(&self, b: CellBox) -> (Vec3, Vec3) {
+        let inv = self.grid_from_world().inverse();
+        (inv.transform_point3(b.0.as_vec3()), inv.transform_point3(b.1.as_vec3()))
+    }
+}
+
+/// This frame's levels: a single grid, or the cascades placed around the focus. `None` while the cascades
+/// have no focus (no camera with HAO) or it is unusable.
+pub(crate) fn place_levels(assets: &VoxelGridAssets, focus: Option<Vec3>) -> Option<Vec<LevelLayout>> {
+    let g = assets.grid;
+    let level_voxels = g.voxel_count() as u32;
+    match assets.cascades {
+        None => Some(vec![LevelLayout {
+            origin: g.origin,
+            cell_size: g.cell_size,
+            dims: g.dims,
+            size: assets.texture_size,
+            window_min: IVec3::ZERO,
+            toroidal: false,
+            voxel_base: 0,
+            texture_z: 0,
+        }]),
+        Some(shape) => {
+            let levels = shape.levels_at(focus?).ok()?;
+            Some(
+                levels
+                    .iter()
+                    .enumerate()
+                    .map(|(l, c)| LevelLayout {
+                        origin: Vec3::ZERO,
+                        cell_size: c.cell_size,
+                        dims: UVec3::splat(c.cells),
+                        size: assets.texture_size,
+                        window_min: c.window_min,
+                        toroidal: true,
+                        voxel_base: l as u32 * level_voxels,
+                        texture_z: l as u32 * assets.texture_size.z,
+                    })
+                    .collect(),
+            )
+        }
+    }
+}
+
+/// What prepare remembers of a static occluder.
+#[derive(Clone, Copy, PartialEq)]
+struct StaticEntry {
+    fingerprint: u64,
+    bounds: Option<(Vec3, Vec3)>,
 }
 
 /// State kept across frames.
 #[derive(Resource, Default)]
 pub struct VoxelizeState {
     generation: u64,
-    static_fingerprint: Option<u64>,
-    prev_dynamic_region: Option<CellRegion>,
+    /// The levels as voxelized last (empty: nothing is valid).
+    levels: Vec<LevelLayout>,
+    statics: HashMap<Entity, StaticEntry>,
+    prev_dynamic: Vec<Option<CellBox>>,
     had_dynamic: bool,
     warned_meshes: HashSet<AssetId<Mesh>>,
     warned_moved: HashSet<Entity>,
@@ -51,6 +174,13 @@ pub struct VoxelizeState {
     rebuild_requests: u64,
     big: Option<BigBuffers>,
     warned_capacity: bool,
+}
+
+impl VoxelizeState {
+    /// The levels as voxelized this frame (for the bindings consumers read).
+    pub(crate) fn levels(&self) -> &[LevelLayout] {
+        &self.levels
+    }
 }
 
 struct BigBuffers {
@@ -68,7 +198,7 @@ pub struct SlabDispatch {
     pub workgroups: (u32, u32),
 }
 
-/// A voxelization pass (static or dynamic).
+/// A voxelization pass: one level, one region, static or dynamic geometry.
 pub struct VoxelizePass {
     /// The classify dispatches.
     pub slabs: Vec<SlabDispatch>,
@@ -78,9 +208,30 @@ pub struct VoxelizePass {
     pub counter_base: u32,
 }
 
-/// The resolve work of a frame.
+/// How a static region is cleared before it is voxelized again.
+pub enum StaticClear {
+    /// A whole level, by clearing its bytes.
+    Level {
+        /// (offset, size) in the occupancy buffer.
+        occupancy: (u64, u64),
+        /// (offset, size) in the point count buffer, if kept.
+        counts: Option<(u64, u64)>,
+    },
+    /// A box of cells, by the clear pass (workgroups of 4x4x4).
+    Region(UVec3),
+}
+
+/// A static region: cleared, then voxelized.
+pub struct StaticPass {
+    /// How it is cleared.
+    pub clear: StaticClear,
+    /// The voxelization (its bind group also serves the clear pass).
+    pub pass: VoxelizePass,
+}
+
+/// One box of one level to resolve into the texture.
 pub struct ResolveWork {
-    /// Bits to level 0.
+    /// Bits to mip 0.
     pub bind_group: BindGroup,
     /// Workgroups of 4x4x4.
     pub workgroups: UVec3,
@@ -91,11 +242,13 @@ pub struct ResolveWork {
 /// Everything the voxelize system records this frame; absent on frames with nothing to do.
 #[derive(Resource)]
 pub struct VoxelizeFrame {
-    /// Rebuild the static grid.
-    pub static_pass: Option<VoxelizePass>,
-    /// Inject dynamic geometry.
-    pub dynamic_pass: Option<VoxelizePass>,
-    /// Group 0 of scan and expand.
+    /// Counter blocks to clear before the passes: (first word, words).
+    pub clear_counters: Vec<(u32, u32)>,
+    /// Static regions to voxelize again.
+    pub static_passes: Vec<StaticPass>,
+    /// Dynamic geometry, one pass per level it overlaps.
+    pub dynamic_passes: Vec<VoxelizePass>,
+    /// Group 0 of scan, expand and clear.
     pub empty_bind_group: BindGroup,
     /// Group 2 of scan.
     pub dispatch_bind_group: BindGroup,
@@ -103,17 +256,18 @@ pub struct VoxelizeFrame {
     pub dispatch_args: Buffer,
     /// The counters.
     pub counters: Buffer,
-    /// Static and frame occupancy.
+    /// Static occupancy.
     pub static_occupancy: Buffer,
     /// This frame's occupancy.
     pub occupancy: Buffer,
     /// Static and frame point counts, if kept.
     pub counts: Option<(Buffer, Buffer)>,
     /// Bits to texture.
-    pub resolve: ResolveWork,
+    pub resolve: Vec<ResolveWork>,
 }
 
 /// An occluder ready for the GPU.
+#[derive(Clone)]
 struct ResolvedInstance {
     slabs: (BufferId, Option<BufferId>),
     vertex_buffer: Buffer,
@@ -132,7 +286,6 @@ enum Resolution {
 
 fn resolve_occluder(
     o: &ExtractedOccluder,
-    grid: &VoxelGrid,
     meshes: &RenderAssets<RenderMesh>,
     allocator: &MeshAllocator,
     warned: &mut HashSet<AssetId<Mesh>>,
@@ -182,15 +335,13 @@ fn resolve_occluder(
         }
         RenderMeshBufferInfo::NonIndexed => (None, 0, 0, mesh.vertex_count / 3),
     };
-    let m = grid.grid_from_world() * o.world_from_local;
-    let col = |v: bevy::math::Vec3A| [v.x, v.y, v.z, 0.0];
     Resolution::Ready(ResolvedInstance {
         slabs: (vertices.buffer.id(), index_buffer.as_ref().map(|b| b.id())),
         vertex_buffer: vertices.buffer.clone(),
         index_buffer,
         ranges: [vertices.range.start, vertices.range.end, index_start, triangles],
         gpu: GpuOccluderInstance {
-            grid_from_local: [col(m.matrix3.x_axis), col(m.matrix3.y_axis), col(m.matrix3.z_axis), col(m.translation)],
+            grid_from_local: [[0.0; 4]; 4],
             vertex_start: vertices.range.start,
             vertex_count: mesh.vertex_count,
             vertex_stride: (stride / 4) as u32,
@@ -205,7 +356,6 @@ fn resolve_occluder(
 
 fn resolve_list<'a>(
     list: &'a [ExtractedOccluder],
-    grid: &VoxelGrid,
     meshes: &RenderAssets<RenderMesh>,
     allocator: &MeshAllocator,
     state: &mut VoxelizeState,
@@ -213,7 +363,7 @@ fn resolve_list<'a>(
 ) -> Vec<(&'a ExtractedOccluder, ResolvedInstance)> {
     let mut ready = Vec::with_capacity(list.len());
     for o in list {
-        match resolve_occluder(o, grid, meshes, allocator, &mut state.warned_meshes) {
+        match resolve_occluder(o, meshes, allocator, &mut state.warned_meshes) {
             Resolution::Ready(r) => ready.push((o, r)),
             Resolution::Pending => {}
             Resolution::Skipped => *skipped += 1,
@@ -304,17 +454,37 @@ fn build_slab_dispatches(
     (dispatches, total)
 }
 
-/// The cells a world-space box touches, padded by one cell and clamped to the grid.
-fn cell_region(grid: &VoxelGrid, min: Vec3, max: Vec3) -> Option<CellRegion> {
-    let lo = grid.world_to_grid(min).floor() - Vec3::ONE;
-    let hi = grid.world_to_grid(max).ceil() + Vec3::ONE;
-    let d = grid.dims.as_vec3();
-    if !(lo.is_finite() && hi.is_finite()) {
-        return Some(CellRegion::full(grid.dims));
+/// The instances of `list` whose world bounds meet `world` (those without bounds always), with their
+/// `grid_from_local` for a level.
+fn instances_in(
+    list: &[(&ExtractedOccluder, ResolvedInstance)],
+    level: &LevelLayout,
+    world: (Vec3, Vec3),
+) -> Vec<ResolvedInstance> {
+    let grid_from_world = level.grid_from_world();
+    let col = |v: bevy::math::Vec3A| [v.x, v.y, v.z, 0.0];
+    list.iter()
+        .filter(|(o, _)| o.world_bounds.is_none_or(|(lo, hi)| lo.cmple(world.1).all() && hi.cmpge(world.0).all()))
+        .map(|(o, r)| {
+            let m = grid_from_world * o.world_from_local;
+            let mut r = r.clone();
+            r.gpu.grid_from_local =
+                [col(m.matrix3.x_axis), col(m.matrix3.y_axis), col(m.matrix3.z_axis), col(m.translation)];
+            r
+        })
+        .collect()
+}
+
+/// A hash of what voxelizing an occluder depends on.
+fn fingerprint(o: &ExtractedOccluder, r: &ResolvedInstance) -> u64 {
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    o.mesh.hash(&mut hasher);
+    r.ranges.hash(&mut hasher);
+    r.slabs.hash(&mut hasher);
+    for v in o.world_from_local.to_cols_array() {
+        v.to_bits().hash(&mut hasher);
     }
-    let lo = lo.clamp(Vec3::ZERO, d).as_uvec3();
-    let hi = hi.clamp(Vec3::ZERO, d).as_uvec3();
-    (lo.cmplt(hi).all()).then_some(CellRegion { min: lo, max: hi })
+    hasher.finish()
 }
 
 /// Builds this frame's [`VoxelizeFrame`], or removes it when there is nothing to do.
@@ -335,121 +505,249 @@ pub fn prepare_voxelize(
     stats: Res<VoxelizationStats>,
 ) {
     commands.remove_resource::<VoxelizeFrame>();
-    let Some(assets) = grid_assets.0.as_ref() else {
-        state.static_fingerprint = None;
-        state.prev_dynamic_region = None;
+    let invalidate = |state: &mut VoxelizeState| {
+        state.levels.clear();
+        state.statics.clear();
+        state.prev_dynamic.clear();
+    };
+    let Some(assets) = grid_assets.assets.as_ref() else {
+        invalidate(&mut state);
         return;
     };
-    let VoxelGridAssets { grid, settings, .. } = assets;
     let (Some(static_occupancy), Some(occupancy), Some(counters), Some(texture)) = (
         buffers.get(&assets.static_occupancy),
         buffers.get(&assets.occupancy),
         buffers.get(&assets.counters),
         images.get(&assets.texture),
     ) else {
+        invalidate(&mut state);
         return;
     };
     let counts = match (&assets.static_point_counts, &assets.point_counts) {
         (Some(s), Some(f)) => match (buffers.get(s), buffers.get(f)) {
             (Some(s), Some(f)) => Some((s.buffer.clone(), f.buffer.clone())),
-            _ => return,
+            _ => return invalidate(&mut state),
         },
         _ => None,
     };
-    if [pipelines.classify, pipelines.scan, pipelines.expand, pipelines.resolve, pipelines.mip]
+    if [pipelines.classify, pipelines.scan, pipelines.expand, pipelines.clear, pipelines.resolve, pipelines.mip]
         .iter()
         .any(|id| cache.get_compute_pipeline(*id).is_none())
     {
-        return;
+        return invalidate(&mut state);
     }
+    let Some(levels) = place_levels(assets, grid_assets.focus) else {
+        return invalidate(&mut state);
+    };
+    let settings = &assets.settings;
+    let mut full_rebuild = state.generation != assets.generation || state.levels.len() != levels.len();
     if state.generation != assets.generation {
         state.generation = assets.generation;
-        state.static_fingerprint = None;
-        state.prev_dynamic_region = None;
+        state.statics.clear();
     }
 
     // Resolve the occluders to slabs.
     let mut skipped = 0u64;
-    let statics = resolve_list(&occluders.statics, grid, &meshes, &allocator, &mut state, &mut skipped);
-    let dynamics = resolve_list(&occluders.dynamics, grid, &meshes, &allocator, &mut state, &mut skipped);
+    let statics = resolve_list(&occluders.statics, &meshes, &allocator, &mut state, &mut skipped);
+    let dynamics = resolve_list(&occluders.dynamics, &meshes, &allocator, &mut state, &mut skipped);
 
-    // The static set's fingerprint: what was voxelized and where, and how.
-    let mut hasher = std::collections::hash_map::DefaultHasher::new();
-    assets.generation.hash(&mut hasher);
+    // What changed in the static set since last frame: world boxes to voxelize again.
+    let mut dirty: Vec<(Vec3, Vec3)> = Vec::new();
+    let mut dirty_everywhere = false;
+    let mut entries = HashMap::with_capacity(statics.len());
     let mut transforms = HashMap::with_capacity(statics.len());
-    let mut force = false;
     for (o, r) in &statics {
-        o.entity.hash(&mut hasher);
-        o.mesh.hash(&mut hasher);
-        r.ranges.hash(&mut hasher);
-        for v in o.world_from_local.to_cols_array() {
-            v.to_bits().hash(&mut hasher);
+        let entry = StaticEntry { fingerprint: fingerprint(o, r), bounds: o.world_bounds };
+        let mesh_changed = mesh_changes.modified.contains(&o.mesh) || mesh_changes.added.contains(&o.mesh);
+        let old = state.statics.get(&o.entity).copied();
+        if old != Some(entry) || mesh_changed {
+            for b in [old.and_then(|e| e.bounds), entry.bounds] {
+                match b {
+                    Some(b) => dirty.push(b),
+                    None => dirty_everywhere |= old.is_some() || entry.bounds.is_none(),
+                }
+            }
         }
-        force |= mesh_changes.modified.contains(&o.mesh) || mesh_changes.added.contains(&o.mesh);
         if o.marked_static
             && state.static_transforms.get(&o.entity).is_some_and(|t| *t != o.world_from_local)
             && state.warned_moved.insert(o.entity)
         {
             warn!(
-                "bevy_hao: StaticOccluder {} moved; the static voxel grid is rebuilt each time it does. Mark it \
+                "bevy_hao: StaticOccluder {} moved; the static voxels around it are rebuilt each time it does. Mark it \
                  DynamicOccluder if it moves often",
                 o.entity
             );
         }
         transforms.insert(o.entity, o.world_from_local);
+        entries.insert(o.entity, entry);
     }
+    for (entity, old) in &state.statics {
+        if !entries.contains_key(entity) {
+            match old.bounds {
+                Some(b) => dirty.push(b),
+                None => dirty_everywhere = true,
+            }
+        }
+    }
+    state.statics = entries;
     state.static_transforms = transforms;
-    let fingerprint = hasher.finish();
-    force |= occluders.rebuild_requests != state.rebuild_requests;
+    if occluders.rebuild_requests != state.rebuild_requests {
+        full_rebuild = true;
+    }
     state.rebuild_requests = occluders.rebuild_requests;
-    let rebuild_static = force || state.static_fingerprint != Some(fingerprint);
-    let has_dynamic = !dynamics.is_empty();
-    if !rebuild_static && !has_dynamic && !state.had_dynamic {
+    if dirty_everywhere {
+        full_rebuild = true;
+    }
+
+    // Per level: the static regions to voxelize again.
+    let mut level_regions: Vec<(Vec<CellBox>, bool, bool)> = Vec::with_capacity(levels.len()); // (boxes, whole, scrolled)
+    for (l, level) in levels.iter().enumerate() {
+        let old = state.levels.get(l).copied();
+        let moved = old.and_then(|o| {
+            (o.cell_size == level.cell_size && o.dims == level.dims)
+                .then(|| cpu::entered_regions(o.window_min, level.window_min, level.dims.x))
+                .flatten()
+        });
+        let Some(entered) = moved.filter(|_| !full_rebuild) else {
+            level_regions.push((vec![level.window()], true, false));
+            continue;
+        };
+        let scrolled = !entered.is_empty();
+        let mut boxes = entered;
+        let mut changed: Option<CellBox> = None;
+        let mut changed_boxes = Vec::new();
+        for (lo, hi) in &dirty {
+            if let Some(b) = level.cells_of_box(*lo, *hi) {
+                changed_boxes.push(b);
+                changed = Some(changed.map_or(b, |c| union(c, b)));
+            }
+        }
+        if boxes.len() + changed_boxes.len() <= STATIC_REGION_SLOTS as usize {
+            boxes.extend(changed_boxes);
+        } else if let Some(c) = changed {
+            boxes.push(c);
+        }
+        if boxes.len() > STATIC_REGION_SLOTS as usize {
+            level_regions.push((vec![level.window()], true, false));
+        } else {
+            level_regions.push((boxes, false, scrolled));
+        }
+    }
+
+    // Per level: where dynamic geometry is now and where it was last frame.
+    let mut dynamic_boxes: Vec<Option<CellBox>> = Vec::with_capacity(levels.len());
+    for level in &levels {
+        let mut b: Option<CellBox> = None;
+        for (o, _) in &dynamics {
+            let r = match o.world_bounds {
+                Some((lo, hi)) => level.cells_of_box(lo, hi),
+                None => Some(level.window()),
+            };
+            if let Some(r) = r {
+                b = Some(b.map_or(r, |x| union(x, r)));
+            }
+        }
+        dynamic_boxes.push(b);
+    }
+
+    let any_static = level_regions.iter().any(|(b, _, _)| !b.is_empty());
+    let has_dynamic = dynamic_boxes.iter().any(|b| b.is_some());
+    let prev_dynamic = std::mem::take(&mut state.prev_dynamic);
+    state.levels = levels.clone();
+    state.prev_dynamic = dynamic_boxes.clone();
+    let had_dynamic = std::mem::replace(&mut state.had_dynamic, has_dynamic);
+    let level_stats = |s: &mut Vec<CascadeLevelStats>, regions: &[(Vec<CellBox>, bool, bool)]| {
+        for (l, level) in levels.iter().enumerate() {
+            if let Some(ls) = s.get_mut(l) {
+                ls.cell_size = level.cell_size;
+                ls.window_min = level.window_min;
+                let (boxes, whole, scrolled) = &regions[l];
+                let n: u64 = boxes.iter().map(|b| cells(*b)).sum();
+                ls.static_cells_last_frame = n;
+                ls.static_cells_total += n;
+                ls.rebuilds += *whole as u64;
+                ls.scrolls += *scrolled as u64;
+            }
+        }
+    };
+    if !any_static && !has_dynamic && !had_dynamic {
         stats.update(|s| {
             s.dynamic_instances = 0;
             s.dynamic_triangles = 0;
             s.skipped_instances = skipped;
+            level_stats(&mut s.cascades, &level_regions);
         });
         return;
     }
 
-    // The dynamic region to resolve: where dynamic geometry is now and where it was last frame.
-    let mut dynamic_region: Option<CellRegion> = None;
-    for (o, _) in &dynamics {
-        let r = match o.world_bounds {
-            Some((lo, hi)) => cell_region(grid, lo, hi),
-            None => Some(CellRegion::full(grid.dims)),
-        };
-        if let Some(r) = r {
-            dynamic_region = Some(dynamic_region.map_or(r, |d| d.union(r)));
+    // Static passes and their triangle counts.
+    struct PendingPass {
+        level: usize,
+        region: CellBox,
+        instances: Vec<ResolvedInstance>,
+        counter_base: u32,
+        clear: Option<StaticClear>,
+    }
+    let mut pending: Vec<PendingPass> = Vec::new();
+    let mut clear_counters = Vec::new();
+    let mut static_instances = 0u64;
+    let mut static_triangles = 0u64;
+    let level_voxels = assets.grid.voxel_count();
+    for (l, (boxes, whole, _)) in level_regions.iter().enumerate() {
+        if boxes.is_empty() {
+            continue;
+        }
+        let level = &levels[l];
+        clear_counters
+            .push((counter_base(l as u32, 0), counter_base(l as u32, STATIC_REGION_SLOTS) - counter_base(l as u32, 0)));
+        for (slot, b) in boxes.iter().enumerate() {
+            let instances = instances_in(&statics, level, level.world_box(*b));
+            static_instances += instances.len() as u64;
+            static_triangles += instances.iter().map(|r| r.gpu.triangle_count as u64).sum::<u64>();
+            let clear = if *whole {
+                // Levels hold a multiple of 32 voxels when there are several (cascades).
+                let words = level_voxels.div_ceil(32);
+                Some(StaticClear::Level {
+                    occupancy: (l as u64 * words * 4, words * 4),
+                    counts: counts.as_ref().map(|_| (l as u64 * level_voxels * 4, level_voxels * 4)),
+                })
+            } else {
+                Some(StaticClear::Region(groups4(*b)))
+            };
+            pending.push(PendingPass {
+                level: l,
+                region: *b,
+                instances,
+                counter_base: counter_base(l as u32, slot as u32),
+                clear,
+            });
         }
     }
-    let region = if rebuild_static {
-        Some(CellRegion::full(assets.texture_size))
-    } else {
-        match (dynamic_region, state.prev_dynamic_region) {
-            (Some(a), Some(b)) => Some(a.union(b)),
-            (a, b) => a.or(b),
+    let mut dynamic_instances = 0u64;
+    let mut dynamic_triangles = 0u64;
+    for (l, b) in dynamic_boxes.iter().enumerate() {
+        let base = counter_base(l as u32, STATIC_REGION_SLOTS);
+        clear_counters.push((base, super::stats::COUNTER_BLOCK as u32));
+        if b.is_none() {
+            continue;
         }
-    };
-    state.prev_dynamic_region = dynamic_region;
-    state.had_dynamic = has_dynamic;
-    if rebuild_static {
-        state.static_fingerprint = Some(fingerprint);
+        let level = &levels[l];
+        let instances = instances_in(&dynamics, level, level.world_box(level.window()));
+        dynamic_instances = dynamic_instances.max(instances.len() as u64);
+        dynamic_triangles += instances.iter().map(|r| r.gpu.triangle_count as u64).sum::<u64>();
+        pending.push(PendingPass { level: l, region: level.window(), instances, counter_base: base, clear: None });
     }
 
-    let static_triangles: u64 =
-        if rebuild_static { statics.iter().map(|(_, r)| r.gpu.triangle_count as u64).sum() } else { 0 };
-    let dynamic_triangles: u64 = dynamics.iter().map(|(_, r)| r.gpu.triangle_count as u64).sum();
-
-    // The queue of big triangles, shared by both passes: room for every triangle of the larger pass.
+    // The queue of big triangles, shared by the passes (which run one after the other): room for every
+    // triangle of the largest pass.
+    let largest = pending.iter().map(|p| p.instances.iter().map(|r| r.gpu.triangle_count as u64).sum::<u64>()).max();
+    let largest = largest.unwrap_or(0);
     let limit = (device.limits().max_storage_buffer_binding_size as u64 / BIG_TRIANGLE_BYTES).max(1);
-    let need = static_triangles.max(dynamic_triangles).clamp(1, limit);
-    if static_triangles.max(dynamic_triangles) > limit && !state.warned_capacity {
+    let need = largest.clamp(1, limit);
+    if largest > limit && !state.warned_capacity {
         warn!(
-            "bevy_hao: {} triangles exceed the big-triangle queue the device allows ({limit}); some large triangles \
-             are not voxelized",
-            static_triangles.max(dynamic_triangles)
+            "bevy_hao: {largest} triangles exceed the big-triangle queue the device allows ({limit}); some large triangles \
+             are not voxelized"
         );
         state.warned_capacity = true;
     }
@@ -477,17 +775,27 @@ pub fn prepare_voxelize(
         InjectionMode::Centroid => 0,
         InjectionMode::Conservative => 1,
     };
-    let make_pass = |instances: Vec<(&ExtractedOccluder, ResolvedInstance)>, counter_base: u32, is_static: bool| {
+    let mut static_passes = Vec::new();
+    let mut dynamic_passes = Vec::new();
+    for p in pending {
+        let level = &levels[p.level];
+        let is_static = p.clear.is_some();
         let label = if is_static { "hao_static_instances" } else { "hao_dynamic_instances" };
-        let (slabs, _) =
-            build_slab_dispatches(&device, &pipelines, &cache, instances.into_iter().map(|(_, r)| r).collect(), label);
+        let (slabs, _) = build_slab_dispatches(&device, &pipelines, &cache, p.instances, label);
+        let region = level.region(p.region);
         let params = GpuVoxelizeParams {
-            dims: grid.dims.to_array(),
+            region_min: region.min.to_array(),
             mode,
+            region_max: region.max.to_array(),
             gamma: settings.effective_gamma(),
+            window_min: region.window_min.to_array(),
             point_budget: assets.point_budget,
+            closed_max: region.closed_max.to_array(),
             store_counts: counts.is_some() as u32,
-            counter_base,
+            wrap: level.wrap().to_array(),
+            counter_base: p.counter_base,
+            dims: level.dims.to_array(),
+            voxel_base: level.voxel_base,
         };
         let params = uniform(&device, "hao_voxelize_params", &params);
         let (occ, cnt) = if is_static {
@@ -501,64 +809,95 @@ pub fn prepare_voxelize(
             &BindGroupEntries::sequential((
                 params.as_entire_binding(),
                 occ.as_entire_binding(),
-                cnt.unwrap_or(&pipelines.dummy).as_entire_binding(),
+                cnt.unwrap_or(&pipelines.dummy_counts).as_entire_binding(),
                 big.triangles.as_entire_binding(),
                 counters.buffer.as_entire_binding(),
                 big.offsets.as_entire_binding(),
             )),
         );
-        VoxelizePass { slabs, bind_group, counter_base }
-    };
-    let static_instances = statics.len() as u64;
-    let dynamic_instances = dynamics.len() as u64;
-    let static_pass = rebuild_static.then(|| make_pass(statics, STATIC_COUNTER_BASE, true));
-    let dynamic_pass = has_dynamic.then(|| make_pass(dynamics, DYNAMIC_COUNTER_BASE, false));
+        let pass = VoxelizePass { slabs, bind_group, counter_base: p.counter_base };
+        match p.clear {
+            Some(clear) => static_passes.push(StaticPass { clear, pass }),
+            None => dynamic_passes.push(pass),
+        }
+    }
 
-    // Resolve: bits to level 0 over the region, then the mips over the region's footprint.
-    let region = region.unwrap_or(CellRegion { min: UVec3::ZERO, max: UVec3::ONE });
-    let level_view = |level: u32| {
+    // Resolve: per level, the boxes that changed (static regions, and dynamic geometry now and last frame)
+    // into the texture's level 0, then the mips over their footprint.
+    let level_view = |mip: u32| {
         texture.texture.create_view(&TextureViewDescriptor {
             label: Some("hao_voxel_texture_level"),
             dimension: Some(TextureViewDimension::D3),
-            base_mip_level: level,
+            base_mip_level: mip,
             mip_level_count: Some(1),
             ..default()
         })
     };
-    let region_params = |min: UVec3, max: UVec3, size: UVec3| GpuRegionParams {
-        region_min: min.to_array(),
-        _pad0: 0,
-        region_max: max.to_array(),
-        _pad1: 0,
-        size: size.to_array(),
-        _pad2: 0,
-    };
-    let resolve_params =
-        uniform(&device, "hao_voxel_resolve_params", &region_params(region.min, region.max, grid.dims));
-    let resolve_bind_group = device.create_bind_group(
-        "hao_voxel_resolve_bind_group",
-        &cache.get_bind_group_layout(&pipelines.resolve_layout),
-        &BindGroupEntries::sequential((
-            resolve_params.as_entire_binding(),
-            occupancy.buffer.as_entire_binding(),
-            &level_view(0),
-        )),
-    );
+    let views: Vec<TextureView> = (0..assets.mip_levels).map(level_view).collect();
+    let resolve_layout = cache.get_bind_group_layout(&pipelines.resolve_layout);
     let mip_layout = cache.get_bind_group_layout(&pipelines.mip_layout);
-    let mut mips = Vec::new();
-    let mut level_size = assets.texture_size;
-    for level in 1..assets.mip_levels {
-        let source_size = level_size;
-        level_size = level_size / 2;
-        let min = region.min >> level;
-        let max = ((region.max + UVec3::splat((1 << level) - 1)) >> level).min(level_size);
-        let params = uniform(&device, "hao_voxel_mip_params", &region_params(min, max, source_size));
-        let bind_group = device.create_bind_group(
-            "hao_voxel_mip_bind_group",
-            &mip_layout,
-            &BindGroupEntries::sequential((params.as_entire_binding(), &level_view(level - 1), &level_view(level))),
-        );
-        mips.push((bind_group, (max - min + UVec3::splat(3)) / 4));
+    let mut resolve = Vec::new();
+    for (l, level) in levels.iter().enumerate() {
+        let (boxes, whole, _) = &level_regions[l];
+        let mut list: Vec<CellBox> = Vec::new();
+        if *whole {
+            // The padding past the grid too, so that it reads as empty.
+            list.push((level.window_min, level.window_min + level.size.as_ivec3()));
+        } else {
+            list.extend(boxes.iter().copied());
+            for b in [dynamic_boxes[l], prev_dynamic.get(l).copied().flatten()].into_iter().flatten() {
+                if let Some(b) = intersect(b, level.window()) {
+                    list.push(b);
+                }
+            }
+            if list.len() > STATIC_REGION_SLOTS as usize + 2 {
+                let u = list.iter().copied().reduce(union).expect("not empty");
+                list = vec![u];
+            }
+        }
+        for b in list {
+            let params = |mip: u32, b: CellBox| GpuLevelRegion {
+                region_min: b.0.to_array(),
+                texture_z: level.texture_z >> mip,
+                region_max: b.1.to_array(),
+                voxel_base: level.voxel_base,
+                window_min: (level.window_min >> mip as i32).to_array(),
+                _pad0: 0,
+                wrap: (level.wrap() >> mip).to_array(),
+                _pad1: 0,
+                dims: level.dims.to_array(),
+                _pad2: 0,
+                size: (level.size >> mip).to_array(),
+                _pad3: 0,
+            };
+            let p0 = uniform(&device, "hao_voxel_resolve_params", &params(0, b));
+            let bind_group = device.create_bind_group(
+                "hao_voxel_resolve_bind_group",
+                &resolve_layout,
+                &BindGroupEntries::sequential((
+                    p0.as_entire_binding(),
+                    occupancy.buffer.as_entire_binding(),
+                    &views[0],
+                )),
+            );
+            let mut mips = Vec::new();
+            for mip in 1..assets.mip_levels {
+                let s = 1i32 << mip;
+                let mb = (b.0.div_euclid(IVec3::splat(s)), (b.1 + IVec3::splat(s - 1)).div_euclid(IVec3::splat(s)));
+                let pm = uniform(&device, "hao_voxel_mip_params", &params(mip, mb));
+                let bind_group = device.create_bind_group(
+                    "hao_voxel_mip_bind_group",
+                    &mip_layout,
+                    &BindGroupEntries::sequential((
+                        pm.as_entire_binding(),
+                        &views[mip as usize - 1],
+                        &views[mip as usize],
+                    )),
+                );
+                mips.push((bind_group, groups4(mb)));
+            }
+            resolve.push(ResolveWork { bind_group, workgroups: groups4(b), mips });
+        }
     }
     let empty_bind_group = device.create_bind_group(
         "hao_voxelize_empty_bind_group",
@@ -572,7 +911,7 @@ pub fn prepare_voxelize(
     );
 
     stats.update(|s| {
-        if rebuild_static {
+        if any_static {
             s.static_rebuilds += 1;
             s.static_instances = static_instances;
             s.static_triangles = static_triangles;
@@ -581,10 +920,12 @@ pub fn prepare_voxelize(
         s.dynamic_instances = dynamic_instances;
         s.dynamic_triangles = dynamic_triangles;
         s.skipped_instances = skipped;
+        level_stats(&mut s.cascades, &level_regions);
     });
     commands.insert_resource(VoxelizeFrame {
-        static_pass,
-        dynamic_pass,
+        clear_counters,
+        static_passes,
+        dynamic_passes,
         empty_bind_group,
         dispatch_bind_group,
         dispatch_args: big.dispatch.clone(),
@@ -592,10 +933,6 @@ pub fn prepare_voxelize(
         static_occupancy: static_occupancy.buffer.clone(),
         occupancy: occupancy.buffer.clone(),
         counts,
-        resolve: ResolveWork {
-            bind_group: resolve_bind_group,
-            workgroups: (region.max - region.min + UVec3::splat(3)) / 4,
-            mips,
-        },
+        resolve,
     });
 }

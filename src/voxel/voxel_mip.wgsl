@@ -1,17 +1,10 @@
-// One mip level of the voxel texture: the maximum of the eight children one level down (the texture's size
-// is a multiple of the coarsest texel, so every texel has exactly eight).
+// One mip level of one level of the voxel texture, over a box of its texels (in the level's lattice, at
+// this mip): the maximum of the eight children one mip down. A level's window starts on a multiple of the
+// coarsest mip's texel, so the children of a stored texel are the stored children of its lattice texel.
 
-struct MipParams {
-    region_min: vec3<u32>,
-    _pad0: u32,
-    region_max: vec3<u32>,
-    _pad1: u32,
-    // Size of the level read from.
-    source_size: vec3<u32>,
-    _pad2: u32,
-}
+#import bevy_hao::voxelize_common::LevelRegion
 
-@group(0) @binding(0) var<uniform> mip: MipParams;
+@group(0) @binding(0) var<uniform> mip: LevelRegion;
 @group(0) @binding(1) var source: texture_3d<f32>;
 #ifdef VOXEL_TEXTURE_R8
 @group(0) @binding(2) var destination: texture_storage_3d<r8unorm, write>;
@@ -21,14 +14,18 @@ struct MipParams {
 
 @compute @workgroup_size(4, 4, 4)
 fn downsample_max(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let texel = mip.region_min + gid;
+    let texel = mip.region_min + vec3<i32>(gid);
     if any(texel >= mip.region_max) {
         return;
     }
+    let physical = (vec3<u32>(texel - mip.window_min) + mip.wrap) % mip.size;
+    let source_size = mip.size * 2u;
     var m = 0.0;
     for (var k = 0u; k < 8u; k++) {
-        let child = min(texel * 2u + vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u), mip.source_size - vec3<u32>(1u));
+        var child = min(physical * 2u + vec3<u32>(k & 1u, (k >> 1u) & 1u, k >> 2u), source_size - vec3<u32>(1u));
+        child.z += mip.texture_z * 2u;
         m = max(m, textureLoad(source, vec3<i32>(child), 0).r);
     }
-    textureStore(destination, vec3<i32>(texel), vec4<f32>(m, 0.0, 0.0, 1.0));
+    let out = vec3<i32>(physical + vec3<u32>(0u, 0u, mip.texture_z));
+    textureStore(destination, out, vec4<f32>(m, 0.0, 0.0, 1.0));
 }

@@ -166,7 +166,9 @@ fn classify_triangle(t: u32) -> InlineJob {
         add_counter(COUNTER_DEGENERATE, 1u);
         return none;
     }
-    let placement = grid_placement(v0, v1, v2, params.dims);
+    let box_min = vec3<f32>(params.region_min);
+    let box_max = vec3<f32>(params.region_max);
+    let placement = grid_placement(v0, v1, v2, box_min, box_max);
     if placement == PLACEMENT_OUTSIDE {
         add_counter(COUNTER_OUTSIDE, 1u);
         return none;
@@ -178,7 +180,7 @@ fn classify_triangle(t: u32) -> InlineJob {
     }
     var range = LatticeRange(n, 0u, 0u, 0u, 0u, true);
     if placement != PLACEMENT_INSIDE {
-        range = clipped_lattice_range(v0, v1 - v0, v2 - v0, n, params.dims);
+        range = clipped_lattice_range(v0, v1 - v0, v2 - v0, n, box_min, box_max);
         if !range.valid {
             add_counter(COUNTER_OUTSIDE, 1u);
             return none;

@@ -37,17 +37,45 @@ const COUNTER_POINTS_DISPATCHED: u32 = 11u;
 const COUNTER_BUDGET_EXCEEDED: u32 = 12u;
 const COUNTER_EXPAND_POINTS: u32 = 13u;
 const COUNTER_COUNT: u32 = 14u;
-// After both passes' counter blocks: the points spent so far this frame (both passes, both paths).
-const FRAME_POINTS_USED: u32 = 28u;
+// Before the passes' counter blocks: the points spent so far this frame (every pass, both paths).
+const FRAME_POINTS_USED: u32 = 0u;
 
-// Per-pass settings (src/voxel/pipelines.rs: `VoxelizeParams`).
+// Per-pass settings (src/voxel/pipelines.rs: `GpuVoxelizeParams`). The pass injects into the box
+// [region_min, region_max) of its level's lattice (cpu/voxelize.rs: `InjectionRegion`); lattice cell c is
+// stored at voxel_base + linear_index((c - window_min + wrap) % dims): toroidally for a cascade level (wrap =
+// window_min mod dims), as a plain grid otherwise (window_min = wrap = 0).
 struct VoxelizeParams {
-    dims: vec3<u32>,
+    region_min: vec3<i32>,
     mode: u32,
+    region_max: vec3<i32>,
     gamma: f32,
+    window_min: vec3<i32>,
     point_budget: u32,
+    closed_max: vec3<i32>,
     store_counts: u32,
+    wrap: vec3<u32>,
     counter_base: u32,
+    dims: vec3<u32>,
+    voxel_base: u32,
+}
+
+// src/voxel/pipelines.rs: `GpuLevelRegion`. A box of one level's lattice at one mip of the texture, how
+// the level stores it (toroidally for a cascade), and where it sits in the texture.
+struct LevelRegion {
+    region_min: vec3<i32>,
+    texture_z: u32,
+    region_max: vec3<i32>,
+    voxel_base: u32,
+    window_min: vec3<i32>,
+    pad_a: u32,
+    wrap: vec3<u32>,
+    pad_b: u32,
+    // Cells of the level (its bits).
+    dims: vec3<u32>,
+    pad_c: u32,
+    // Texels of the level at this mip (dims padded to the coarsest mip's texel).
+    size: vec3<u32>,
+    pad_d: u32,
 }
 
 // A triangle that needs more than one point or crosses the grid boundary, queued by the classify pass for
@@ -101,15 +129,14 @@ fn subdivision_count(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, gamma: f32) ->
     return u32(t);
 }
 
-// tessellation.rs: grid_placement
-fn grid_placement(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, dims: vec3<u32>) -> u32 {
+// tessellation.rs: grid_placement, against the closed box [box_min, box_max]
+fn grid_placement(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, box_min: vec3<f32>, box_max: vec3<f32>) -> u32 {
     let lo = min(min(v0, v1), v2);
     let hi = max(max(v0, v1), v2);
-    let d = vec3<f32>(dims);
-    if any(hi < vec3<f32>(0.0)) || any(lo > d) {
+    if any(hi < box_min) || any(lo > box_max) {
         return PLACEMENT_OUTSIDE;
     }
-    if all(lo >= vec3<f32>(0.0)) && all(hi <= d) {
+    if all(lo >= box_min) && all(hi <= box_max) {
         return PLACEMENT_INSIDE;
     }
     return PLACEMENT_CROSSING;
@@ -127,7 +154,7 @@ struct LatticeRange {
 }
 
 // tessellation.rs: clipped_lattice_range
-fn clipped_lattice_range(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, n: u32, dims: vec3<u32>) -> LatticeRange {
+fn clipped_lattice_range(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, n: u32, box_min: vec3<f32>, box_max: vec3<f32>) -> LatticeRange {
     var range = LatticeRange(n, 0u, 0u, 0u, 0u, false);
     let nf = f32(n);
     let inv_n = 1.0 / nf;
@@ -137,7 +164,6 @@ fn clipped_lattice_range(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, n: u32, di
     poly[1] = vec2<f32>(nf, 0.0);
     poly[2] = vec2<f32>(0.0, nf);
     var count = 3u;
-    let d = vec3<f32>(dims);
     for (var plane = 0u; plane < 6u; plane++) {
         let axis = plane >> 1u;
         let upper = (plane & 1u) == 1u;
@@ -145,11 +171,11 @@ fn clipped_lattice_range(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, n: u32, di
         var c1: f32;
         var c2: f32;
         if upper {
-            c0 = d[axis] - v0[axis];
+            c0 = box_max[axis] - v0[axis];
             c1 = -e1[axis] * inv_n;
             c2 = -e2[axis] * inv_n;
         } else {
-            c0 = v0[axis];
+            c0 = v0[axis] - box_min[axis];
             c1 = e1[axis] * inv_n;
             c2 = e2[axis] * inv_n;
         }
@@ -264,22 +290,32 @@ fn lattice_point(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, inv_n: f32, a: u32
     return v0 + e1 * (f32(a) * inv_n) + e2 * (f32(b) * inv_n);
 }
 
-// grid.rs: cell_of_point (closed on the grid's upper faces); returns false outside the grid or for NaN.
-fn cell_of_point(p: vec3<f32>, dims: vec3<u32>, cell: ptr<function, vec3<u32>>) -> bool {
-    let d = vec3<f32>(dims);
-    if !(p.x >= 0.0 && p.y >= 0.0 && p.z >= 0.0 && p.x <= d.x && p.y <= d.y && p.z <= d.z) {
+// voxelize.rs: lattice_cell. The cell floor(p), or the one below on a closed face; false outside the
+// region [region_min, region_max) or for NaN.
+fn lattice_cell(p: vec3<f32>, region_min: vec3<i32>, region_max: vec3<i32>, closed_max: vec3<i32>, cell: ptr<function, vec3<i32>>) -> bool {
+    let lo = vec3<f32>(region_min);
+    let hi = vec3<f32>(region_max);
+    if !(p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z) {
         return false;
     }
-    *cell = min(vec3<u32>(floor(p)), dims - vec3<u32>(1u));
-    return true;
+    let f = vec3<i32>(floor(p));
+    let c = select(f, f - vec3<i32>(1), p == vec3<f32>(closed_max));
+    *cell = c;
+    return all(c >= region_min) && all(c < region_max);
 }
 
 fn linear_index(c: vec3<u32>, dims: vec3<u32>) -> u32 {
     return c.x + dims.x * (c.y + dims.y * c.z);
 }
 
+// Where lattice cell `c` (inside the level's window) is stored (see `VoxelizeParams`).
+fn storage_index(c: vec3<i32>, window_min: vec3<i32>, wrap: vec3<u32>, dims: vec3<u32>, voxel_base: u32) -> u32 {
+    let physical = (vec3<u32>(c - window_min) + wrap) % dims;
+    return voxel_base + linear_index(physical, dims);
+}
+
 // overlap.rs: triangle_box_overlap, for the closed cell [cell, cell + 1]^3, in f32.
-fn triangle_box_overlap(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, cell: vec3<u32>) -> bool {
+fn triangle_box_overlap(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, cell: vec3<i32>) -> bool {
     let half = 0.5;
     let center = vec3<f32>(cell) + vec3<f32>(0.5);
     let a = v0 - center;

@@ -6,7 +6,7 @@
 
 #import bevy_hao::voxelize_common::{
     VoxelizeParams, BigTriangle, LatticeRange, SubTriangle, sub_triangle_centroid, lattice_point,
-    cell_of_point, linear_index, triangle_box_overlap, MODE_CENTROID, CONSERVATIVE_PAD,
+    lattice_cell, storage_index, triangle_box_overlap, MODE_CENTROID, CONSERVATIVE_PAD,
     COUNTER_SUB_TRIANGLES, COUNTER_INJECTED, COUNTER_OVERLAP_TESTS, COUNTER_COUNT,
 }
 
@@ -53,13 +53,12 @@ fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, range: Latti
     add_counter(COUNTER_SUB_TRIANGLES, 1u);
     let e1 = v1 - v0;
     let e2 = v2 - v0;
-    let dims = params.dims;
     if params.mode == MODE_CENTROID {
         let inv_3n = 1.0 / (3.0 * f32(range.n));
         let p = sub_triangle_centroid(v0, e1, e2, inv_3n, sub);
-        var cell: vec3<u32>;
-        if cell_of_point(p, dims, &cell) {
-            inject_voxel(linear_index(cell, dims));
+        var cell: vec3<i32>;
+        if lattice_cell(p, params.region_min, params.region_max, params.closed_max, &cell) {
+            inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
             add_counter(COUNTER_INJECTED, 1u);
         }
         return;
@@ -79,17 +78,17 @@ fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, range: Latti
         c = lattice_point(v0, e1, e2, inv_n, sub.i + 1u, sub.j + 1u);
     }
     // voxelize.rs: conservative_candidate_cells
-    let lo = max(vec3<i32>(floor(min(min(a, b), c) - vec3<f32>(CONSERVATIVE_PAD))), vec3<i32>(0));
-    let hi = min(vec3<i32>(floor(max(max(a, b), c) + vec3<f32>(CONSERVATIVE_PAD))), vec3<i32>(dims) - vec3<i32>(1));
+    let lo = max(vec3<i32>(floor(min(min(a, b), c) - vec3<f32>(CONSERVATIVE_PAD))), params.region_min);
+    let hi = min(vec3<i32>(floor(max(max(a, b), c) + vec3<f32>(CONSERVATIVE_PAD))), params.region_max - vec3<i32>(1));
     var tests = 0u;
     var hits = 0u;
     for (var z = lo.z; z <= hi.z; z++) {
         for (var y = lo.y; y <= hi.y; y++) {
             for (var x = lo.x; x <= hi.x; x++) {
-                let cell = vec3<u32>(vec3<i32>(x, y, z));
+                let cell = vec3<i32>(x, y, z);
                 tests += 1u;
                 if triangle_box_overlap(v0, v1, v2, cell) {
-                    inject_voxel(linear_index(cell, dims));
+                    inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
                     hits += 1u;
                 }
             }

@@ -1,0 +1,161 @@
+//! The one outward interface of the voxel grid: a bind group with the levels' texture and a uniform that
+//! describes them (`voxel_grid.wgsl`), prepared once per frame for every sampling pass (HAO, the debug
+//! views, and any pass of the user's) to bind at [`VOXEL_GRID_GROUP`].
+
+use super::extract::ExtractedVoxelGrid;
+use super::prepare::{LevelLayout, VoxelizeState};
+use bevy::prelude::*;
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_resource::binding_types::{texture_3d, uniform_buffer};
+use bevy::render::render_resource::*;
+use bevy::render::renderer::{RenderDevice, RenderQueue};
+use bevy::render::texture::GpuImage;
+
+/// The bind group index at which `voxel_grid.wgsl` declares its bindings.
+pub const VOXEL_GRID_GROUP: u32 = 2;
+
+/// Most levels the uniform describes (WGSL `MAX_VOXEL_LEVELS`).
+pub const MAX_VOXEL_LEVELS: usize = crate::cpu::cascade::MAX_CASCADES as usize;
+
+/// One level (WGSL `VoxelLevel`).
+#[derive(ShaderType, Clone, Copy, Default, Debug)]
+pub struct GpuVoxelLevel {
+    /// World position of lattice cell 0 (the world origin for cascades, the grid's min corner otherwise).
+    pub origin: Vec3,
+    /// World-space cell size.
+    pub cell_size: f32,
+    /// The lattice cell at the window's min corner.
+    pub window_min: IVec3,
+    /// The level's first texel along z in the texture.
+    pub texture_z: u32,
+    /// Where the window's min corner is stored (`window_min mod dims` for a cascade, 0 otherwise).
+    pub wrap: UVec3,
+    #[doc(hidden)]
+    pub _pad0: u32,
+    /// Cells of the window.
+    pub dims: UVec3,
+    #[doc(hidden)]
+    pub _pad1: u32,
+    /// Texels of the level at mip 0 (the dims rounded up to the coarsest mip's texel).
+    pub size: UVec3,
+    #[doc(hidden)]
+    pub _pad2: u32,
+}
+
+/// The levels (WGSL `VoxelGrid`).
+#[derive(ShaderType, Clone, Copy, Default, Debug)]
+pub struct GpuVoxelGrid {
+    /// The levels, finest first; `level_count` of them are valid.
+    pub levels: [GpuVoxelLevel; MAX_VOXEL_LEVELS],
+    /// 0 while there is no grid.
+    pub level_count: u32,
+    /// Mip levels of the texture.
+    pub mip_levels: u32,
+    #[doc(hidden)]
+    pub _pad0: u32,
+    #[doc(hidden)]
+    pub _pad1: u32,
+}
+
+impl GpuVoxelGrid {
+    pub(crate) fn new(levels: &[LevelLayout], mip_levels: u32) -> Self {
+        let mut g = GpuVoxelGrid { level_count: levels.len() as u32, mip_levels, ..default() };
+        for (dst, l) in g.levels.iter_mut().zip(levels) {
+            *dst = GpuVoxelLevel {
+                origin: l.origin,
+                cell_size: l.cell_size,
+                window_min: l.window_min,
+                texture_z: l.texture_z,
+                wrap: l.wrap(),
+                dims: l.dims,
+                size: l.size,
+                ..default()
+            };
+        }
+        g
+    }
+}
+
+/// The layout of the voxel grid's bind group, for the pipelines that bind it at [`VOXEL_GRID_GROUP`].
+pub fn voxel_grid_layout() -> BindGroupLayoutDescriptor {
+    BindGroupLayoutDescriptor::new(
+        "hao_voxel_grid_layout",
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE | ShaderStages::FRAGMENT,
+            (texture_3d(TextureSampleType::Float { filterable: false }), uniform_buffer::<GpuVoxelGrid>(false)),
+        ),
+    )
+}
+
+/// The layout of the voxel grid's bind group and a placeholder texture for frames without a grid.
+#[derive(Resource)]
+pub struct VoxelGridLayout {
+    /// Binding 0: the 3D texture; binding 1: the [`GpuVoxelGrid`] uniform.
+    pub layout: BindGroupLayoutDescriptor,
+    empty_texture: TextureView,
+}
+
+impl FromWorld for VoxelGridLayout {
+    fn from_world(world: &mut World) -> Self {
+        let device = world.resource::<RenderDevice>();
+        let queue = world.resource::<RenderQueue>();
+        let empty_texture = device
+            .create_texture_with_data(
+                queue,
+                &TextureDescriptor {
+                    label: Some("hao_empty_voxels"),
+                    size: Extent3d { width: 1, height: 1, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: TextureDimension::D3,
+                    format: TextureFormat::R32Float,
+                    usage: TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                },
+                TextureDataOrder::default(),
+                &[0; 4],
+            )
+            .create_view(&TextureViewDescriptor::default());
+        Self { layout: voxel_grid_layout(), empty_texture }
+    }
+}
+
+/// This frame's voxel grid bind group (always present once the layout exists: with no levels and an empty
+/// texture while there is no grid), and the levels it describes.
+#[derive(Resource)]
+pub struct VoxelGridBindings {
+    /// Bind it at [`VOXEL_GRID_GROUP`].
+    pub bind_group: BindGroup,
+    /// What the uniform holds.
+    pub grid: GpuVoxelGrid,
+}
+
+/// Prepares [`VoxelGridBindings`] from the levels the voxelization placed this frame.
+pub fn prepare_voxel_grid_bindings(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    layout: Res<VoxelGridLayout>,
+    cache: Res<PipelineCache>,
+    extracted: Res<ExtractedVoxelGrid>,
+    state: Res<VoxelizeState>,
+    images: Res<RenderAssets<GpuImage>>,
+) {
+    let texture = extracted.assets.as_ref().and_then(|a| images.get(&a.texture).map(|i| (a, i)));
+    let (grid, view) = match texture {
+        Some((assets, image)) if !state.levels().is_empty() => {
+            (GpuVoxelGrid::new(state.levels(), assets.mip_levels), &image.texture_view)
+        }
+        _ => (GpuVoxelGrid::default(), &layout.empty_texture),
+    };
+    let mut uniform = UniformBuffer::from(grid);
+    uniform.set_label(Some("hao_voxel_grid"));
+    uniform.write_buffer(&device, &queue);
+    let Some(binding) = uniform.binding() else { return };
+    let bind_group = device.create_bind_group(
+        "hao_voxel_grid_bind_group",
+        &cache.get_bind_group_layout(&layout.layout),
+        &BindGroupEntries::sequential((view, binding)),
+    );
+    commands.insert_resource(VoxelGridBindings { bind_group, grid });
+}

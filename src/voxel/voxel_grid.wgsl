@@ -1,0 +1,183 @@
+// The voxel grid as every sampling pass sees it: the one bind group that `voxel/` prepares
+// (src/voxel/bindings.rs: `VoxelGridBindings`), with the levels of the volume (one for a single grid, one
+// per cascade), their 3D texture, and the march through them. Import it and add the bind group at
+// VOXEL_GRID_GROUP. CPU twin: `bevy_hao::cpu::ao` (`TraceLevel`, `march_level`, `march_cascades`).
+#define_import_path bevy_hao::voxel_grid
+
+const MAX_VOXEL_LEVELS: u32 = 8u;
+
+// src/voxel/bindings.rs: `GpuVoxelLevel`. Lattice cell c of a level covers [c, c + 1] * cell_size + origin
+// in world space; the level holds the window [window_min, window_min + dims) of it, stored toroidally in
+// the texture (texel (c - window_min + wrap) % size, at z + texture_z).
+struct VoxelLevel {
+    origin: vec3<f32>,
+    cell_size: f32,
+    window_min: vec3<i32>,
+    texture_z: u32,
+    wrap: vec3<u32>,
+    pad_a: u32,
+    // Cells of the window (the march's box).
+    dims: vec3<u32>,
+    pad_b: u32,
+    // Texels of mip 0 per axis (dims rounded up to the coarsest mip's texel).
+    size: vec3<u32>,
+    pad_c: u32,
+}
+
+// src/voxel/bindings.rs: `GpuVoxelGrid`.
+struct VoxelGrid {
+    levels: array<VoxelLevel, MAX_VOXEL_LEVELS>,
+    // 0 while there is no grid.
+    level_count: u32,
+    mip_levels: u32,
+    pad_a: u32,
+    pad_b: u32,
+}
+
+@group(2) @binding(0) var voxel_texture: texture_3d<f32>;
+@group(2) @binding(1) var<uniform> voxel_grid: VoxelGrid;
+
+// cpu/ao.rs: CASCADE_REACH, CASCADE_BLEND_CELLS
+const CASCADE_REACH: f32 = 0.5;
+const CASCADE_BLEND_CELLS: f32 = 8.0;
+
+// cpu/ao.rs: safe_inverse. 1 / d with zero components replaced by a huge value of the same sign.
+fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
+    let big = vec3<f32>(1.0e30);
+    let s = select(vec3<f32>(-1.0), vec3<f32>(1.0), d >= vec3<f32>(0.0));
+    return select(1.0 / d, s * big, abs(d) < vec3<f32>(1.0e-30));
+}
+
+// cpu/ao.rs: ray_box. The [t_enter, t_exit] of a ray in the box [lo, hi]; empty if t_enter > t_exit.
+fn ray_box(origin: vec3<f32>, inv_dir: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>) -> vec2<f32> {
+    let t0 = (lo - origin) * inv_dir;
+    let t1 = (hi - origin) * inv_dir;
+    let tmin = min(t0, t1);
+    let tmax = max(t0, t1);
+    return vec2<f32>(max(max(tmin.x, tmin.y), tmin.z), min(min(tmax.x, tmax.y), tmax.z));
+}
+
+// cpu/ao.rs: TraceLevel::level_position. World space to the level's window, in its cells.
+fn level_position(level: u32, world: vec3<f32>) -> vec3<f32> {
+    let l = voxel_grid.levels[level];
+    return (world - l.origin) / l.cell_size - vec3<f32>(l.window_min);
+}
+
+// Whether texel `texel` (of the window, at mip `mip`, clamped to it) is occupied. Mesa 22's lavapipe
+// returns wrong textureDimensions for levels >= 2 of 3D textures, so sizes are computed.
+fn voxel_occupied(level: u32, texel: vec3<i32>, mip: u32) -> bool {
+    let l = voxel_grid.levels[level];
+    let size = l.size >> vec3<u32>(mip);
+    let t = vec3<u32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1)));
+    var physical = (t + (l.wrap >> vec3<u32>(mip))) % size;
+    physical.z += l.texture_z >> mip;
+    return textureLoad(voxel_texture, vec3<i32>(physical), i32(mip)).r > 0.0;
+}
+
+// cpu/ao.rs: MarchResult (t < 0: no hit).
+struct MarchResult {
+    t: f32,
+    steps_left: u32,
+}
+
+// cpu/ao.rs: VoxelMips::march_level. The distance along `dir` (the level's cells, from `origin` in its
+// window) to the first occupied cell within [t_start, t_end]: start at mip `start_mip`, step over empty
+// texels whole, descend into occupied ones; at most `steps` texel visits.
+fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32, start_mip: u32, steps: u32) -> MarchResult {
+    let inv = safe_inverse(dir);
+    let dims = vec3<f32>(voxel_grid.levels[level].dims);
+    let span = ray_box(origin, inv, vec3<f32>(0.0), dims);
+    var t = max(t_start, span.x);
+    let t_max = min(t_end, span.y);
+    let top = voxel_grid.mip_levels - 1u;
+    var mip = min(start_mip, top);
+    var left = steps;
+    while left > 0u {
+        if t > t_max {
+            return MarchResult(-1.0, left);
+        }
+        left -= 1u;
+        let p = origin + dir * t;
+        let scale = f32(1u << mip);
+        let texel = vec3<i32>(floor(p * (1.0 / scale)));
+        if voxel_occupied(level, texel, mip) {
+            if mip == 0u {
+                return MarchResult(t, left);
+            }
+            mip -= 1u;
+        } else {
+            let size = vec3<i32>(voxel_grid.levels[level].size >> vec3<u32>(mip));
+            let lo = vec3<f32>(clamp(texel, vec3<i32>(0), size - vec3<i32>(1))) * scale;
+            let exit = ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y;
+            t = max(exit, t) + 1.0e-3;
+            mip = min(mip + 1u, top);
+        }
+    }
+    return MarchResult(-1.0, 0u);
+}
+
+// cpu/ao.rs: level_weight. How many of a surface point's rays may start in a level: 1 when it lies at
+// least CASCADE_REACH of the max distance inside the window, 0 at CASCADE_BLEND_CELLS cells less.
+fn level_weight(level: u32, world: vec3<f32>, max_distance: f32) -> f32 {
+    let l = voxel_grid.levels[level];
+    let p = level_position(level, world);
+    let q = min(p, vec3<f32>(l.dims) - p);
+    let margin = min(min(q.x, q.y), q.z);
+    let reach = CASCADE_REACH * max_distance / l.cell_size;
+    return clamp((margin - reach) / CASCADE_BLEND_CELLS, 0.0, 1.0);
+}
+
+// cpu/ao.rs: ray_start_level. The finest level whose weight exceeds ray i's own number; the coarsest
+// takes what no finer one does.
+fn ray_start_level(world: vec3<f32>, max_distance: f32, i: u32, rotation: vec2<f32>) -> u32 {
+    let u = fract(f32(i) * 0.7548777 + rotation.x + rotation.y);
+    let last = voxel_grid.level_count - 1u;
+    for (var l = 0u; l < last; l++) {
+        if level_weight(l, world, max_distance) > u {
+            return l;
+        }
+    }
+    return last;
+}
+
+// The finest level whose window holds `world`, or the coarsest.
+fn finest_level_containing(world: vec3<f32>) -> u32 {
+    let last = voxel_grid.level_count - 1u;
+    for (var l = 0u; l < last; l++) {
+        let p = level_position(l, world);
+        if all(p >= vec3<f32>(0.0)) && all(p <= vec3<f32>(voxel_grid.levels[l].dims)) {
+            return l;
+        }
+    }
+    return last;
+}
+
+// cpu/ao.rs: march_cascades. The world distance along `dir` from `origin` to the first occupied voxel
+// within `t_end` (world), starting in level `start` at `t_start` of its cells, and the level hit: (t, level),
+// t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it left.
+fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t_end: f32, steps: u32) -> vec2<f32> {
+    let inv = safe_inverse(dir);
+    var level = start;
+    var t0 = t_start;
+    var left = steps;
+    loop {
+        let cell = voxel_grid.levels[level].cell_size;
+        let o = level_position(level, origin);
+        let t1 = t_end / cell;
+        let r = march_level(level, o, dir, t0, t1, 2u, left);
+        if r.t >= 0.0 {
+            return vec2<f32>(r.t * cell, f32(level));
+        }
+        left = r.steps_left;
+        if left == 0u || level + 1u >= voxel_grid.level_count {
+            return vec2<f32>(-1.0, 0.0);
+        }
+        let exit = ray_box(o, inv, vec3<f32>(0.0), vec3<f32>(voxel_grid.levels[level].dims)).y;
+        if exit >= t1 {
+            return vec2<f32>(-1.0, 0.0);
+        }
+        t0 = max(exit, t0) * cell / voxel_grid.levels[level + 1u].cell_size;
+        level += 1u;
+    }
+    return vec2<f32>(-1.0, 0.0);
+}
