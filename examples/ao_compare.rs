@@ -3,10 +3,11 @@
 //! ```text
 //! cargo run --release --example ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
 //!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
-//!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--world] [--out ao_compare.png]
+//!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--cascades 4,128,0.125] [--world]
+//!     [--out ao_compare.png]
 //! ```
 //!
-//! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 128^3 following the
+//! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 192^3 following the
 //! camera) or `fit` (one grid fitted to the static scene, `--res` cells on its longest axis). `--world`
 //! puts the scene inside a generated level 1 km across (a ground and distant buildings: see
 //! `support::scene::big_world`), which the reference traces too.
@@ -40,13 +41,14 @@ struct Args {
     camera: Option<(Vec3, Vec3)>,
     outside: bool,
     fit: bool,
+    cascades: Option<(u32, u32, f32)>,
     world: bool,
     out: String,
 }
 
 const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
 [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] \
-[--volume cascades|fit] [--world] [--out ao_compare.png]";
+[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--out ao_compare.png]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -60,6 +62,7 @@ fn parse_args() -> Result<Args, String> {
         camera: None,
         outside: false,
         fit: false,
+        cascades: None,
         world: false,
         out: "ao_compare.png".into(),
     };
@@ -90,6 +93,19 @@ fn parse_args() -> Result<Args, String> {
             "--look" => look = Some(support::args::vec3(&value("--look")?)?),
             "--outside" => a.outside = true,
             "--world" => a.world = true,
+            "--cascades" => {
+                let v = value("--cascades")?;
+                let p: Vec<&str> = v.split(',').collect();
+                let bad = || format!("bad --cascades {v} (expected LEVELS,CELLS,FINEST_CELL_SIZE)");
+                if p.len() != 3 {
+                    return Err(bad());
+                }
+                a.cascades = Some((
+                    p[0].parse().map_err(|_| bad())?,
+                    p[1].parse().map_err(|_| bad())?,
+                    p[2].parse().map_err(|_| bad())?,
+                ));
+            }
             "--volume" => {
                 a.fit = match value("--volume")?.as_str() {
                     "cascades" => false,
@@ -163,6 +179,7 @@ fn main() {
     let setup_source = source.clone();
     let setup_hao = hao.clone();
     let fit = args.fit;
+    let cascades = args.cascades;
     let mut app = support::headless_app(move |app| {
         let source = setup_source.clone();
         let hao = setup_hao.clone();
@@ -191,6 +208,11 @@ fn main() {
                     commands.spawn(VoxelVolume {
                         bounds: VolumeBounds::FitStaticScene { margin },
                         resolution: VolumeResolution::Cells(res),
+                        ..default()
+                    });
+                } else if let Some((cascades, cells, finest_cell_size)) = cascades {
+                    commands.spawn(VoxelVolume {
+                        bounds: VolumeBounds::FollowCamera { cascades, cells, finest_cell_size },
                         ..default()
                     });
                 } else {
@@ -328,8 +350,10 @@ fn main() {
     );
     let volume = if args.fit {
         format!("one grid fitted to the static scene, {} cells on its longest axis", args.res)
+    } else if let Some((n, cells, size)) = args.cascades {
+        format!("{n} cascades of {cells}^3 following the camera, finest cell {size}")
     } else {
-        "4 cascades of 128^3 following the camera (the default)".to_string()
+        "cascades following the camera (the default: 4 of 192^3, finest cell 0.125)".to_string()
     };
     let world = if args.world { ", inside a generated 1 km level" } else { "" };
     println!(

@@ -92,7 +92,7 @@ pub enum VolumeBounds {
 
 impl Default for VolumeBounds {
     fn default() -> Self {
-        VolumeBounds::FollowCamera { cascades: 4, cells: 128, finest_cell_size: 0.125 }
+        VolumeBounds::FollowCamera { cascades: 4, cells: 192, finest_cell_size: 0.125 }
     }
 }
 
@@ -109,8 +109,8 @@ pub enum VolumeResolution {
 
 /// The voxel volume: where the grid is, how fine, and how geometry is voxelized into it. Put it on any
 /// entity (one per app: if there are several, the first found is used and the plugin warns). Without one,
-/// [`VoxelVolume::default()`] is used: 4 camera-following cascades of 128^3 cells, the finest with cells of
-/// 0.125 world units (16 units across), the coarsest 1 unit (128 across).
+/// [`VoxelVolume::default()`] is used: 4 camera-following cascades of 192^3 cells, the finest with cells of
+/// 0.125 world units (24 units across), the coarsest 1 unit (192 across).
 #[derive(Component, Reflect, Clone, Copy, Debug, PartialEq)]
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct VoxelVolume {

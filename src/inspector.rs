@@ -261,7 +261,7 @@ fn inspector_window(
                 ui.checkbox(&mut volume.point_counts, "per-voxel point counts");
             }
             None => {
-                ui.label("default volume (4 cascades of 128^3 following the camera)");
+                ui.label("default volume (4 cascades of 192^3 following the camera)");
                 if ui.button("add a VoxelVolume to edit").clicked() {
                     commands.spawn(VoxelVolume::default());
                 }

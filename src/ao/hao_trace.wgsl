@@ -51,8 +51,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {
         let dir = hemisphere_direction(basis, i, settings.rays, rotation);
-        // The finest level that holds the ray's reach (blended across its border), then coarser ones.
-        let start = ray_start_level(world, settings.max_distance, i, rotation);
+        // The finest level that holds the surface (blended across its border), then coarser ones.
+        let start = ray_start_level(world, i, rotation);
         let origin = world + normal * (settings.start_offset * voxel_grid.levels[start].cell_size);
         let hit = march_cascades(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
         if hit.x >= 0.0 {

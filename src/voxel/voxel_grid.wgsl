@@ -37,8 +37,7 @@ struct VoxelGrid {
 @group(2) @binding(0) var voxel_texture: texture_3d<f32>;
 @group(2) @binding(1) var<uniform> voxel_grid: VoxelGrid;
 
-// cpu/ao.rs: CASCADE_REACH, CASCADE_BLEND_CELLS
-const CASCADE_REACH: f32 = 0.5;
+// cpu/ao.rs: CASCADE_BLEND_CELLS
 const CASCADE_BLEND_CELLS: f32 = 8.0;
 
 // cpu/ao.rs: safe_inverse. 1 / d with zero components replaced by a huge value of the same sign.
@@ -117,23 +116,21 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
 }
 
 // cpu/ao.rs: level_weight. How many of a surface point's rays may start in a level: 1 when it lies at
-// least CASCADE_REACH of the max distance inside the window, 0 at CASCADE_BLEND_CELLS cells less.
-fn level_weight(level: u32, world: vec3<f32>, max_distance: f32) -> f32 {
-    let l = voxel_grid.levels[level];
+// least CASCADE_BLEND_CELLS cells inside the window, 0 at its border.
+fn level_weight(level: u32, world: vec3<f32>) -> f32 {
     let p = level_position(level, world);
-    let q = min(p, vec3<f32>(l.dims) - p);
+    let q = min(p, vec3<f32>(voxel_grid.levels[level].dims) - p);
     let margin = min(min(q.x, q.y), q.z);
-    let reach = CASCADE_REACH * max_distance / l.cell_size;
-    return clamp((margin - reach) / CASCADE_BLEND_CELLS, 0.0, 1.0);
+    return clamp(margin / CASCADE_BLEND_CELLS, 0.0, 1.0);
 }
 
 // cpu/ao.rs: ray_start_level. The finest level whose weight exceeds ray i's own number; the coarsest
 // takes what no finer one does.
-fn ray_start_level(world: vec3<f32>, max_distance: f32, i: u32, rotation: vec2<f32>) -> u32 {
+fn ray_start_level(world: vec3<f32>, i: u32, rotation: vec2<f32>) -> u32 {
     let u = fract(f32(i) * 0.7548777 + rotation.x + rotation.y);
     let last = voxel_grid.level_count - 1u;
     for (var l = 0u; l < last; l++) {
-        if level_weight(l, world, max_distance) > u {
+        if level_weight(l, world) > u {
             return l;
         }
     }
