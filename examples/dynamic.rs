@@ -3,7 +3,7 @@
 //! the cached static grid).
 //!
 //! ```text
-//! cargo run --release --example dynamic -- [--view final|ao|voxels|counts|static-dynamic]
+//! cargo run --release --example dynamic -- [--view final|ao|voxels|counts|static-dynamic|cascades]
 //!     [--headless --frames 90 --screenshot OUT.png [--size 960x540]]
 //! ```
 //!
@@ -59,7 +59,8 @@ fn setup(
 ) {
     spawn_scene(&SceneSource::Builtin("cathedral".into()), &mut commands, &mut meshes, &mut materials, &server)
         .expect("built-in scene");
-    commands.spawn(VoxelVolume { resolution: VolumeResolution::Cells(128), ..default() });
+    // The default volume (cascades following the camera), with point counts for the heat map view.
+    commands.spawn(VoxelVolume { point_counts: true, ..default() });
     commands.spawn(sun());
     let red = materials.add(StandardMaterial { base_color: Color::srgb(0.7, 0.2, 0.15), ..default() });
     let sphere = meshes.add(Sphere::new(0.8).mesh().uv(32, 16));
@@ -156,6 +157,7 @@ fn main() {
                     Some("voxels") => HaoDebugView::Voxels,
                     Some("counts") => HaoDebugView::PointCounts,
                     Some("static-dynamic") => HaoDebugView::StaticDynamic,
+                    Some("cascades") => HaoDebugView::Cascades,
                     v => {
                         eprintln!("unknown --view {v:?}");
                         std::process::exit(2);
@@ -173,7 +175,7 @@ fn main() {
             }
             _ => {
                 eprintln!(
-                    "usage: dynamic [--view final|ao|voxels|counts|static-dynamic] [--headless --frames 90 --screenshot OUT.png [--size 960x540]]"
+                    "usage: dynamic [--view final|ao|voxels|counts|static-dynamic|cascades] [--headless --frames 90 --screenshot OUT.png [--size 960x540]]"
                 );
                 std::process::exit(2);
             }

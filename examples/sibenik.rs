@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release --example sibenik -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
-//!     [--ao hao|ssao|both|off] [--view final|ao|voxels|counts|static-dynamic] [--res 128]
+//!     [--ao hao|ssao|both|off] [--view final|ao|voxels|counts|static-dynamic|cascades] [--res N]
 //!     [--camera X,Y,Z --look X,Y,Z] [--headless --frames 30 --screenshot OUT.png [--size 960x540]]
 //! ```
 //!
@@ -27,7 +27,7 @@ use bevy_hao::prelude::*;
 use support::scene::{SceneSource, default_camera, spawn_scene, sun};
 
 const USAGE: &str = "usage: sibenik [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--ao hao|ssao|both|off] \
-[--view final|ao|voxels|counts|static-dynamic] [--res 128] [--camera X,Y,Z --look X,Y,Z] \
+[--view final|ao|voxels|counts|static-dynamic|cascades] [--res N] [--camera X,Y,Z --look X,Y,Z] \
 [--headless --frames 30 --screenshot OUT.png [--size 960x540]]";
 
 #[derive(Clone)]
@@ -35,7 +35,7 @@ struct Args {
     scene: String,
     ao: String,
     view: HaoDebugView,
-    res: u32,
+    res: Option<u32>,
     camera: Option<(Vec3, Vec3)>,
     headless: bool,
     frames: usize,
@@ -48,7 +48,7 @@ fn parse_args() -> Result<Args, String> {
         scene: "builtin:cathedral".into(),
         ao: "hao".into(),
         view: HaoDebugView::Final,
-        res: 128,
+        res: None,
         camera: None,
         headless: false,
         frames: 30,
@@ -73,10 +73,11 @@ fn parse_args() -> Result<Args, String> {
                     "voxels" => HaoDebugView::Voxels,
                     "counts" => HaoDebugView::PointCounts,
                     "static-dynamic" => HaoDebugView::StaticDynamic,
+                    "cascades" => HaoDebugView::Cascades,
                     v => return Err(format!("unknown --view {v}")),
                 }
             }
-            "--res" => a.res = value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?,
+            "--res" => a.res = Some(value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?),
             "--camera" => eye = Some(support::args::vec3(&value("--camera")?)?),
             "--look" => look = Some(support::args::vec3(&value("--look")?)?),
             "--headless" => a.headless = true,
@@ -126,7 +127,17 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                     error!("{e}");
                     std::process::exit(1);
                 }
-                commands.spawn(VoxelVolume { resolution: VolumeResolution::Cells(args.res), ..default() });
+                // The default volume (cascades that follow the camera), or with --res one grid fitted to the
+                // scene. Point counts for the heat map.
+                commands.spawn(match args.res {
+                    Some(n) => VoxelVolume {
+                        bounds: VolumeBounds::FitStaticScene { margin: 0.5 },
+                        resolution: VolumeResolution::Cells(n),
+                        point_counts: true,
+                        ..default()
+                    },
+                    None => VoxelVolume { point_counts: true, ..default() },
+                });
                 // A low sun, so that it reaches in through the windows.
                 commands.spawn(sun());
                 let (yaw, pitch, _) = camera.rotation.to_euler(EulerRot::YXZ);

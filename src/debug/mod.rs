@@ -42,7 +42,7 @@ pub enum HaoDebugView {
     PointCounts,
     /// Static voxels blue, voxels set by dynamic geometry alone orange.
     StaticDynamic,
-    /// Voxels tinted by the cascade level that holds them (finest white, then yellow, green, cyan, ...).
+    /// Voxels tinted by the cascade level that holds them (finest violet, then cyan, green, yellow).
     Cascades,
 }
 

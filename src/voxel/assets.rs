@@ -118,11 +118,12 @@ pub struct VoxelizationStatsData {
     pub grid: Option<VoxelGrid>,
     /// The cascade levels and what they did (one entry for a single grid).
     pub cascades: Vec<CascadeLevelStats>,
-    /// Times the static grid has been voxelized (a new grid, or a change to the static set).
+    /// Frames in which static geometry was voxelized (a new grid, a change to the static set, a cascade
+    /// that scrolled or was rebuilt; see [`Self::cascades`] for which cells).
     pub static_rebuilds: u64,
     /// Frames in which the voxelization passes ran (static, dynamic or resolve).
     pub frames_voxelized: u64,
-    /// Static instances in the last static build, and their triangles.
+    /// Static instances read in the last frame with static work (summed over its regions and levels).
     pub static_instances: u64,
     /// Triangles of those.
     pub static_triangles: u64,
