@@ -70,9 +70,10 @@ pub enum VolumeBounds {
     FollowCamera {
         /// Cascade levels, 1 to 8.
         cascades: u32,
-        /// Cells per axis of every cascade: a multiple of 8, at least 16.
+        /// Cells per axis of every cascade: a multiple of 8, 16 to 256 (other values are rounded, with a
+        /// warning).
         cells: u32,
-        /// World-space cell size of the finest cascade.
+        /// World-space cell size of the finest cascade (1e-4 to 1e4).
         finest_cell_size: f32,
     },
     /// The world-space bounds of all static occluders, grown by `margin` (world units) on every side.
@@ -89,6 +90,15 @@ pub enum VolumeBounds {
         max: Vec3,
     },
 }
+
+/// Most cells along an axis of a single grid ([`VolumeResolution::Cells`]).
+pub const MAX_CELLS: u32 = 16384;
+/// Most cells per axis of a cascade.
+pub const MAX_CASCADE_CELLS: u32 = 256;
+/// Smallest and largest cell size of the finest cascade, world units.
+pub const MIN_CELL_SIZE: f32 = 1.0e-4;
+/// See [`MIN_CELL_SIZE`].
+pub const MAX_CELL_SIZE: f32 = 1.0e4;
 
 impl Default for VolumeBounds {
     fn default() -> Self {
@@ -150,6 +160,85 @@ impl VoxelVolume {
     /// The CPU settings equivalent to this volume's gamma and injection mode.
     pub fn voxelize_settings(&self) -> cpu::VoxelizeSettings {
         cpu::VoxelizeSettings { gamma: self.gamma, mode: self.injection.into() }
+    }
+
+    /// This volume with every invalid value replaced by a usable one, and one message per replacement naming
+    /// the field, the value given and the value used (the plugin logs each once). Values that cannot be
+    /// replaced sensibly (a `World` box that is not finite, a grid too large for the device) are left for
+    /// the grid to refuse with an error.
+    pub fn sanitized(&self) -> (VoxelVolume, Vec<String>) {
+        let mut v = *self;
+        let mut fixes = Vec::new();
+        let mut fix = |field: &str, given: String, used: String| {
+            fixes.push(format!("VoxelVolume::{field} is {given}; using {used}"));
+        };
+        let (lo, hi) = cpu::voxelize::GAMMA_RANGE;
+        if !v.gamma.is_finite() {
+            fix("gamma", format!("{}", v.gamma), "1".into());
+            v.gamma = 1.0;
+        } else if !(lo..=hi).contains(&v.gamma) {
+            let g = v.gamma.clamp(lo, hi);
+            fix("gamma", format!("{}", v.gamma), format!("{g}"));
+            v.gamma = g;
+        }
+        if v.point_budget == 0 {
+            let d = VoxelVolume::default().point_budget;
+            fix("point_budget", "0".into(), format!("{d}"));
+            v.point_budget = d;
+        }
+        match v.resolution {
+            VolumeResolution::Cells(n) if !(1..=MAX_CELLS).contains(&n) => {
+                let c = n.clamp(1, MAX_CELLS);
+                fix("resolution", format!("Cells({n})"), format!("Cells({c})"));
+                v.resolution = VolumeResolution::Cells(c);
+            }
+            VolumeResolution::CellSize(s) if !(s.is_finite() && s > 0.0) => {
+                fix("resolution", format!("CellSize({s})"), "Cells(128)".into());
+                v.resolution = VolumeResolution::Cells(128);
+            }
+            _ => {}
+        }
+        match &mut v.bounds {
+            VolumeBounds::FitStaticScene { margin } if !(margin.is_finite() && *margin >= 0.0) => {
+                fix("bounds margin", format!("{margin}"), "0".into());
+                *margin = 0.0;
+            }
+            VolumeBounds::FollowCamera { cascades, cells, finest_cell_size } => {
+                let max = cpu::cascade::MAX_CASCADES;
+                if !(1..=max).contains(cascades) {
+                    let c = (*cascades).clamp(1, max);
+                    fix("bounds cascades", format!("{cascades}"), format!("{c}"));
+                    *cascades = c;
+                }
+                let step = cpu::cascade::SCROLL_STEP;
+                let c = (*cells).clamp(cpu::cascade::MIN_CASCADE_CELLS, MAX_CASCADE_CELLS).div_ceil(step) * step;
+                if c != *cells {
+                    fix(
+                        "bounds cells",
+                        format!("{cells}"),
+                        format!(
+                            "{c} (a multiple of {step}, {} to {MAX_CASCADE_CELLS})",
+                            cpu::cascade::MIN_CASCADE_CELLS
+                        ),
+                    );
+                    *cells = c;
+                }
+                if !(finest_cell_size.is_finite()
+                    && *finest_cell_size >= MIN_CELL_SIZE
+                    && *finest_cell_size <= MAX_CELL_SIZE)
+                {
+                    let f = if finest_cell_size.is_finite() && *finest_cell_size > 0.0 {
+                        finest_cell_size.clamp(MIN_CELL_SIZE, MAX_CELL_SIZE)
+                    } else {
+                        0.125
+                    };
+                    fix("bounds finest_cell_size", format!("{finest_cell_size}"), format!("{f}"));
+                    *finest_cell_size = f;
+                }
+            }
+            _ => {}
+        }
+        (v, fixes)
     }
 
     /// The cascades' shape, for [`VolumeBounds::FollowCamera`].

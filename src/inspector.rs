@@ -227,7 +227,7 @@ fn inspector_window(
                         *cascades = c;
                     }
                     let mut n = *cells / 8;
-                    if ui.add(egui::Slider::new(&mut n, 2..=48).text("cells per axis / 8")).changed() {
+                    if ui.add(egui::Slider::new(&mut n, 2..=32).text("cells per axis / 8")).changed() {
                         *cells = n * 8;
                     }
                     let mut size = *finest_cell_size;

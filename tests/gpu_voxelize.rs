@@ -98,10 +98,18 @@ fn cpu_reference(
 #[test]
 fn gpu_grid_equals_the_cpu_reference_in_both_modes() {
     let _gpu = gpu_lock();
-    for injection in [VoxelInjection::Centroid, VoxelInjection::Conservative] {
+    // Every index format (the scene has u32, u16 and no indices) x point counts on and off x both modes:
+    // the same grid as the CPU's and no render error (a non-indexed mesh with counts off once bound one
+    // placeholder buffer both read-only and read-write).
+    for (injection, point_counts) in [
+        (VoxelInjection::Centroid, false),
+        (VoxelInjection::Centroid, true),
+        (VoxelInjection::Conservative, false),
+        (VoxelInjection::Conservative, true),
+    ] {
         let mut app = headless_app(|app| {
             app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
-                commands.spawn(volume(4.0, 64, injection));
+                commands.spawn(VoxelVolume { point_counts, ..volume(4.0, 64, injection) });
                 for (mesh, layout, transform) in scene() {
                     commands.spawn((Mesh3d(meshes.add(bevy_mesh(&mesh, layout))), transform, StaticOccluder));
                 }
@@ -116,7 +124,7 @@ fn gpu_grid_equals_the_cpu_reference_in_both_modes() {
         let set = cpu.set_voxel_count();
         let stats = stats(&app);
         println!(
-            "{injection:?}: {set} voxels on the CPU; {only_gpu} only on the GPU, {only_cpu} only on the CPU; injected GPU {} CPU {cpu_injected}",
+            "{injection:?}, point counts {point_counts}: {set} voxels on the CPU; {only_gpu} only on the GPU, {only_cpu} only on the CPU; injected GPU {} CPU {cpu_injected}",
             stats.static_counters.injected
         );
         assert!(set > 5_000, "{set}");
@@ -389,4 +397,92 @@ fn equation_5_estimates_the_points_and_warns_before_the_budget() {
     assert!(s.static_counters.points_dispatched <= 500 && s.static_counters.points_requested >= 3840, "{s:?}");
     assert!(s.static_counters.injected <= 500, "{s:?}");
     assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn bad_component_values_are_replaced_or_refused_and_the_frames_go_on() {
+    let _gpu = gpu_lock();
+    let volumes = [
+        VoxelVolume { resolution: VolumeResolution::CellSize(1.0e-6), ..volume(4.0, 32, VoxelInjection::Centroid) },
+        VoxelVolume { resolution: VolumeResolution::Cells(u32::MAX), ..volume(4.0, 32, VoxelInjection::Centroid) },
+        VoxelVolume { resolution: VolumeResolution::Cells(0), ..volume(4.0, 32, VoxelInjection::Centroid) },
+        VoxelVolume { gamma: f32::NAN, point_budget: 0, ..volume(4.0, 32, VoxelInjection::Conservative) },
+        VoxelVolume { gamma: 1.0e30, ..volume(4.0, 32, VoxelInjection::Centroid) },
+        VoxelVolume { bounds: VolumeBounds::World { min: Vec3::splat(f32::NAN), max: Vec3::splat(4.0) }, ..default() },
+        VoxelVolume { bounds: VolumeBounds::World { min: Vec3::ZERO, max: Vec3::splat(1.0e-40) }, ..default() },
+        VoxelVolume { bounds: VolumeBounds::FitStaticScene { margin: f32::NAN }, ..default() },
+        VoxelVolume {
+            bounds: VolumeBounds::FollowCamera { cascades: 0, cells: 7, finest_cell_size: f32::NAN },
+            ..default()
+        },
+        VoxelVolume {
+            bounds: VolumeBounds::FollowCamera { cascades: 99, cells: 64, finest_cell_size: 1.0e30 },
+            ..default()
+        },
+        VoxelVolume {
+            bounds: VolumeBounds::FollowCamera { cascades: 1, cells: u32::MAX, finest_cell_size: 0.5 },
+            ..default()
+        },
+        VoxelVolume {
+            bounds: VolumeBounds::FollowCamera { cascades: 2, cells: 16, finest_cell_size: -1.0 },
+            ..default()
+        },
+    ];
+    let bad_hao = [
+        HybridAmbientOcclusion { max_distance: f32::NAN, falloff: -1.0, ..default() },
+        HybridAmbientOcclusion { max_distance: f32::INFINITY, intensity: f32::NAN, start_offset: 1.0e30, ..default() },
+        HybridAmbientOcclusion {
+            quality: HaoQuality::Custom { rays: 0, steps: u32::MAX, half_resolution: true },
+            denoise_radius: u32::MAX,
+            max_distance: 0.0,
+            ..default()
+        },
+    ];
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(volume(4.0, 32, VoxelInjection::Centroid));
+            commands.spawn((Mesh3d(meshes.add(cube_mesh())), StaticOccluder));
+            // A mesh with a NaN vertex: left out of fitted bounds instead of turning them NaN.
+            let bad = TriangleMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::new(f32::NAN, 1.0, 0.0)], vec![[0, 1, 2]]);
+            commands.spawn((Mesh3d(meshes.add(bevy_mesh(&bad, Layout::U32))), StaticOccluder));
+            commands.spawn((
+                Camera3d::default(),
+                HybridAmbientOcclusion::default(),
+                Transform::from_xyz(0.0, 1.0, 4.0),
+            ));
+        });
+    });
+    run(&mut app, 4);
+    for v in volumes {
+        let mut q = app.world_mut().query::<&mut VoxelVolume>();
+        *q.single_mut(app.world_mut()).unwrap() = v;
+        run(&mut app, 3);
+    }
+    for h in bad_hao {
+        let mut q = app.world_mut().query::<&mut HybridAmbientOcclusion>();
+        *q.single_mut(app.world_mut()).unwrap() = h;
+        run(&mut app, 2);
+    }
+    // Back to a good volume: the grid comes back.
+    let mut q = app.world_mut().query::<&mut VoxelVolume>();
+    *q.single_mut(app.world_mut()).unwrap() = VoxelVolume::default();
+    run(&mut app, 4);
+    assert!(grid_assets(&app).is_some());
+    assert!(stats(&app).static_counters.injected > 0);
+    assert!(take_render_errors().is_empty());
+    // The replacements are the documented ones.
+    let (v, fixes) = VoxelVolume { gamma: f32::NAN, ..default() }.sanitized();
+    assert_eq!(v.gamma, 1.0);
+    assert_eq!(fixes.len(), 1);
+    let (v, fixes) = VoxelVolume {
+        bounds: VolumeBounds::FollowCamera { cascades: 0, cells: 100, finest_cell_size: f32::NAN },
+        ..default()
+    }
+    .sanitized();
+    assert_eq!(v.bounds, VolumeBounds::FollowCamera { cascades: 1, cells: 104, finest_cell_size: 0.125 });
+    assert_eq!(fixes.len(), 3);
+    assert!(VoxelVolume::default().sanitized().1.is_empty());
+    assert!(HybridAmbientOcclusion::default().sanitized().1.is_empty());
+    let (h, fixes) = HybridAmbientOcclusion { max_distance: f32::NAN, ..default() }.sanitized();
+    assert_eq!((h.max_distance, fixes.len()), (3.0, 1));
 }

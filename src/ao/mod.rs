@@ -49,7 +49,7 @@ impl Plugin for HybridAmbientOcclusionPlugin {
                 ExtractComponentPlugin::<HybridAmbientOcclusion>::default(),
                 ExtractComponentPlugin::<HaoDebugImages>::default(),
             ))
-            .add_systems(PostUpdate, configure_hao_cameras);
+            .add_systems(PostUpdate, (configure_hao_cameras, report_invalid_settings));
     }
 
     fn finish(&self, app: &mut App) {
@@ -129,6 +129,21 @@ fn configure_hao_cameras(
     for entity in removed.read() {
         if added_ssao.contains(entity) && !cameras.contains(entity) {
             commands.entity(entity).remove::<(ScreenSpaceAmbientOcclusion, HaoAddedSsao)>();
+        }
+    }
+}
+
+/// Warns once per camera and message about invalid [`HybridAmbientOcclusion`] values (the render world
+/// replaces them the same way, see [`HybridAmbientOcclusion::sanitized`]).
+fn report_invalid_settings(
+    cameras: Query<(Entity, &HybridAmbientOcclusion), Changed<HybridAmbientOcclusion>>,
+    mut warned: Local<bevy::platform::collections::HashSet<(Entity, String)>>,
+) {
+    for (entity, hao) in &cameras {
+        for f in hao.sanitized().1 {
+            if warned.insert((entity, f.clone())) {
+                warn!("bevy_hao: camera {entity}: {f}");
+            }
         }
     }
 }

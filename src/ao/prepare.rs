@@ -86,6 +86,9 @@ pub fn prepare_hao_textures(
     *frame = frame.wrapping_add(1);
     for (entity, camera, hao, jitter) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
+        // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
+        let (hao, _) = hao.sanitized();
+        let hao = &hao;
         let (rays, steps, half) = hao.quality.parameters();
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
         let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
@@ -109,14 +112,14 @@ pub fn prepare_hao_textures(
         let settings = GpuHaoSettings {
             rays,
             steps,
-            max_distance: hao.max_distance.max(1.0e-4),
-            falloff: hao.falloff.max(0.0),
-            intensity: hao.intensity.max(0.0),
-            start_offset: hao.start_offset.max(0.0),
+            max_distance: hao.max_distance,
+            falloff: hao.falloff,
+            intensity: hao.intensity,
+            start_offset: hao.start_offset,
             frame: if jitter { *frame } else { 0 },
             near_field: hao.near_field as u32,
             half_resolution: half as u32,
-            denoise_radius: hao.denoise_radius.min(8),
+            denoise_radius: hao.denoise_radius,
         };
         let settings = device.create_buffer_with_data(&BufferInitDescriptor {
             label: Some("hao_settings"),

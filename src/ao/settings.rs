@@ -50,6 +50,61 @@ pub struct HybridAmbientOcclusion {
     pub denoise_radius: u32,
 }
 
+impl HybridAmbientOcclusion {
+    /// These settings with every invalid value replaced by the one the passes use, and one message per
+    /// replacement naming the field, the value given and the value used (the plugin logs each once per
+    /// camera). NaN, infinite, zero or negative distances and exponents are invalid; so are more than 256
+    /// rays, more than 1024 steps or a denoise radius above 8.
+    pub fn sanitized(&self) -> (HybridAmbientOcclusion, Vec<String>) {
+        let mut h = self.clone();
+        let mut fixes = Vec::new();
+        let mut check = |field: &str, value: &mut f32, ok: fn(f32) -> bool, used: f32| {
+            if !ok(*value) {
+                fixes.push(format!("HybridAmbientOcclusion::{field} is {value}; using {used}"));
+                *value = used;
+            }
+        };
+        let used = if self.max_distance.is_finite() && self.max_distance > 0.0 {
+            self.max_distance.clamp(1.0e-3, 1.0e4)
+        } else {
+            3.0
+        };
+        check("max_distance", &mut h.max_distance, |v| v.is_finite() && (1.0e-3..=1.0e4).contains(&v), used);
+        check(
+            "falloff",
+            &mut h.falloff,
+            |v| v.is_finite() && (0.0..=64.0).contains(&v),
+            self.falloff.clamp(0.0, 64.0).max(0.0),
+        );
+        check(
+            "intensity",
+            &mut h.intensity,
+            |v| v.is_finite() && (0.0..=64.0).contains(&v),
+            self.intensity.clamp(0.0, 64.0).max(0.0),
+        );
+        check(
+            "start_offset",
+            &mut h.start_offset,
+            |v| v.is_finite() && (0.0..=16.0).contains(&v),
+            self.start_offset.clamp(0.0, 16.0).max(0.0),
+        );
+        if h.denoise_radius > 8 {
+            fixes.push(format!("HybridAmbientOcclusion::denoise_radius is {}; using 8", h.denoise_radius));
+            h.denoise_radius = 8;
+        }
+        if let HaoQuality::Custom { rays, steps, half_resolution } = h.quality {
+            let (r, st, _) = h.quality.parameters();
+            if (r, st) != (rays, steps) {
+                fixes.push(format!(
+                    "HybridAmbientOcclusion::quality is Custom {{ rays: {rays}, steps: {steps} }}; using {r} rays and {st} steps"
+                ));
+                h.quality = HaoQuality::Custom { rays: r, steps: st, half_resolution };
+            }
+        }
+        (h, fixes)
+    }
+}
+
 impl Default for HybridAmbientOcclusion {
     fn default() -> Self {
         Self {

@@ -59,7 +59,8 @@ pub struct VoxelGrid {
 impl VoxelGrid {
     /// A grid with the given origin, cell size and dimensions.
     pub fn new(origin: Vec3, cell_size: f32, dims: UVec3) -> Result<Self, GridError> {
-        if !(cell_size.is_finite() && cell_size > 0.0) {
+        // A cell size whose inverse is not finite (a denormal) would make grid space infinite.
+        if !(cell_size.is_finite() && cell_size >= f32::MIN_POSITIVE && (1.0 / cell_size).is_finite()) {
             return Err(GridError::BadCellSize(cell_size));
         }
         if dims.min_element() == 0 {
@@ -68,9 +69,12 @@ impl VoxelGrid {
         if !origin.is_finite() {
             return Err(GridError::BadBounds { min: origin, max: origin });
         }
-        let count = dims.x as u64 * dims.y as u64 * dims.z as u64;
-        if count > u32::MAX as u64 {
-            return Err(GridError::TooManyVoxels(count));
+        let count = dims.x as u128 * dims.y as u128 * dims.z as u128;
+        if count > u32::MAX as u128 {
+            return Err(GridError::TooManyVoxels(count.min(u64::MAX as u128) as u64));
+        }
+        if !(origin + dims.as_vec3() * cell_size).is_finite() {
+            return Err(GridError::BadBounds { min: origin, max: origin + dims.as_vec3() * cell_size });
         }
         Ok(Self { origin, cell_size, dims })
     }
@@ -100,7 +104,7 @@ impl VoxelGrid {
             return Err(GridError::BadBounds { min, max });
         }
         let dims = (extent / cell_size).ceil().max(Vec3::ONE);
-        if dims.max_element() > u32::MAX as f32 {
+        if !dims.is_finite() || dims.max_element() > u32::MAX as f32 {
             return Err(GridError::TooManyVoxels(u64::MAX));
         }
         Self::new(min, cell_size, dims.as_uvec3())
@@ -408,5 +412,29 @@ mod tests {
         let copy = VoxelOccupancy::from_words(g, &a.words(), a.counts().as_deref()).unwrap();
         assert_eq!(copy.words(), a.words());
         assert_eq!(copy.set_cells(), a.set_cells());
+    }
+
+    #[test]
+    fn extreme_grid_arguments_are_refused_not_panicked_on() {
+        let vals = [0.0, -1.0, 1.0e-45, 1.0e-40, 1.0e-6, 1.0, 1.0e6, 1.0e30, f32::MAX, f32::INFINITY, f32::NAN];
+        let counts = [0, 1, 7, 128, 1 << 20, u32::MAX];
+        for &a in &vals {
+            for &b in &vals {
+                let (lo, hi) = (Vec3::splat(-a), Vec3::new(b, a, b));
+                for &n in &counts {
+                    if let Ok(g) = VoxelGrid::fit_to_bounds(lo, hi, n) {
+                        assert!(g.voxel_count() <= u32::MAX as u64 && g.grid_from_world().is_finite());
+                    }
+                }
+                for &c in &vals {
+                    if let Ok(g) = VoxelGrid::from_bounds_and_cell_size(lo, hi, c) {
+                        assert!(g.voxel_count() <= u32::MAX as u64 && g.grid_from_world().is_finite());
+                    }
+                }
+            }
+        }
+        assert!(VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(u32::MAX)).is_err());
+        assert!(VoxelGrid::fit_to_bounds(Vec3::ZERO, Vec3::splat(1.0e-40), 128).is_err());
+        assert!(VoxelGrid::from_bounds_and_cell_size(Vec3::ZERO, Vec3::ONE, 1.0e-6).is_err());
     }
 }

@@ -274,14 +274,22 @@ pub(crate) fn update_voxel_volume(
     readbacks: Query<Entity, With<VoxelCountersReadback>>,
     stats: Res<VoxelizationStats>,
     mut reported: Local<ReportedVolume>,
+    mut warned: Local<bevy::platform::collections::HashSet<String>>,
     mut generation: Local<u64>,
 ) {
     let (Some(device), Some(adapter)) = (device, adapter) else { return };
     let mut iter = volumes.iter();
-    let volume = iter.next().copied().unwrap_or_default();
+    let given = iter.next().copied().unwrap_or_default();
     if iter.next().is_some() && reported.0.as_deref() != Some("several") {
         warn!("bevy_hao: more than one VoxelVolume; using the first");
         reported.0 = Some("several".into());
+    }
+    // Invalid values are replaced, each reported once.
+    let (volume, fixes) = given.sanitized();
+    for f in fixes {
+        if warned.insert(f.clone()) {
+            warn!("bevy_hao: {f}");
+        }
     }
     let remove = |commands: &mut Commands| {
         if current.is_some() {
@@ -317,12 +325,27 @@ pub(crate) fn update_voxel_volume(
             VolumeBounds::World { min, max } => Some((min, max)),
             VolumeBounds::FitStaticScene { margin } => {
                 let mut acc: Option<(Vec3, Vec3)> = None;
+                let mut non_finite = 0;
                 for (transform, aabb, visible, s, d, p) in &occluders {
                     if !visible.get() || occluder_is_dynamic(s, d, p) {
                         continue;
                     }
                     let (lo, hi) = world_aabb(aabb, transform);
+                    if !(lo.is_finite() && hi.is_finite()) {
+                        // A NaN or infinite vertex: leave it out rather than lose the whole grid.
+                        non_finite += 1;
+                        continue;
+                    }
                     acc = Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+                }
+                if non_finite > 0 {
+                    let msg = format!(
+                        "bevy_hao: {non_finite} static occluder(s) have non-finite bounds (NaN or infinite vertices) \
+                         and are left out when fitting the voxel grid"
+                    );
+                    if warned.insert(msg.clone()) {
+                        warn!("{msg}");
+                    }
                 }
                 acc.map(|(lo, hi)| (lo - Vec3::splat(margin.max(0.0)), hi + Vec3::splat(margin.max(0.0))))
             }
