@@ -68,8 +68,10 @@ pub struct VoxelMips {
 }
 
 impl VoxelMips {
-    /// Builds the pyramid with `levels` levels (as the plugin does: `VoxelGridAssets::mip_levels`).
+    /// Builds the pyramid with `levels` levels (as the plugin does: `VoxelGridAssets::mip_levels`), clamped
+    /// to 1..=8.
     pub fn new(occ: &VoxelOccupancy, levels: u32) -> Self {
+        let levels = levels.clamp(1, 8);
         let dims = occ.grid().dims;
         let align = 1u32 << (levels - 1);
         let size = (dims + UVec3::splat(align - 1)) / align * align;

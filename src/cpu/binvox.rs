@@ -34,8 +34,11 @@ pub struct Binvox {
 impl Binvox {
     /// Whether voxel `(x, y, z)` is set.
     pub fn get(&self, x: u32, y: u32, z: u32) -> bool {
+        if x >= self.dim.x || y >= self.dim.y || z >= self.dim.z {
+            return false;
+        }
         let (dy, dz) = (self.dim.y as usize, self.dim.z as usize);
-        self.voxels[x as usize * dz * dy + z as usize * dy + y as usize]
+        self.voxels.get(x as usize * dz * dy + z as usize * dy + y as usize).copied().unwrap_or(false)
     }
 
     /// Number of set voxels.
@@ -103,6 +106,11 @@ pub fn write_binvox(occ: &VoxelOccupancy, out: &mut impl Write) -> io::Result<()
 }
 
 /// Reads a binvox file.
+/// Largest `dim` along an axis [`read_binvox`] accepts.
+pub const MAX_BINVOX_DIM: u32 = 4096;
+/// Most voxels [`read_binvox`] accepts (1 GiB of booleans).
+pub const MAX_BINVOX_VOXELS: u64 = 1 << 30;
+
 pub fn read_binvox(input: &mut impl BufRead) -> io::Result<Binvox> {
     let bad = |msg: String| io::Error::new(io::ErrorKind::InvalidData, msg);
     let mut line = String::new();
@@ -123,8 +131,12 @@ pub fn read_binvox(input: &mut impl BufRead) -> io::Result<Binvox> {
         match words.next() {
             Some("dim") => {
                 let v = nums(words)?;
-                if v.len() != 3 || v.iter().any(|x| *x < 1.0) {
-                    return Err(bad(format!("bad dim line {line:?}")));
+                // Whole numbers from 1 to MAX_BINVOX_DIM (NaN fails the range test).
+                if v.len() != 3 || v.iter().any(|x| !((1.0..=MAX_BINVOX_DIM as f32).contains(x) && x.fract() == 0.0)) {
+                    return Err(bad(format!(
+                        "bad dim line {:?} (three whole numbers from 1 to {MAX_BINVOX_DIM} expected)",
+                        line.trim_end()
+                    )));
                 }
                 dim = Some(UVec3::new(v[0] as u32, v[1] as u32, v[2] as u32));
             }
@@ -134,22 +146,78 @@ pub fn read_binvox(input: &mut impl BufRead) -> io::Result<Binvox> {
                     return Err(bad(format!("bad translate line {line:?}")));
                 }
                 translate = Vec3::new(v[0], v[1], v[2]);
+                if !translate.is_finite() {
+                    return Err(bad(format!("bad translate line {:?}", line.trim_end())));
+                }
             }
-            Some("scale") => scale = *nums(words)?.first().ok_or_else(|| bad("empty scale".into()))?,
+            Some("scale") => {
+                scale = *nums(words)?.first().ok_or_else(|| bad("empty scale".into()))?;
+                if !(scale.is_finite() && scale > 0.0) {
+                    return Err(bad(format!("bad scale line {:?}", line.trim_end())));
+                }
+            }
             Some("data") => break,
             _ => {}
         }
     }
     let dim = dim.ok_or_else(|| bad("binvox header without dim".into()))?;
-    let total = dim.x as usize * dim.y as usize * dim.z as usize;
-    let mut data = Vec::new();
-    input.read_to_end(&mut data)?;
+    let total = dim.x as u64 * dim.y as u64 * dim.z as u64;
+    if total > MAX_BINVOX_VOXELS {
+        return Err(bad(format!("binvox dim {dim} holds {total} voxels, over the limit of {MAX_BINVOX_VOXELS}")));
+    }
+    let total = total as usize;
+    // The runs are read as they come and stopped at the declared total, so memory never exceeds it.
     let mut voxels = Vec::with_capacity(total);
-    for pair in data.chunks_exact(2) {
-        voxels.extend(std::iter::repeat_n(pair[0] != 0, pair[1] as usize));
+    let mut pair = [0u8; 2];
+    loop {
+        match input.read_exact(&mut pair) {
+            Ok(()) => {}
+            Err(e) if e.kind() == io::ErrorKind::UnexpectedEof => break,
+            Err(e) => return Err(e),
+        }
+        let run = pair[1] as usize;
+        if voxels.len() + run > total {
+            return Err(bad(format!("binvox data runs past the {total} voxels its dim declares")));
+        }
+        voxels.extend(std::iter::repeat_n(pair[0] != 0, run));
     }
     if voxels.len() != total {
         return Err(bad(format!("binvox data holds {} voxels, dim says {total}", voxels.len())));
     }
     Ok(Binvox { dim, translate, scale, voxels })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn malformed_headers_and_data_are_refused_before_allocating() {
+        let read = |bytes: &[u8]| read_binvox(&mut std::io::Cursor::new(bytes.to_vec()));
+        for header in [
+            "#binvox 1\ndim 100000 100000 100000\ndata\n",
+            "#binvox 1\ndim NaN 4 4\ndata\n",
+            "#binvox 1\ndim 2.5 4 4\ndata\n",
+            "#binvox 1\ndim 0 4 4\ndata\n",
+            "#binvox 1\ndim 4 4\ndata\n",
+            "#binvox 1\ndim 4 4 4\nscale inf\ndata\n",
+            "#binvox 1\ndim 4 4 4\ntranslate NaN 0 0\ndata\n",
+            "#binvox 1\ndim 4 4 4\n",
+            "not binvox",
+        ] {
+            assert!(read(header.as_bytes()).is_err(), "{header:?} was accepted");
+        }
+        // Runs past the declared total, and too few voxels.
+        let mut past = b"#binvox 1\ndim 2 2 2\ndata\n".to_vec();
+        past.extend_from_slice(&[1, 255, 1, 255]);
+        assert!(read(&past).is_err());
+        let mut short = b"#binvox 1\ndim 2 2 2\ndata\n".to_vec();
+        short.extend_from_slice(&[1, 7]);
+        assert!(read(&short).is_err());
+        let mut ok = b"#binvox 1\ndim 2 2 2\ndata\n".to_vec();
+        ok.extend_from_slice(&[1, 3, 0, 5]);
+        let b = read(&ok).unwrap();
+        assert_eq!(b.set_count(), 3);
+        assert!(!b.get(9, 9, 9), "out of range reads as empty");
+    }
 }

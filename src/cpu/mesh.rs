@@ -34,10 +34,10 @@ impl TriangleMesh {
         self.triangles.len()
     }
 
-    /// The three corners of triangle `t`, or `None` if an index is out of range.
+    /// The three corners of triangle `t`, or `None` if `t` or one of its indices is out of range.
     #[inline]
     pub fn triangle(&self, t: usize) -> Option<[Vec3; 3]> {
-        let [a, b, c] = self.triangles[t];
+        let [a, b, c] = *self.triangles.get(t)?;
         Some([*self.positions.get(a as usize)?, *self.positions.get(b as usize)?, *self.positions.get(c as usize)?])
     }
 
@@ -77,7 +77,8 @@ impl TriangleMesh {
     pub fn append(&mut self, other: &TriangleMesh, transform: Affine3A) {
         let base = self.positions.len() as u32;
         self.positions.extend(other.positions.iter().map(|p| transform.transform_point3(*p)));
-        self.triangles.extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
+        // An index past u32 stays invalid (u32::MAX is past any vertex list) rather than overflowing.
+        self.triangles.extend(other.triangles.iter().map(|t| t.map(|i| i.saturating_add(base))));
     }
 
     /// A transformed copy.

@@ -9,6 +9,26 @@ use glam::{Affine3A, Mat4, Vec3};
 use gltf::mesh::Mode;
 use std::path::Path;
 
+/// Most node instances (a node reached along one path from a scene root) a file may expand to.
+pub const MAX_NODE_INSTANCES: usize = 1 << 16;
+/// Deepest node hierarchy followed.
+pub const MAX_NODE_DEPTH: usize = 256;
+/// Most vertices (or indices) one accessor may declare.
+pub const MAX_ACCESSOR_COUNT: usize = 1 << 26;
+
+/// A buffer's `uri` as a file inside `dir`: relative, with no `..` or root component (a file may not read
+/// outside its own folder).
+fn buffer_file(dir: &Path, uri: &str) -> Result<std::path::PathBuf, String> {
+    let decoded = uri.replace("%20", " ");
+    let rel = Path::new(&decoded);
+    if uri.contains("://")
+        || rel.components().any(|c| !matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir))
+    {
+        return Err(format!("buffer URI {uri:?} points outside the glTF's folder; refused"));
+    }
+    Ok(dir.join(rel))
+}
+
 /// Reads a glTF or GLB file. Returns the mesh and any warnings.
 pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -27,8 +47,15 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
                         .decode(b64)
                         .map_err(|e| format!("bad base64 buffer: {e}"))?
                 } else {
-                    let file = dir.join(uri.replace("%20", " "));
-                    std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?
+                    // At most the declared length is read (a path like /dev/zero cannot get here, and a
+                    // big file is not read whole).
+                    use std::io::Read;
+                    let file = buffer_file(dir, uri)?;
+                    let mut data = Vec::new();
+                    std::fs::File::open(&file)
+                        .and_then(|f| f.take(buffer.length() as u64).read_to_end(&mut data))
+                        .map_err(|e| format!("{}: {e}", file.display()))?;
+                    data
                 }
             }
         };
@@ -40,16 +67,46 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
         Some(s) => vec![s],
         None => gltf.scenes().collect(),
     };
-    let mut stack: Vec<(gltf::Node, Affine3A)> =
-        scenes.iter().flat_map(|s| s.nodes().map(|n| (n, Affine3A::IDENTITY))).collect();
-    while let Some((node, parent)) = stack.pop() {
+    // Each entry carries its ancestors, so that a node that is its own ancestor (a cycle) is refused; the
+    // depth and the number of instances are bounded (a DAG can expand to exponentially many paths).
+    let mut stack: Vec<(gltf::Node, Affine3A, Vec<usize>)> =
+        scenes.iter().flat_map(|s| s.nodes().map(|n| (n, Affine3A::IDENTITY, Vec::new()))).collect();
+    let mut instances = 0usize;
+    while let Some((node, parent, ancestors)) = stack.pop() {
+        if ancestors.contains(&node.index()) {
+            warnings.push(format!("node {} is its own ancestor (a cycle); its subtree is skipped", node.index()));
+            continue;
+        }
+        if ancestors.len() >= MAX_NODE_DEPTH {
+            warnings.push(format!("the node hierarchy is deeper than {MAX_NODE_DEPTH}; deeper nodes are skipped"));
+            continue;
+        }
+        instances += 1;
+        if instances > MAX_NODE_INSTANCES {
+            return Err(format!(
+                "{}: the scene expands to more than {MAX_NODE_INSTANCES} node instances",
+                path.display()
+            ));
+        }
         let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
         let world = parent * local;
         if let Some(m) = node.mesh() {
             for prim in m.primitives() {
+                let too_big = prim.attributes().map(|(_, a)| a.count()).chain(prim.indices().map(|a| a.count()));
+                if let Some(count) = too_big.into_iter().find(|&c| c > MAX_ACCESSOR_COUNT) {
+                    return Err(format!(
+                        "{}: mesh {:?} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
+                        path.display(),
+                        m.name()
+                    ));
+                }
                 let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
                 let Some(positions) = reader.read_positions() else {
-                    warnings.push(format!("a primitive of mesh {:?} has no positions; skipped", m.name()));
+                    warnings.push(format!(
+                        "a primitive of mesh {:?} has no positions, or its position accessor does not fit its buffer; \
+                         skipped",
+                        m.name()
+                    ));
                     continue;
                 };
                 let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
@@ -77,7 +134,68 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
                 mesh.append(&TriangleMesh::new(positions, triangles), world);
             }
         }
-        stack.extend(node.children().map(|c| (c, world)));
+        let mut path = ancestors;
+        path.push(node.index());
+        stack.extend(node.children().map(|c| (c, world, path.clone())));
     }
     Ok((mesh, warnings))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use base64::Engine;
+
+    /// A glTF document with one triangle's positions in a buffer at `uri` (a data URI if `None`), and the
+    /// given nodes and scene roots.
+    fn document(uri: Option<&str>, nodes: &str, roots: &str, count: usize) -> String {
+        let bytes: Vec<u8> =
+            [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0].iter().flat_map(|f| f.to_le_bytes()).collect();
+        let uri = uri.map(str::to_string).unwrap_or_else(|| {
+            format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bytes))
+        });
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":{roots}}}],"nodes":{nodes},
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":{count},"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}],
+            "bufferViews":[{{"buffer":0,"byteLength":36}}],"buffers":[{{"uri":"{uri}","byteLength":36}}]}}"#
+        )
+    }
+
+    fn load(doc: &str, name: &str) -> Result<(TriangleMesh, Vec<String>), String> {
+        let dir = std::env::temp_dir().join(format!("bevy_hao_gltf_{}_{name}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("scene.gltf");
+        std::fs::write(&path, doc).unwrap();
+        load_gltf(&path)
+    }
+
+    #[test]
+    fn hostile_gltf_files_end_with_an_error_or_a_warning() {
+        // A good file: one triangle.
+        let (m, w) = load(&document(None, r#"[{"mesh":0}]"#, "[0]", 3), "good").unwrap();
+        assert_eq!((m.triangle_count(), w.len()), (1, 0));
+        // A node that is its own child, and a two-node cycle: skipped with a warning, no hang.
+        let (m, w) = load(&document(None, r#"[{"mesh":0,"children":[0]}]"#, "[0]", 3), "self").unwrap();
+        assert_eq!(m.triangle_count(), 1);
+        assert!(w.iter().any(|w| w.contains("cycle")), "{w:?}");
+        let (_, w) =
+            load(&document(None, r#"[{"mesh":0,"children":[1]},{"children":[0]}]"#, "[0]", 3), "cycle").unwrap();
+        assert!(w.iter().any(|w| w.contains("cycle")), "{w:?}");
+        // A DAG of 40 levels with two edges each: 2^40 paths, refused at the instance limit.
+        let nodes: Vec<String> = (0..40).map(|k| format!(r#"{{"mesh":0,"children":[{},{}]}}"#, k + 1, k + 1)).collect();
+        let nodes = format!("[{},{{\"mesh\":0}}]", nodes.join(","));
+        let e = load(&document(None, &nodes, "[0]", 3), "dag").unwrap_err();
+        assert!(e.contains("node instances"), "{e}");
+        // Buffers outside the file's folder are refused; none is read.
+        for (k, uri) in ["../secret.bin", "/dev/zero", "sub/../../x.bin", "file:///etc/passwd"].iter().enumerate() {
+            let e = load(&document(Some(uri), r#"[{"mesh":0}]"#, "[0]", 3), &format!("uri{k}")).unwrap_err();
+            assert!(e.contains("outside"), "{uri}: {e}");
+        }
+        // An accessor that claims more than its buffer holds: a clear warning; an absurd count: an error.
+        let (m, w) = load(&document(None, r#"[{"mesh":0}]"#, "[0]", 30), "short").unwrap();
+        assert_eq!(m.triangle_count(), 0);
+        assert!(w.iter().any(|w| w.contains("does not fit")), "{w:?}");
+        assert!(load(&document(None, r#"[{"mesh":0}]"#, "[0]", 2_000_000_000), "huge").is_err());
+    }
 }

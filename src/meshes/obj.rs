@@ -65,13 +65,16 @@ pub struct ObjMeshData {
 impl ObjModel {
     /// Reads an OBJ file and the MTL files it names.
     pub fn load(path: &Path) -> std::io::Result<Self> {
-        let text = std::fs::read_to_string(path)?;
+        // Read lossily: a stray non-UTF-8 byte (in a comment, a name) must not reject the file.
+        let text = String::from_utf8_lossy(&std::fs::read(path)?).into_owned();
         let mut model = Self::parse(&text);
         let dir = path.parent().unwrap_or(Path::new("."));
         for lib in text.lines().filter_map(|l| l.trim().strip_prefix("mtllib ")) {
             let mtl_path = dir.join(lib.trim());
-            match std::fs::read_to_string(&mtl_path) {
-                Ok(mtl) => model.materials.extend(parse_mtl(&mtl, mtl_path.parent().unwrap_or(dir))),
+            match std::fs::read(&mtl_path) {
+                Ok(mtl) => {
+                    model.materials.extend(parse_mtl(&String::from_utf8_lossy(&mtl), mtl_path.parent().unwrap_or(dir)))
+                }
                 Err(e) => model.warnings.push(format!("material library {} not read: {e}", mtl_path.display())),
             }
         }
