@@ -4,7 +4,7 @@
 //! ```text
 //! cargo run --release --example voxelize -- <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0]
 //!     [--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]
-//!     [--gpu]
+//!     [--gpu] [--max-memory-mb 4096] [--point-budget 268435456]
 //! ```
 //!
 //! For each mesh and resolution the grid is fitted to the mesh's bounds with the longest axis at the
@@ -15,6 +15,11 @@
 //! (n/a when the mesh encloses no voxel), and the median times of both voxelizers on all cores.
 //! `--target-bias` fits equation 3 to the mesh (biases measured at gamma 1, 1.5, 2, 3, 4) and uses the
 //! gamma it predicts for the target; `--gamma-sweep` prints bias and time against gamma (Figure 5d).
+//!
+//! Limits, checked before anything is allocated or voxelized: a run whose grids would take more than
+//! `--max-memory-mb` (about 8 bytes a voxel) or whose triangles subdivide into more than `--point-budget`
+//! sub-triangles is refused with the figure; a `--gamma` out of range is replaced with a warning; the tool
+//! exits non-zero when a run was refused or nothing was voxelized.
 //!
 //! With `--gpu` the point-tessellated voxelization runs on the GPU instead, through the plugin in a
 //! headless Bevy app (Mesa's lavapipe on a machine without a GPU): the mesh is a `StaticOccluder` in a
@@ -41,10 +46,13 @@ struct Args {
     gamma_sweep: bool,
     runs: usize,
     gpu: bool,
+    max_memory_mb: u64,
+    point_budget: u64,
 }
 
 const USAGE: &str = "usage: voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0] \
-[--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu]";
+[--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu] \
+[--max-memory-mb 4096] [--point-budget 268435456]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -55,6 +63,8 @@ fn parse_args() -> Result<Args, String> {
         target_bias: None,
         export: None,
         gamma_sweep: false,
+        max_memory_mb: 4096,
+        point_budget: 1 << 28,
         runs: 5,
         gpu: false,
     };
@@ -79,6 +89,12 @@ fn parse_args() -> Result<Args, String> {
             }
             "--export" => a.export = Some(value("--export")?),
             "--gamma-sweep" => a.gamma_sweep = true,
+            "--max-memory-mb" => {
+                a.max_memory_mb = value("--max-memory-mb")?.parse().map_err(|e| format!("bad --max-memory-mb: {e}"))?
+            }
+            "--point-budget" => {
+                a.point_budget = value("--point-budget")?.parse().map_err(|e| format!("bad --point-budget: {e}"))?
+            }
             "--gpu" => a.gpu = true,
             "--runs" => a.runs = value("--runs")?.parse::<usize>().map_err(|e| format!("bad --runs: {e}"))?.max(1),
             "-h" | "--help" => return Err(USAGE.into()),
@@ -91,6 +107,11 @@ fn parse_args() -> Result<Args, String> {
     }
     if !(a.gamma.is_finite() && a.gamma > 0.0) {
         return Err("--gamma must be positive".into());
+    }
+    let used = VoxelizeSettings { gamma: a.gamma, mode: a.mode }.effective_gamma();
+    if used != a.gamma {
+        eprintln!("warning: --gamma {} is out of range for {} mode; using {used}", a.gamma, a.mode);
+        a.gamma = used;
     }
     if a.gpu && (a.gamma_sweep || a.target_bias.is_some()) {
         return Err("--gamma-sweep and --target-bias run on the CPU reference; leave out --gpu".into());
@@ -188,6 +209,7 @@ fn main() {
     );
     println!("|---|---:|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|");
     let mut sweeps = Vec::new();
+    let (mut failures, mut voxelized) = (0usize, false);
     for input in &args.inputs {
         let loaded = match load_mesh(input) {
             Ok(l) => l,
@@ -214,6 +236,44 @@ fn main() {
                 }
             };
             let to_grid = grid.grid_from_world();
+            // Refuse before allocating: the grids this run keeps (ground truth, its cuts, a check, the result
+            // with point counts, the watertight test's flood fill) take about 8 bytes a voxel.
+            let need_mb = grid.voxel_count().saturating_mul(8) / (1 << 20);
+            if need_mb > args.max_memory_mb {
+                eprintln!(
+                    "error: {} at {res}: a {}x{}x{} grid needs about {need_mb} MB, over --max-memory-mb {}; skipped",
+                    loaded.name, grid.dims.x, grid.dims.y, grid.dims.z, args.max_memory_mb
+                );
+                failures += 1;
+                continue;
+            }
+            // The point budget, as the plugin has one: equation 1's subdivision of every triangle, counted
+            // before any is voxelized.
+            let mut points = 0u64;
+            for t in 0..mesh.triangle_count() {
+                if let Some(v) = mesh.triangle(t) {
+                    let v = v.map(|p| to_grid.transform_point3(p));
+                    // The largest gamma this run may use: a sweep goes to 8, equation 3's fit up to 16.
+                    let most = if args.target_bias.is_some() {
+                        16.0
+                    } else if args.gamma_sweep {
+                        args.gamma.max(8.0)
+                    } else {
+                        args.gamma
+                    };
+                    let gamma = VoxelizeSettings { gamma: most, mode: args.mode }.effective_gamma();
+                    let n = subdivision_count(&tessellation_factors(v[0], v[1], v[2], gamma)) as u64;
+                    points = points.saturating_add(n.saturating_mul(n));
+                }
+            }
+            if points > args.point_budget {
+                eprintln!(
+                    "error: {} at {res}: voxelizing needs up to {points} sub-triangles, over --point-budget {}; skipped",
+                    loaded.name, args.point_budget
+                );
+                failures += 1;
+                continue;
+            }
             eprintln!(
                 "{} at {res}: {} triangles, grid {}x{}x{}",
                 loaded.name, stats.triangles, grid.dims.x, grid.dims.y, grid.dims.z
@@ -294,6 +354,7 @@ fn main() {
                 (t, vstats.injected)
             };
             let cmp = compare(&result, &truth);
+            voxelized |= cmp.result_voxels > 0;
             let split = graze_split(&result, &truth, &cut);
             let wt = watertight(&result, &truth);
             let estimate =
@@ -370,5 +431,13 @@ fn main() {
                 if truth_voxels == 0 { 0.0 } else { 100.0 * grazed as f64 / truth_voxels as f64 }
             );
         }
+    }
+    if !voxelized {
+        eprintln!("error: nothing was voxelized");
+        std::process::exit(1);
+    }
+    if failures > 0 {
+        eprintln!("error: {failures} mesh/resolution run(s) were refused (see above)");
+        std::process::exit(1);
     }
 }

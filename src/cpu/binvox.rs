@@ -105,12 +105,14 @@ pub fn write_binvox(occ: &VoxelOccupancy, out: &mut impl Write) -> io::Result<()
     out.write_all(&bytes)
 }
 
-/// Reads a binvox file.
 /// Largest `dim` along an axis [`read_binvox`] accepts.
 pub const MAX_BINVOX_DIM: u32 = 4096;
 /// Most voxels [`read_binvox`] accepts (1 GiB of booleans).
 pub const MAX_BINVOX_VOXELS: u64 = 1 << 30;
 
+/// Reads a binvox file. The header is validated (whole dims from 1 to [`MAX_BINVOX_DIM`], at most
+/// [`MAX_BINVOX_VOXELS`], finite translate and positive scale) before anything is allocated, and the runs are
+/// stopped at the total the header declares.
 pub fn read_binvox(input: &mut impl BufRead) -> io::Result<Binvox> {
     let bad = |msg: String| io::Error::new(io::ErrorKind::InvalidData, msg);
     let mut line = String::new();
