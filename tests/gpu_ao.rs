@@ -641,3 +641,37 @@ fn a_building_in_a_one_kilometre_world_keeps_its_hao() {
     assert!(in_world <= alone * 1.1, "in the world {in_world} vs alone {alone}");
     assert!(fitted > in_world * 1.5, "a fitted grid ({fitted}) should lose the room's occlusion");
 }
+
+#[test]
+fn debug_views_and_hao_work_under_an_orthographic_projection() {
+    use bevy::camera::{OrthographicProjection, Projection, ScalingMode};
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(1.5, 6.0, 7.5).looking_at(Vec3::new(0.5, 0.5, 0.0), Vec3::Y);
+    let mut app = scene_app_in(camera, Ao::Hao(hao_settings()), false, small_cascades(), walls);
+    run(&mut app, 1);
+    let cam = app.world_mut().query_filtered::<Entity, With<TheCamera>>().single(app.world()).unwrap();
+    app.world_mut().entity_mut(cam).insert(Projection::Orthographic(OrthographicProjection {
+        scaling_mode: ScalingMode::FixedVertical { viewport_height: 12.0 },
+        ..OrthographicProjection::default_3d()
+    }));
+    run(&mut app, 6);
+    let pixels = |app: &mut App, view: HaoDebugView| -> Vec<[u8; 3]> {
+        app.world_mut().entity_mut(cam).insert(view);
+        run(app, 3);
+        let targets = app.world().resource::<Targets>().clone();
+        let (_, _, _, bytes) = read_image(app, targets.color, 2);
+        bytes.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect()
+    };
+    let final_image = pixels(&mut app, HaoDebugView::Final);
+    let ao = pixels(&mut app, HaoDebugView::AmbientOcclusion);
+    assert!(ao.iter().any(|p| p[0] < 230) && ao.iter().any(|p| p[0] > 250), "HAO shows occlusion and open floor");
+    // The voxel views march from the near plane along the view direction: boxes, not the shaded scene.
+    let voxels = pixels(&mut app, HaoDebugView::Voxels);
+    let pale = |p: &&[u8; 3]| p.iter().max().unwrap() - p.iter().min().unwrap() <= 30 && p[0] > 100;
+    assert!(voxels.iter().filter(pale).count() * 2 > voxels.len(), "the voxel view shows pale boxes");
+    assert_ne!(voxels, final_image);
+    let cascades = pixels(&mut app, HaoDebugView::Cascades);
+    let colored = cascades.iter().filter(|p| p.iter().max().unwrap() - p.iter().min().unwrap() > 40).count();
+    assert!(colored * 2 > cascades.len(), "the cascade view tints voxels ({colored} of {})", cascades.len());
+    assert!(take_render_errors().is_empty());
+}
