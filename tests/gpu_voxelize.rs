@@ -486,3 +486,47 @@ fn bad_component_values_are_replaced_or_refused_and_the_frames_go_on() {
     let (h, fixes) = HybridAmbientOcclusion { max_distance: f32::NAN, ..default() }.sanitized();
     assert_eq!((h.max_distance, fixes.len()), (3.0, 1));
 }
+
+#[test]
+fn a_weaker_device_gets_refusals_and_fallbacks_with_warnings_and_no_errors() {
+    use bevy::render::settings::WgpuLimits;
+    let _gpu = gpu_lock();
+    let app_with = |limits: WgpuLimits, volume: VoxelVolume| {
+        set_device_limits(Some(limits));
+        let mut app = headless_app(move |app| {
+            app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                commands.spawn(volume);
+                commands.spawn((Mesh3d(meshes.add(cube_mesh())), StaticOccluder));
+                commands.spawn((Camera3d::default(), HybridAmbientOcclusion::default()));
+            });
+        });
+        set_device_limits(None);
+        run(&mut app, 10);
+        app
+    };
+    // WebGPU's defaults, with the storage bindings Bevy's SSAO and the voxelizer need.
+    let base = WgpuLimits {
+        max_storage_buffers_per_shader_stage: 8,
+        max_storage_textures_per_shader_stage: 8,
+        ..WgpuLimits::default()
+    };
+    // A 3D texture limit below the grid (and above Bevy's own 3D textures): the grid is refused (voxel
+    // occlusion off), rendering goes on.
+    let app = app_with(
+        WgpuLimits { max_texture_dimension_3d: 64, ..base.clone() },
+        volume(4.0, 128, VoxelInjection::Centroid),
+    );
+    assert!(grid_assets(&app).is_none());
+    assert!(take_render_errors().is_empty());
+    // A storage binding too small for per-voxel point counts (1 MiB for 64^3), not for the bits: counts off.
+    let app = app_with(
+        WgpuLimits { max_storage_buffer_binding_size: 512 << 10, ..base },
+        VoxelVolume { point_counts: true, ..volume(4.0, 64, VoxelInjection::Centroid) },
+    );
+    let assets = grid_assets(&app).expect("the grid without counts");
+    assert!(assets.point_counts.is_none());
+    assert!(stats(&app).static_counters.injected > 0);
+    assert!(take_render_errors().is_empty());
+    // (Fewer than 8 storage buffers per stage, where the plugin disables its voxelizer with a warning, is
+    // not tested here: Bevy's own GPU preprocessing needs 8 and fails on such a device first.)
+}

@@ -53,6 +53,14 @@ static LOGGING: std::sync::Once = std::sync::Once::new();
 /// Where the app's `AssetServer` reads from (the folder of a model given by path), if not `assets/`.
 static ASSET_ROOT: Mutex<Option<String>> = Mutex::new(None);
 
+static LIMITS: Mutex<Option<bevy::render::settings::WgpuLimits>> = Mutex::new(None);
+
+/// Makes the next apps' device no more capable than `limits` (`None`: the adapter's own), to test how the
+/// plugin copes with a weaker device.
+pub fn set_device_limits(limits: Option<bevy::render::settings::WgpuLimits>) {
+    *LIMITS.lock().unwrap_or_else(|e| e.into_inner()) = limits;
+}
+
 /// Makes the next apps' `AssetServer` read from `dir` (for a model's textures and glTF scenes).
 pub fn set_asset_root(dir: Option<String>) {
     *ASSET_ROOT.lock().unwrap() = dir;
@@ -77,6 +85,7 @@ fn plugins() -> PluginGroupBuilder {
         .set(RenderPlugin {
             render_creation: RenderCreation::Automatic(Box::new(WgpuSettings {
                 backends: Some(Backends::VULKAN),
+                constrained_limits: LIMITS.lock().unwrap_or_else(|e| e.into_inner()).clone(),
                 ..default()
             })),
             synchronous_pipeline_compilation: true,

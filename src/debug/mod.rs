@@ -173,7 +173,7 @@ fn prepare_debug_views(
     device: Res<RenderDevice>,
     cache: Res<PipelineCache>,
     mut pipelines: ResMut<DebugViewPipelines>,
-    grid: Res<ExtractedVoxelGrid>,
+    grid: Option<Res<ExtractedVoxelGrid>>,
     views: Query<(Entity, &HaoDebugView, &ViewTarget, Has<ScreenSpaceAmbientOcclusionResources>)>,
 ) {
     for (entity, view, target, has_ao) in &views {
@@ -196,7 +196,7 @@ fn prepare_debug_views(
                 ..default()
             })
         });
-        let g = grid.assets.as_ref();
+        let g = grid.as_ref().and_then(|g| g.assets.as_ref());
         let settings = GpuDebugSettings {
             mode: view.mode(),
             has_counts: g.is_some_and(|g| g.point_counts.is_some()) as u32,
@@ -222,7 +222,7 @@ fn debug_view(
     )>,
     pipelines: Res<DebugViewPipelines>,
     cache: Res<PipelineCache>,
-    grid: Res<ExtractedVoxelGrid>,
+    grid: Option<Res<ExtractedVoxelGrid>>,
     voxel_grid: Option<Res<VoxelGridBindings>>,
     buffers: Res<RenderAssets<GpuShaderBuffer>>,
     view_uniforms: Res<ViewUniforms>,
@@ -235,7 +235,7 @@ fn debug_view(
         return;
     };
     let Some(voxel_grid) = voxel_grid else { return };
-    let g = grid.assets.as_ref();
+    let g = grid.as_ref().and_then(|g| g.assets.as_ref());
     let buffer = |h: Option<&Handle<bevy::render::storage::ShaderBuffer>>| {
         h.and_then(|h| buffers.get(h)).map(|b| b.buffer.clone())
     };

@@ -105,6 +105,7 @@ impl Plugin for VoxelizationPlugin {
             let mut settings = render_app.world_mut().resource_mut::<MeshAllocatorSettings>();
             settings.extra_buffer_usages |= BufferUsages::STORAGE;
             let s = &mut settings.slab_allocator_settings;
+            s.min_slab_size = s.min_slab_size.min(max_binding);
             s.max_slab_size = s.max_slab_size.min(max_binding);
             s.large_threshold = s.large_threshold.min(max_binding);
         }
