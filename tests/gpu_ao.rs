@@ -158,6 +158,15 @@ fn ao_at(app: &mut App, ao: &(u32, u32, Vec<f32>), world: Vec3, radius: i32) -> 
     sum / n
 }
 
+/// The camera's image with a debug view on, as RGB.
+fn view_pixels(app: &mut App, cam: Entity, view: HaoDebugView) -> Vec<[u8; 3]> {
+    app.world_mut().entity_mut(cam).insert(view);
+    run(app, 3);
+    let targets = app.world().resource::<Targets>().clone();
+    let (_, _, _, bytes) = read_image(app, targets.color, 2);
+    bytes.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect()
+}
+
 fn assert_valid(ao: &(u32, u32, Vec<f32>)) {
     for v in &ao.2 {
         assert!(v.is_finite() && (0.0..=1.0).contains(v), "AO value {v} out of [0, 1]");
@@ -495,13 +504,7 @@ fn debug_views_show_ao_voxels_point_counts_and_the_static_dynamic_split() {
     });
     run(&mut app, 6);
     let cam = app.world_mut().query_filtered::<Entity, With<TheCamera>>().single(app.world()).unwrap();
-    let pixels = |app: &mut App, view: HaoDebugView| -> Vec<[u8; 3]> {
-        app.world_mut().entity_mut(cam).insert(view);
-        run(app, 3);
-        let targets = app.world().resource::<Targets>().clone();
-        let (_, _, _, bytes) = read_image(app, targets.color, 2);
-        bytes.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect()
-    };
+    let pixels = |app: &mut App, view: HaoDebugView| view_pixels(app, cam, view);
     let gray = |p: &[u8; 3]| p[0].abs_diff(p[1]) <= 2 && p[1].abs_diff(p[2]) <= 2;
     let final_image = pixels(&mut app, HaoDebugView::Final);
     let ao = pixels(&mut app, HaoDebugView::AmbientOcclusion);
@@ -655,13 +658,7 @@ fn debug_views_and_hao_work_under_an_orthographic_projection() {
         ..OrthographicProjection::default_3d()
     }));
     run(&mut app, 6);
-    let pixels = |app: &mut App, view: HaoDebugView| -> Vec<[u8; 3]> {
-        app.world_mut().entity_mut(cam).insert(view);
-        run(app, 3);
-        let targets = app.world().resource::<Targets>().clone();
-        let (_, _, _, bytes) = read_image(app, targets.color, 2);
-        bytes.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect()
-    };
+    let pixels = |app: &mut App, view: HaoDebugView| view_pixels(app, cam, view);
     let final_image = pixels(&mut app, HaoDebugView::Final);
     let ao = pixels(&mut app, HaoDebugView::AmbientOcclusion);
     assert!(ao.iter().any(|p| p[0] < 230) && ao.iter().any(|p| p[0] > 250), "HAO shows occlusion and open floor");

@@ -114,21 +114,8 @@ impl VoxelMips {
     }
 
     /// The distance along `dir` (grid units, from `origin`) to the first occupied cell within
-    /// `[t_start, t_end]`, or `None`: start at level `start_level`, step over empty texels whole, descend
-    /// into occupied ones, visiting at most `steps` texels.
-    pub fn march_voxels(
-        &self,
-        origin: Vec3,
-        dir: Vec3,
-        t_start: f32,
-        t_end: f32,
-        start_level: usize,
-        steps: u32,
-    ) -> Option<f32> {
-        self.march_level(origin, dir, t_start, t_end, start_level, steps).hit
-    }
-
-    /// [`Self::march_voxels`], also telling how many texel visits were left (WGSL: `march_level`).
+    /// `[t_start, t_end]`, if any, and how many texel visits were left: start at mip `start_level`, step over
+    /// empty texels whole, descend into occupied ones, visiting at most `steps` texels (WGSL: `march_level`).
     pub fn march_level(
         &self,
         origin: Vec3,
@@ -349,16 +336,16 @@ mod tests {
             }
         }
         let mips = VoxelMips::new(&occ, 4);
-        let t = mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 2, 64).unwrap();
+        let t = mips.march_level(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 2, 64).hit.unwrap();
         assert!((t - 27.5).abs() < 0.01, "{t}");
         // Empty space is crossed in few steps: 27 cells with 12 texel visits at most.
-        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 2, 12).is_some());
+        assert!(mips.march_level(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 100.0, 2, 12).hit.is_some());
         // Away from the wall, nothing; beyond t_end, nothing.
-        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), -Vec3::X, 0.0, 100.0, 2, 64).is_none());
-        assert!(mips.march_voxels(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 20.0, 2, 64).is_none());
+        assert!(mips.march_level(Vec3::new(2.5, 10.5, 10.5), -Vec3::X, 0.0, 100.0, 2, 64).hit.is_none());
+        assert!(mips.march_level(Vec3::new(2.5, 10.5, 10.5), Vec3::X, 0.0, 20.0, 2, 64).hit.is_none());
         // A diagonal ray hits too.
         let d = Vec3::new(1.0, 0.3, -0.2).normalize();
-        let t = mips.march_voxels(Vec3::new(2.5, 5.5, 12.5), d, 0.0, 100.0, 2, 64).unwrap();
+        let t = mips.march_level(Vec3::new(2.5, 5.5, 12.5), d, 0.0, 100.0, 2, 64).hit.unwrap();
         assert!(((Vec3::new(2.5, 5.5, 12.5) + d * t).x - 30.0).abs() < 0.01);
         // An open floor sees no occlusion; facing the wall from close by does.
         let s =

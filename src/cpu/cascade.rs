@@ -135,12 +135,12 @@ impl CascadeLevel {
 
     /// The whole window as an injection region (half-open cells, no closed faces).
     pub fn region(&self) -> InjectionRegion {
-        self.region_of(self.window_min, self.window_max())
-    }
-
-    /// A box of the window as an injection region.
-    pub fn region_of(&self, min: IVec3, max: IVec3) -> InjectionRegion {
-        InjectionRegion { min, max, window_min: self.window_min, closed_max: IVec3::MAX }
+        InjectionRegion {
+            min: self.window_min,
+            max: self.window_max(),
+            window_min: self.window_min,
+            closed_max: IVec3::MAX,
+        }
     }
 
     /// World space to this level's lattice (anchored at the world origin, cells of side 1).
@@ -151,22 +151,6 @@ impl CascadeLevel {
     /// The window as a plain grid (origin at its min corner), e.g. for an occupancy stored relative to it.
     pub fn window_grid(&self) -> Result<VoxelGrid, GridError> {
         VoxelGrid::new(self.window_min.as_vec3() * self.cell_size, self.cell_size, UVec3::splat(self.cells))
-    }
-
-    /// The lattice cells a world-space box touches, padded by one cell and clipped to the window; `None` if
-    /// it misses the window.
-    pub fn cells_of_box(&self, min: Vec3, max: Vec3) -> Option<(IVec3, IVec3)> {
-        let g = self.grid_from_world();
-        let lo = g.transform_point3(min).floor() - Vec3::ONE;
-        let hi = g.transform_point3(max).ceil() + Vec3::ONE;
-        if !(lo.is_finite() && hi.is_finite()) {
-            return Some((self.window_min, self.window_max()));
-        }
-        let w0 = self.window_min.as_vec3();
-        let w1 = self.window_max().as_vec3();
-        let lo = lo.clamp(w0, w1).as_ivec3();
-        let hi = hi.clamp(w0, w1).as_ivec3();
-        lo.cmplt(hi).all().then_some((lo, hi))
     }
 }
 
