@@ -96,6 +96,10 @@ pub const BIG_TRIANGLE_BYTES: u64 = 64;
 /// Invocations per classify and expand workgroup.
 pub const VOXELIZE_WORKGROUP: u32 = 64;
 
+/// Storage buffers per shader stage the classify pass needs to read its settings from storage buffers rather
+/// than uniforms (see [`VoxelizePipelines::params_in_storage`]).
+pub const PARAMS_IN_STORAGE_BUFFERS: u32 = 10;
+
 /// The voxelization pipelines, layouts and the small buffers they share.
 #[derive(Resource)]
 pub struct VoxelizePipelines {
@@ -125,6 +129,9 @@ pub struct VoxelizePipelines {
     pub mip: CachedComputePipelineId,
     /// The voxel texture's format.
     pub texture_format: TextureFormat,
+    /// Whether the passes read `SlabGroup` and `VoxelizeParams` from storage buffers (WGSL
+    /// `VOXELIZE_PARAMS_IN_STORAGE`), not uniforms: wherever the device has [`PARAMS_IN_STORAGE_BUFFERS`].
+    pub params_in_storage: bool,
     /// A 16-byte storage buffer bound (read only) where a mesh has no index slab.
     pub dummy: Buffer,
     /// A 16-byte storage buffer bound (read-write) where point counts are off: not `dummy`, since one
@@ -148,6 +155,20 @@ impl FromWorld for VoxelizePipelines {
             usage: BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
+        // The per-dispatch settings (`SlabGroup`, `VoxelizeParams`) are read from storage buffers where the
+        // device has the bindings to spare, else from uniform buffers. Mesa's lavapipe (seen with 22.3.6)
+        // compiles a new variant of a compute shader for each new set of uniform values that steer its
+        // control flow, and keeps every variant: with uniforms, a moving occluder cost it about 2 MB of
+        // process memory per frame (and a shader compile per dispatch). Storage buffers are not inlined.
+        let params_in_storage =
+            world.resource::<RenderDevice>().limits().max_storage_buffers_per_shader_stage >= PARAMS_IN_STORAGE_BUFFERS;
+        let params_binding = || {
+            if params_in_storage {
+                storage_buffer_read_only_sized(false, None)
+            } else {
+                uniform_buffer_sized(false, None)
+            }
+        };
         let slab_layout = BindGroupLayoutDescriptor::new(
             "hao_voxelize_slab_layout",
             &BindGroupLayoutEntries::sequential(
@@ -156,7 +177,7 @@ impl FromWorld for VoxelizePipelines {
                     storage_buffer_read_only_sized(false, None),
                     storage_buffer_read_only_sized(false, None),
                     storage_buffer_read_only_sized(false, None),
-                    uniform_buffer_sized(false, None),
+                    params_binding(),
                 ),
             ),
         );
@@ -165,7 +186,7 @@ impl FromWorld for VoxelizePipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    uniform_buffer_sized(false, None),
+                    params_binding(),
                     storage_buffer_sized(false, None),
                     storage_buffer_sized(false, None),
                     storage_buffer_sized(false, None),
@@ -201,6 +222,8 @@ impl FromWorld for VoxelizePipelines {
                 ),
             ),
         );
+        let pass_defs: Vec<ShaderDefVal> =
+            if params_in_storage { vec!["VOXELIZE_PARAMS_IN_STORAGE".into()] } else { vec![] };
         let texture_defs: Vec<ShaderDefVal> =
             if texture_format == TextureFormat::R8Unorm { vec!["VOXEL_TEXTURE_R8".into()] } else { vec![] };
         let pipeline_cache = world.resource::<PipelineCache>();
@@ -211,28 +234,28 @@ impl FromWorld for VoxelizePipelines {
             vec![slab_layout.clone(), pass_layout.clone()],
             load_embedded_asset!(world, "voxelize_classify.wgsl"),
             "classify",
-            vec![],
+            pass_defs.clone(),
         );
         let scan = queue(
             "hao_voxelize_scan",
             vec![empty_layout.clone(), pass_layout.clone(), dispatch_layout.clone()],
             load_embedded_asset!(world, "voxelize_scan.wgsl"),
             "scan",
-            vec![],
+            pass_defs.clone(),
         );
         let expand = queue(
             "hao_voxelize_expand",
             vec![empty_layout.clone(), pass_layout.clone()],
             load_embedded_asset!(world, "voxelize_expand.wgsl"),
             "expand",
-            vec![],
+            pass_defs.clone(),
         );
         let clear = queue(
             "hao_voxel_clear",
             vec![empty_layout.clone(), pass_layout.clone()],
             load_embedded_asset!(world, "voxel_clear.wgsl"),
             "clear_region",
-            vec![],
+            pass_defs.clone(),
         );
         let resolve = queue(
             "hao_voxel_resolve",
@@ -262,6 +285,7 @@ impl FromWorld for VoxelizePipelines {
             resolve,
             mip,
             texture_format,
+            params_in_storage,
             dummy,
             dummy_counts,
         }

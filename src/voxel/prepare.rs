@@ -380,6 +380,16 @@ fn uniform<T: bytemuck::Pod>(device: &RenderDevice, label: &'static str, value: 
     })
 }
 
+/// A buffer of per-dispatch settings, bound as a uniform or a read-only storage buffer as the pipelines
+/// chose (see `VoxelizePipelines::params_in_storage`).
+fn settings_buffer<T: bytemuck::Pod>(device: &RenderDevice, label: &'static str, value: &T) -> Buffer {
+    device.create_buffer_with_data(&BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::bytes_of(value),
+        usage: BufferUsages::UNIFORM | BufferUsages::STORAGE,
+    })
+}
+
 /// Workgroups (x, y) covering `count` invocations of `size`, with x at most 65535.
 pub fn workgroups_2d(count: u64, size: u32) -> (u32, u32) {
     let groups = count.div_ceil(size as u64).max(1);
@@ -435,7 +445,7 @@ fn build_slab_dispatches(
                 triangle_count: tris,
                 _pad: 0,
             };
-            let params = uniform(device, "hao_voxelize_slab_group", &params);
+            let params = settings_buffer(device, "hao_voxelize_slab_group", &params);
             let first = &instances[s];
             let index = first.index_buffer.as_ref().unwrap_or(&pipelines.dummy);
             let bind_group = device.create_bind_group(
@@ -797,7 +807,7 @@ pub fn prepare_voxelize(
             dims: level.dims.to_array(),
             voxel_base: level.voxel_base,
         };
-        let params = uniform(&device, "hao_voxelize_params", &params);
+        let params = settings_buffer(&device, "hao_voxelize_params", &params);
         let (occ, cnt) = if is_static {
             (&static_occupancy.buffer, counts.as_ref().map(|c| &c.0))
         } else {

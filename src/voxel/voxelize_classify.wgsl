@@ -39,7 +39,12 @@ struct SlabGroup {
 @group(0) @binding(0) var<storage, read> instances: array<OccluderInstance>;
 @group(0) @binding(1) var<storage, read> vertices: array<u32>;
 @group(0) @binding(2) var<storage, read> indices: array<u32>;
+// In a storage buffer where the device allows (src/voxel/pipelines.rs: `params_in_storage`).
+#ifdef VOXELIZE_PARAMS_IN_STORAGE
+@group(0) @binding(3) var<storage, read> slab_group: SlabGroup;
+#else
 @group(0) @binding(3) var<uniform> slab_group: SlabGroup;
+#endif
 
 
 const INDEX_NONE: u32 = 0u;

@@ -10,7 +10,13 @@
     COUNTER_SUB_TRIANGLES, COUNTER_INJECTED, COUNTER_OVERLAP_TESTS, COUNTER_COUNT,
 }
 
+// In a storage buffer where the device allows (src/voxel/pipelines.rs: `params_in_storage`): lavapipe
+// compiles and keeps a shader variant per set of uniform values, a leak when they change every frame.
+#ifdef VOXELIZE_PARAMS_IN_STORAGE
+@group(1) @binding(0) var<storage, read> params: VoxelizeParams;
+#else
 @group(1) @binding(0) var<uniform> params: VoxelizeParams;
+#endif
 @group(1) @binding(1) var<storage, read_write> occupancy: array<atomic<u32>>;
 @group(1) @binding(2) var<storage, read_write> point_counts: array<atomic<u32>>;
 @group(1) @binding(3) var<storage, read_write> big_triangles: array<BigTriangle>;
