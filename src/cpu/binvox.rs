@@ -168,8 +168,9 @@ pub fn read_binvox(input: &mut impl BufRead) -> io::Result<Binvox> {
         return Err(bad(format!("binvox dim {dim} holds {total} voxels, over the limit of {MAX_BINVOX_VOXELS}")));
     }
     let total = total as usize;
-    // The runs are read as they come and stopped at the declared total, so memory never exceeds it.
-    let mut voxels = Vec::with_capacity(total);
+    // The runs are read as they come and stopped at the declared total, so memory never exceeds it; nothing
+    // is reserved up front beyond a megabyte (a 30-byte header may declare a gigabyte it does not hold).
+    let mut voxels = Vec::with_capacity(total.min(1 << 20));
     let mut pair = [0u8; 2];
     loop {
         match input.read_exact(&mut pair) {

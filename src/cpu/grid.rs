@@ -73,8 +73,11 @@ impl VoxelGrid {
         if count > u32::MAX as u128 {
             return Err(GridError::TooManyVoxels(count.min(u64::MAX as u128) as u64));
         }
-        if !(origin + dims.as_vec3() * cell_size).is_finite() {
-            return Err(GridError::BadBounds { min: origin, max: origin + dims.as_vec3() * cell_size });
+        // The corners in world space and in grid space (world / cell size) must be finite.
+        let max = origin + dims.as_vec3() * cell_size;
+        let inv = 1.0 / cell_size;
+        if !(max.is_finite() && (origin * inv).is_finite() && (max * inv).is_finite()) {
+            return Err(GridError::BadBounds { min: origin, max });
         }
         Ok(Self { origin, cell_size, dims })
     }

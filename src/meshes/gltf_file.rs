@@ -29,11 +29,45 @@ fn buffer_file(dir: &Path, uri: &str) -> Result<std::path::PathBuf, String> {
     Ok(dir.join(rel))
 }
 
+/// Parses and validates a glTF document. The `gltf` crate's own validation reads a primitive's POSITION
+/// accessor by an unchecked index (a panic on a file naming an accessor that does not exist), so every
+/// attribute index is checked before it runs.
+fn parse_document(bytes: &[u8]) -> Result<gltf::Gltf, String> {
+    use gltf::json::validation::Validate;
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| e.to_string())?;
+    let root = gltf.document.as_json();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.values().find(|i| i.value() >= root.accessors.len()) {
+                return Err(format!(
+                    "mesh {m}, primitive {p} names accessor {} of {}",
+                    index.value(),
+                    root.accessors.len()
+                ));
+            }
+        }
+    }
+    let mut errors = Vec::new();
+    root.validate(root, gltf::json::Path::new, &mut |path, error| errors.push(format!("{}: {error}", path())));
+    if let Some(first) = errors.first() {
+        return Err(format!("invalid glTF ({} errors; the first: {first})", errors.len()));
+    }
+    Ok(gltf)
+}
+
 /// Reads a glTF or GLB file. Returns the mesh and any warnings.
 pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
     let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
-    let dir = path.parent().unwrap_or(Path::new("."));
+    read_gltf(&bytes, path.parent().unwrap_or(Path::new("."))).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Reads a glTF or GLB file from its bytes; external buffers are looked up in `dir` (and nowhere else).
+/// Returns the mesh and any warnings.
+pub fn read_gltf(bytes: &[u8], dir: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
+    let gltf = parse_document(bytes)?;
+    // The bytes every accessor must fit in: no accessor (sparse ones included) may declare more data than
+    // the file's buffers hold, so that a count in a tiny file cannot make a huge allocation.
+    let mut buffer_bytes = 0u64;
     let mut buffers = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
@@ -42,7 +76,7 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
                 if let Some(rest) = uri.strip_prefix("data:") {
                     let (_, b64) = rest
                         .split_once(";base64,")
-                        .ok_or_else(|| format!("unsupported data URI in {}", path.display()))?;
+                        .ok_or_else(|| "unsupported data URI (base64 expected)".to_string())?;
                     base64::engine::general_purpose::STANDARD
                         .decode(b64)
                         .map_err(|e| format!("bad base64 buffer: {e}"))?
@@ -59,6 +93,7 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
                 }
             }
         };
+        buffer_bytes += data.len() as u64;
         buffers.push(data);
     }
     let mut mesh = TriangleMesh::default();
@@ -83,10 +118,7 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
         }
         instances += 1;
         if instances > MAX_NODE_INSTANCES {
-            return Err(format!(
-                "{}: the scene expands to more than {MAX_NODE_INSTANCES} node instances",
-                path.display()
-            ));
+            return Err(format!("the scene expands to more than {MAX_NODE_INSTANCES} node instances"));
         }
         let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
         let world = parent * local;
@@ -95,8 +127,20 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
                 let too_big = prim.attributes().map(|(_, a)| a.count()).chain(prim.indices().map(|a| a.count()));
                 if let Some(count) = too_big.into_iter().find(|&c| c > MAX_ACCESSOR_COUNT) {
                     return Err(format!(
-                        "{}: mesh {:?} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
-                        path.display(),
+                        "mesh {:?} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
+                        m.name()
+                    ));
+                }
+                let declared = prim
+                    .attributes()
+                    .map(|(_, a)| a)
+                    .chain(prim.indices())
+                    .map(|a| a.count() as u64 * a.size() as u64)
+                    .max()
+                    .unwrap_or(0);
+                if declared > buffer_bytes {
+                    return Err(format!(
+                        "mesh {:?} has an accessor of {declared} bytes, but the file's buffers hold only {buffer_bytes}",
                         m.name()
                     ));
                 }
@@ -192,10 +236,9 @@ mod tests {
             let e = load(&document(Some(uri), r#"[{"mesh":0}]"#, "[0]", 3), &format!("uri{k}")).unwrap_err();
             assert!(e.contains("outside"), "{uri}: {e}");
         }
-        // An accessor that claims more than its buffer holds: a clear warning; an absurd count: an error.
-        let (m, w) = load(&document(None, r#"[{"mesh":0}]"#, "[0]", 30), "short").unwrap();
-        assert_eq!(m.triangle_count(), 0);
-        assert!(w.iter().any(|w| w.contains("does not fit")), "{w:?}");
+        // An accessor that claims more than the file's buffers hold, or an absurd count: an error that says so.
+        let e = load(&document(None, r#"[{"mesh":0}]"#, "[0]", 30), "short").unwrap_err();
+        assert!(e.contains("buffers hold only 36"), "{e}");
         assert!(load(&document(None, r#"[{"mesh":0}]"#, "[0]", 2_000_000_000), "huge").is_err());
     }
 }
