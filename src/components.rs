@@ -8,12 +8,17 @@ use bevy::prelude::*;
 /// volume changed). A static occluder that moves is still handled correctly (the static grid is rebuilt on
 /// the frames it moves) but costs a rebuild each time, and the plugin warns once per entity: mark things
 /// that move with [`DynamicOccluder`].
+///
+/// On a skinned mesh (`SkinnedMesh`, dynamic by default) it voxelizes the mesh in the pose it has whenever
+/// its part of the static grid is built, and not again while that part stands: for a character posed once
+/// and left, not for one that is animated.
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct StaticOccluder;
 
 /// Marks a mesh entity as dynamic occluding geometry: it is voxelized every frame on top of a copy of the
-/// static grid, so its occlusion follows it frame by frame.
+/// static grid, so its occlusion follows it frame by frame. Skinned meshes (`SkinnedMesh`) are dynamic
+/// without it, and are voxelized in the pose Bevy draws them each frame.
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct DynamicOccluder;

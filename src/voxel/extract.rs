@@ -7,7 +7,9 @@
 use super::assets::{VoxelGridAssets, VoxelVolumeFocus, occluder_is_dynamic, world_aabb};
 use crate::components::*;
 use bevy::camera::primitives::Aabb;
+use bevy::camera::visibility::DynamicSkinnedMeshBounds;
 use bevy::math::Affine3A;
+use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::SkinnedMesh;
 use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
@@ -35,6 +37,9 @@ pub struct ExtractedOccluder {
     pub world_bounds: Option<(Vec3, Vec3)>,
     /// Marked [`StaticOccluder`] (as opposed to static by default).
     pub marked_static: bool,
+    /// For a skinned mesh ([`SkinnedMesh`]), the number of joints of its skin. Its vertices are skinned to
+    /// world space by Bevy's joint matrices, so `world_from_local` is not applied to them.
+    pub skin_joints: Option<u32>,
 }
 
 /// This frame's occluders, split into static and dynamic.
@@ -90,39 +95,43 @@ pub fn extract_voxel_occluders(
                 Has<StaticOccluder>,
                 Has<DynamicOccluder>,
                 Has<PromotedToDynamic>,
-                Has<SkinnedMesh>,
+                Option<&SkinnedMesh>,
+                Has<DynamicSkinnedMeshBounds>,
             ),
             Without<NoVoxelOcclusion>,
         >,
     >,
     requests: Extract<Res<StaticRebuildRequests>>,
-    mut warned_skinned: Local<HashSet<Entity>>,
+    meshes: Extract<Res<Assets<Mesh>>>,
+    mut checked: Local<HashSet<(AssetId<Mesh>, Option<u32>)>>,
 ) {
     extracted.statics.clear();
     extracted.dynamics.clear();
     extracted.rebuild_requests = requests.0;
-    for (entity, mesh, transform, aabb, visible, s, d, p, skinned) in &occluders {
+    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds) in &occluders {
         if !visible.get() {
             continue;
         }
-        if skinned {
-            // Bevy skins meshes in the vertex shader: the slabs hold the bind pose, which would be voxelized
-            // in the wrong place.
-            if warned_skinned.insert(entity) {
-                warn!(
-                    "bevy_hao: {entity} is a skinned mesh; skinned meshes are not voxelized yet (add NoVoxelOcclusion to silence this)"
-                );
-            }
-            continue;
+        let skin_joints = skin.map(|k| k.joints.len() as u32);
+        if checked.insert((mesh.id(), skin_joints))
+            && let Some(m) = meshes.get(mesh)
+        {
+            check_skin_data(entity, m, skin_joints);
         }
+        // A skinned mesh's `Aabb` follows its pose only with `DynamicSkinnedMeshBounds` (which Bevy's glTF
+        // loader adds); otherwise it is the bind pose's, and the whole cascade is treated as touched.
+        let bounds_valid = skin_joints.is_none() || dynamic_bounds;
         let occluder = ExtractedOccluder {
             entity,
             mesh: mesh.id(),
             world_from_local: transform.affine(),
-            world_bounds: aabb.map(|a| world_aabb(a, transform)),
+            world_bounds: aabb.filter(|_| bounds_valid).map(|a| world_aabb(a, transform)),
             marked_static: s,
+            skin_joints,
         };
-        if occluder_is_dynamic(s, d, p) {
+        // Skinned meshes move by themselves: dynamic unless marked static (then voxelized in the pose they
+        // have when the static voxels are built).
+        if occluder_is_dynamic(s, d || skin_joints.is_some(), p) {
             extracted.dynamics.push(occluder);
         } else {
             extracted.statics.push(occluder);
@@ -130,4 +139,44 @@ pub fn extract_voxel_occluders(
     }
     // A stable order, so that the static set's fingerprint does not depend on query order.
     extracted.statics.sort_by_key(|o| o.entity);
+}
+
+/// Warns (once per mesh and skin) about skin data that will not voxelize as the user may expect: joints
+/// without a [`SkinnedMesh`] (voxelized unskinned), a skin on a mesh without joint data (drawn and
+/// voxelized in the bind pose), joint indices past the skin (those triangles are skipped), and weights
+/// that do not sum to one (used as given, as Bevy's shader does).
+fn check_skin_data(entity: Entity, mesh: &Mesh, skin_joints: Option<u32>) {
+    let joints = mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX);
+    let weights = mesh.attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT);
+    let Some(joint_count) = skin_joints else {
+        if joints.is_some() {
+            warn!(
+                "bevy_hao: {entity} has joint indices but no SkinnedMesh: it is voxelized unskinned, in its bind pose \
+                 (and Bevy 0.19 cannot draw it with a material)"
+            );
+        }
+        return;
+    };
+    let (Some(VertexAttributeValues::Uint16x4(joints)), Some(VertexAttributeValues::Float32x4(weights))) =
+        (joints, weights)
+    else {
+        warn!(
+            "bevy_hao: {entity} has a SkinnedMesh but its mesh lacks Uint16x4 joint indices or Float32x4 joint \
+             weights: it is voxelized unskinned, in its bind pose"
+        );
+        return;
+    };
+    let skin = crate::cpu::VertexSkin { joints: joints.clone(), weights: weights.clone() };
+    if let Some(max) = crate::cpu::skinning::max_joint_index(&skin).filter(|m| *m as u32 >= joint_count) {
+        warn!(
+            "bevy_hao: {entity}'s mesh names joint {max} but its skin has {joint_count} joints; the triangles of \
+             those vertices are not voxelized"
+        );
+    }
+    if !crate::cpu::skinning::weights_are_normalized(&skin, 1e-3) {
+        warn!(
+            "bevy_hao: {entity}'s joint weights do not all sum to 1; they are used as given, as Bevy draws them \
+             (the glTF loader normalizes them)"
+        );
+    }
 }

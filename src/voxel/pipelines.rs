@@ -33,7 +33,18 @@ pub struct GpuOccluderInstance {
     pub triangle_count: u32,
     /// Index of the instance's first triangle within its dispatch.
     pub first_triangle: u32,
+    /// First joint of the instance's skin in Bevy's joint matrices ([`NO_SKIN`]: not skinned).
+    pub skin_index: u32,
+    /// Joints of the skin (a vertex naming another is invalid).
+    pub joint_count: u32,
+    /// Offset of the joint indices (`Uint16x4`) in a vertex, in words.
+    pub joint_offset: u32,
+    /// Offset of the joint weights (`Float32x4`) in a vertex, in words.
+    pub weight_offset: u32,
 }
+
+/// [`GpuOccluderInstance::skin_index`] of an instance that is not skinned (WGSL `NO_SKIN`).
+pub const NO_SKIN: u32 = u32::MAX;
 
 /// The instances of one classify dispatch (WGSL `SlabGroup`).
 #[repr(C)]
@@ -99,6 +110,9 @@ pub const VOXELIZE_WORKGROUP: u32 = 64;
 /// Storage buffers per shader stage the classify pass needs to read its settings from storage buffers rather
 /// than uniforms (see [`VoxelizePipelines::params_in_storage`]).
 pub const PARAMS_IN_STORAGE_BUFFERS: u32 = 10;
+/// Storage buffers per shader stage the classify pass needs to skin meshes (its settings in storage, and
+/// Bevy's joint matrices); see [`VoxelizePipelines::skinning`].
+pub const SKINNING_STORAGE_BUFFERS: u32 = 11;
 
 /// The voxelization pipelines, layouts and the small buffers they share.
 #[derive(Resource)]
@@ -132,7 +146,12 @@ pub struct VoxelizePipelines {
     /// Whether the passes read `SlabGroup` and `VoxelizeParams` from storage buffers (WGSL
     /// `VOXELIZE_PARAMS_IN_STORAGE`), not uniforms: wherever the device has [`PARAMS_IN_STORAGE_BUFFERS`].
     pub params_in_storage: bool,
-    /// A 16-byte storage buffer bound (read only) where a mesh has no index slab.
+    /// Whether classify skins skinned meshes (WGSL `VOXELIZE_SKINNING`, group 0 binding 4: Bevy's joint
+    /// matrices): wherever the device has [`SKINNING_STORAGE_BUFFERS`]. Elsewhere skinned meshes are skipped
+    /// with a warning.
+    pub skinning: bool,
+    /// A 64-byte storage buffer bound (read only) where a mesh has no index slab, and as the joint matrices
+    /// (one matrix) where Bevy has none.
     pub dummy: Buffer,
     /// A 16-byte storage buffer bound (read-write) where point counts are off: not `dummy`, since one
     /// buffer may not be bound both ways in one dispatch.
@@ -145,7 +164,7 @@ impl FromWorld for VoxelizePipelines {
         let device = world.resource::<RenderDevice>();
         let dummy = device.create_buffer(&BufferDescriptor {
             label: Some("hao_dummy_storage"),
-            size: 16,
+            size: 64,
             usage: BufferUsages::STORAGE,
             mapped_at_creation: false,
         });
@@ -160,8 +179,9 @@ impl FromWorld for VoxelizePipelines {
         // compiles a new variant of a compute shader for each new set of uniform values that steer its
         // control flow, and keeps every variant: with uniforms, a moving occluder cost it about 2 MB of
         // process memory per frame (and a shader compile per dispatch). Storage buffers are not inlined.
-        let params_in_storage =
-            world.resource::<RenderDevice>().limits().max_storage_buffers_per_shader_stage >= PARAMS_IN_STORAGE_BUFFERS;
+        let storage_buffers = world.resource::<RenderDevice>().limits().max_storage_buffers_per_shader_stage;
+        let params_in_storage = storage_buffers >= PARAMS_IN_STORAGE_BUFFERS;
+        let skinning = storage_buffers >= SKINNING_STORAGE_BUFFERS;
         let params_binding = || {
             if params_in_storage {
                 storage_buffer_read_only_sized(false, None)
@@ -169,18 +189,27 @@ impl FromWorld for VoxelizePipelines {
                 uniform_buffer_sized(false, None)
             }
         };
-        let slab_layout = BindGroupLayoutDescriptor::new(
-            "hao_voxelize_slab_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    storage_buffer_read_only_sized(false, None),
-                    storage_buffer_read_only_sized(false, None),
-                    storage_buffer_read_only_sized(false, None),
-                    params_binding(),
-                ),
-            ),
+        let slab_entries = (
+            storage_buffer_read_only_sized(false, None),
+            storage_buffer_read_only_sized(false, None),
+            storage_buffer_read_only_sized(false, None),
+            params_binding(),
         );
+        let slab_layout = if skinning {
+            let (a, b, c, d) = slab_entries;
+            BindGroupLayoutDescriptor::new(
+                "hao_voxelize_slab_layout",
+                &BindGroupLayoutEntries::sequential(
+                    ShaderStages::COMPUTE,
+                    (a, b, c, d, storage_buffer_read_only_sized(false, None)),
+                ),
+            )
+        } else {
+            BindGroupLayoutDescriptor::new(
+                "hao_voxelize_slab_layout",
+                &BindGroupLayoutEntries::sequential(ShaderStages::COMPUTE, slab_entries),
+            )
+        };
         let pass_layout = BindGroupLayoutDescriptor::new(
             "hao_voxelize_pass_layout",
             &BindGroupLayoutEntries::sequential(
@@ -224,6 +253,10 @@ impl FromWorld for VoxelizePipelines {
         );
         let pass_defs: Vec<ShaderDefVal> =
             if params_in_storage { vec!["VOXELIZE_PARAMS_IN_STORAGE".into()] } else { vec![] };
+        let mut classify_defs = pass_defs.clone();
+        if skinning {
+            classify_defs.push("VOXELIZE_SKINNING".into());
+        }
         let texture_defs: Vec<ShaderDefVal> =
             if texture_format == TextureFormat::R8Unorm { vec!["VOXEL_TEXTURE_R8".into()] } else { vec![] };
         let pipeline_cache = world.resource::<PipelineCache>();
@@ -234,7 +267,7 @@ impl FromWorld for VoxelizePipelines {
             vec![slab_layout.clone(), pass_layout.clone()],
             load_embedded_asset!(world, "voxelize_classify.wgsl"),
             "classify",
-            pass_defs.clone(),
+            classify_defs,
         );
         let scan = queue(
             "hao_voxelize_scan",
@@ -286,6 +319,7 @@ impl FromWorld for VoxelizePipelines {
             mip,
             texture_format,
             params_in_storage,
+            skinning,
             dummy,
             dummy_counts,
         }

@@ -10,6 +10,7 @@ use super::stats::{STATIC_REGION_SLOTS, counter_base};
 use crate::cpu::{self, InjectionMode, VoxelGrid};
 use bevy::math::{Affine3A, IVec3};
 use bevy::mesh::VertexFormat;
+use bevy::pbr::SkinUniforms;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::mesh::allocator::MeshAllocator;
@@ -18,6 +19,7 @@ use bevy::render::render_asset::{ExtractedAssets, RenderAssets};
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderDevice;
 use bevy::render::storage::GpuShaderBuffer;
+use bevy::render::sync_world::MainEntity;
 use bevy::render::texture::GpuImage;
 use std::hash::{Hash, Hasher};
 
@@ -284,10 +286,34 @@ enum Resolution {
     Skipped,
 }
 
+/// Where skinned meshes get their joint matrices this frame.
+struct Skins<'a> {
+    /// Bevy's joint matrices (`None` if the device cannot bind them as storage).
+    uniforms: Option<&'a SkinUniforms>,
+    /// Whether the classify pipeline skins (see `VoxelizePipelines::skinning`).
+    supported: bool,
+}
+
+/// Joint indices (`Uint16x4`) and weights (`Float32x4`) of a mesh layout, in words; `None` if either is
+/// missing, misaligned or of another format.
+fn joint_attributes(mesh: &RenderMesh) -> Option<(u32, u32)> {
+    let layout = mesh.layout.0.layout();
+    let find = |id, format| {
+        let i = mesh.layout.0.attribute_ids().iter().position(|a| *a == id)?;
+        let a = layout.attributes[i];
+        (a.format == format && a.offset % 4 == 0).then_some((a.offset / 4) as u32)
+    };
+    Some((
+        find(Mesh::ATTRIBUTE_JOINT_INDEX.id, VertexFormat::Uint16x4)?,
+        find(Mesh::ATTRIBUTE_JOINT_WEIGHT.id, VertexFormat::Float32x4)?,
+    ))
+}
+
 fn resolve_occluder(
     o: &ExtractedOccluder,
     meshes: &RenderAssets<RenderMesh>,
     allocator: &MeshAllocator,
+    skins: &Skins,
     warned: &mut HashSet<AssetId<Mesh>>,
 ) -> Resolution {
     let Some(mesh) = meshes.get(o.mesh) else { return Resolution::Pending };
@@ -321,6 +347,17 @@ fn resolve_occluder(
     if position.format != VertexFormat::Float32x3 || stride % 4 != 0 || position.offset % 4 != 0 {
         return skip("its positions are not 4-byte aligned Float32x3");
     }
+    // A skinned mesh: its joint data in the vertex layout, and its skin's place in Bevy's joint matrices
+    // (allocated only while the mesh is visible to a view). Without joint data it is voxelized unskinned
+    // (extraction warned); where the device cannot skin, skipped.
+    let (mut skin_index, mut joint_count, mut joint_offset, mut weight_offset) = (NO_SKIN, 0, 0, 0);
+    if let (Some(joints), Some((j, w))) = (o.skin_joints, joint_attributes(mesh)) {
+        let Some(uniforms) = skins.uniforms.filter(|_| skins.supported) else {
+            return skip("it is skinned, and this device cannot bind the joint matrices for voxelization");
+        };
+        let Some(index) = uniforms.skin_index(MainEntity::from(o.entity)) else { return Resolution::Pending };
+        (skin_index, joint_count, joint_offset, weight_offset) = (index, joints, j, w);
+    }
     let (index_buffer, index_start, index_format, triangles) = match &mesh.buffer_info {
         RenderMeshBufferInfo::Indexed { count, index_format } => {
             let Some(indices) = allocator.mesh_index_slice(&o.mesh) else { return Resolution::Pending };
@@ -350,6 +387,10 @@ fn resolve_occluder(
             index_format,
             triangle_count: triangles,
             first_triangle: 0,
+            skin_index,
+            joint_count,
+            joint_offset,
+            weight_offset,
         },
     })
 }
@@ -358,12 +399,13 @@ fn resolve_list<'a>(
     list: &'a [ExtractedOccluder],
     meshes: &RenderAssets<RenderMesh>,
     allocator: &MeshAllocator,
+    skins: &Skins,
     state: &mut VoxelizeState,
     skipped: &mut u64,
 ) -> Vec<(&'a ExtractedOccluder, ResolvedInstance)> {
     let mut ready = Vec::with_capacity(list.len());
     for o in list {
-        match resolve_occluder(o, meshes, allocator, &mut state.warned_meshes) {
+        match resolve_occluder(o, meshes, allocator, skins, &mut state.warned_meshes) {
             Resolution::Ready(r) => ready.push((o, r)),
             Resolution::Pending => {}
             Resolution::Skipped => *skipped += 1,
@@ -404,6 +446,7 @@ fn build_slab_dispatches(
     pipelines: &VoxelizePipelines,
     cache: &PipelineCache,
     mut instances: Vec<ResolvedInstance>,
+    joints: &Buffer,
     label: &'static str,
 ) -> (Vec<SlabDispatch>, u64) {
     instances.sort_by_key(|i| i.slabs);
@@ -448,16 +491,23 @@ fn build_slab_dispatches(
             let params = settings_buffer(device, "hao_voxelize_slab_group", &params);
             let first = &instances[s];
             let index = first.index_buffer.as_ref().unwrap_or(&pipelines.dummy);
-            let bind_group = device.create_bind_group(
-                "hao_voxelize_slab_bind_group",
-                &layout,
-                &BindGroupEntries::sequential((
-                    instance_buffer.as_entire_binding(),
-                    first.vertex_buffer.as_entire_binding(),
-                    index.as_entire_binding(),
-                    params.as_entire_binding(),
-                )),
+            let entries = (
+                instance_buffer.as_entire_binding(),
+                first.vertex_buffer.as_entire_binding(),
+                index.as_entire_binding(),
+                params.as_entire_binding(),
             );
+            let bind_group = if pipelines.skinning {
+                let (a, b, c, d) = entries;
+                let entries = BindGroupEntries::sequential((a, b, c, d, joints.as_entire_binding()));
+                device.create_bind_group("hao_voxelize_slab_bind_group", &layout, &entries)
+            } else {
+                device.create_bind_group(
+                    "hao_voxelize_slab_bind_group",
+                    &layout,
+                    &BindGroupEntries::sequential(entries),
+                )
+            };
             SlabDispatch { bind_group, workgroups: workgroups_2d(tris as u64, VOXELIZE_WORKGROUP) }
         })
         .collect();
@@ -476,7 +526,8 @@ fn instances_in(
     list.iter()
         .filter(|(o, _)| o.world_bounds.is_none_or(|(lo, hi)| lo.cmple(world.1).all() && hi.cmpge(world.0).all()))
         .map(|(o, r)| {
-            let m = grid_from_world * o.world_from_local;
+            // A skinned vertex is in world space once skinned.
+            let m = if r.gpu.skin_index == NO_SKIN { grid_from_world * o.world_from_local } else { grid_from_world };
             let mut r = r.clone();
             r.gpu.grid_from_local =
                 [col(m.matrix3.x_axis), col(m.matrix3.y_axis), col(m.matrix3.z_axis), col(m.translation)];
@@ -513,6 +564,7 @@ pub fn prepare_voxelize(
     cache: Res<PipelineCache>,
     mut state: ResMut<VoxelizeState>,
     stats: Res<VoxelizationStats>,
+    skin_uniforms: Option<Res<SkinUniforms>>,
 ) {
     commands.remove_resource::<VoxelizeFrame>();
     let invalidate = |state: &mut VoxelizeState| {
@@ -558,8 +610,14 @@ pub fn prepare_voxelize(
 
     // Resolve the occluders to slabs.
     let mut skipped = 0u64;
-    let statics = resolve_list(&occluders.statics, &meshes, &allocator, &mut state, &mut skipped);
-    let dynamics = resolve_list(&occluders.dynamics, &meshes, &allocator, &mut state, &mut skipped);
+    // Bevy's joint matrices, if they can be bound as storage (they are a uniform buffer on devices without
+    // storage buffers, where the voxelizer is off anyway).
+    let skin_uniforms = skin_uniforms.as_deref().filter(|u| u.current_buffer.usage().contains(BufferUsages::STORAGE));
+    let skins = Skins { uniforms: skin_uniforms, supported: pipelines.skinning };
+    let statics = resolve_list(&occluders.statics, &meshes, &allocator, &skins, &mut state, &mut skipped);
+    let dynamics = resolve_list(&occluders.dynamics, &meshes, &allocator, &skins, &mut state, &mut skipped);
+    // Bound to every classify dispatch where the pipeline skins (a placeholder when Bevy has none).
+    let joints = skin_uniforms.map(|u| &u.current_buffer).unwrap_or(&pipelines.dummy);
 
     // What changed in the static set since last frame: world boxes to voxelize again.
     let mut dirty: Vec<(Vec3, Vec3)> = Vec::new();
@@ -791,7 +849,7 @@ pub fn prepare_voxelize(
         let level = &levels[p.level];
         let is_static = p.clear.is_some();
         let label = if is_static { "hao_static_instances" } else { "hao_dynamic_instances" };
-        let (slabs, _) = build_slab_dispatches(&device, &pipelines, &cache, p.instances, label);
+        let (slabs, _) = build_slab_dispatches(&device, &pipelines, &cache, p.instances, joints, label);
         let region = level.region(p.region);
         let params = GpuVoxelizeParams {
             region_min: region.min.to_array(),

@@ -1,5 +1,6 @@
 // Voxelization, pass 1 of 3: one invocation per triangle. Reads the triangle where Bevy keeps it (the mesh
-// allocator's vertex and index slabs), moves it to grid space, computes equation 1's subdivision count and,
+// allocator's vertex and index slabs), skins it if its mesh is skinned (Bevy's joint matrices), moves it to
+// grid space, computes equation 1's subdivision count and,
 // for the common small triangle wholly inside the grid (n <= 4), injects it at once. Larger or boundary-
 // crossing triangles are queued for the expand pass, which spreads their sub-triangles over many
 // invocations. CPU twin: `bevy_hao::cpu::voxelize::voxelize_triangle`.
@@ -26,6 +27,12 @@ struct OccluderInstance {
     index_format: u32,
     triangle_count: u32,
     first_triangle: u32,
+    // Skinned instances: the first joint of the skin in `joint_matrices` (NO_SKIN: not skinned), the skin's
+    // joint count, and the word offsets of the joint indices (Uint16x4) and weights (Float32x4) in a vertex.
+    skin_index: u32,
+    joint_count: u32,
+    joint_offset: u32,
+    weight_offset: u32,
 }
 
 // The instances of this dispatch: those whose meshes live in the bound pair of slabs.
@@ -45,9 +52,13 @@ struct SlabGroup {
 #else
 @group(0) @binding(3) var<uniform> slab_group: SlabGroup;
 #endif
-
+#ifdef VOXELIZE_SKINNING
+// Bevy's joint matrices of this frame (`bevy::pbr::SkinUniforms::current_buffer`).
+@group(0) @binding(4) var<storage, read> joint_matrices: array<mat4x4<f32>>;
+#endif
 
 const INDEX_NONE: u32 = 0u;
+const NO_SKIN: u32 = 0xffffffffu;
 const INDEX_U16: u32 = 1u;
 
 fn read_index(format: u32, element: u32) -> u32 {
@@ -64,6 +75,46 @@ fn read_index(format: u32, element: u32) -> u32 {
 fn read_position(inst: OccluderInstance, vertex: u32) -> vec3<f32> {
     let base = (inst.vertex_start + vertex) * inst.vertex_stride + inst.position_offset;
     return vec3<f32>(bitcast<f32>(vertices[base]), bitcast<f32>(vertices[base + 1u]), bitcast<f32>(vertices[base + 2u]));
+}
+
+#ifdef VOXELIZE_SKINNING
+// skinning.rs: skin_matrix (Bevy's `skin_model`, same order of operations). False if a joint is outside
+// the skin or the buffer.
+fn skin_matrix(inst: OccluderInstance, vertex: u32, m: ptr<function, mat4x4<f32>>) -> bool {
+    let base = (inst.vertex_start + vertex) * inst.vertex_stride;
+    let packed_a = vertices[base + inst.joint_offset];
+    let packed_b = vertices[base + inst.joint_offset + 1u];
+    let joints = vec4<u32>(packed_a & 0xffffu, packed_a >> 16u, packed_b & 0xffffu, packed_b >> 16u);
+    let w = base + inst.weight_offset;
+    let weights = vec4<f32>(
+        bitcast<f32>(vertices[w]), bitcast<f32>(vertices[w + 1u]), bitcast<f32>(vertices[w + 2u]), bitcast<f32>(vertices[w + 3u])
+    );
+    let limit = min(inst.joint_count, arrayLength(&joint_matrices) - min(inst.skin_index, arrayLength(&joint_matrices)));
+    if any(joints >= vec4<u32>(limit)) {
+        return false;
+    }
+    let s = inst.skin_index;
+    *m = joint_matrices[s + joints.x] * weights.x + joint_matrices[s + joints.y] * weights.y
+        + joint_matrices[s + joints.z] * weights.z + joint_matrices[s + joints.w] * weights.w;
+    return true;
+}
+#endif
+
+// skinning.rs: skin_position for a skinned instance (bind pose to world space), else the vertex's own
+// position. False if the vertex cannot be skinned (its triangle is then invalid).
+fn vertex_position(inst: OccluderInstance, vertex: u32, p: ptr<function, vec3<f32>>) -> bool {
+    let local = read_position(inst, vertex);
+    *p = local;
+#ifdef VOXELIZE_SKINNING
+    if inst.skin_index != NO_SKIN {
+        var m: mat4x4<f32>;
+        if !skin_matrix(inst, vertex, &m) {
+            return false;
+        }
+        *p = (m[0] * local.x + m[1] * local.y + m[2] * local.z + m[3]).xyz;
+    }
+#endif
+    return true;
 }
 
 // The instance holding triangle `t` of this dispatch: the last whose first_triangle <= t.
@@ -160,10 +211,14 @@ fn classify_triangle(t: u32) -> InlineJob {
         add_counter(COUNTER_INVALID, 1u);
         return none;
     }
-    let v0 = grid_space_position(inst.grid_from_local, read_position(inst, i0));
-    let v1 = grid_space_position(inst.grid_from_local, read_position(inst, i1));
-    let v2 = grid_space_position(inst.grid_from_local, read_position(inst, i2));
-    if !(is_finite3(v0) && is_finite3(v1) && is_finite3(v2)) {
+    var p0: vec3<f32>;
+    var p1: vec3<f32>;
+    var p2: vec3<f32>;
+    let skinned = vertex_position(inst, i0, &p0) && vertex_position(inst, i1, &p1) && vertex_position(inst, i2, &p2);
+    let v0 = grid_space_position(inst.grid_from_local, p0);
+    let v1 = grid_space_position(inst.grid_from_local, p1);
+    let v2 = grid_space_position(inst.grid_from_local, p2);
+    if !(skinned && is_finite3(v0) && is_finite3(v1) && is_finite3(v2)) {
         add_counter(COUNTER_INVALID, 1u);
         return none;
     }
