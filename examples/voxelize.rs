@@ -5,6 +5,7 @@
 //! cargo run --release --example voxelize -- <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0]
 //!     [--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]
 //!     [--gpu] [--max-memory-mb 4096] [--point-budget 268435456]
+//!     [--animation NAME|INDEX --time SECONDS] [--list-animations]
 //! ```
 //!
 //! For each mesh and resolution the grid is fitted to the mesh's bounds with the longest axis at the
@@ -25,7 +26,16 @@
 //! headless Bevy app (Mesa's lavapipe on a machine without a GPU): the mesh is a `StaticOccluder` in a
 //! `VoxelVolume` with the same fitted grid, the GPU's occupancy is read back, measured against the same
 //! ground truth and exported the same way, and the time column is the median GPU time of the static
-//! voxelization pass (`hao/voxelize_static`) over `--runs` forced rebuilds.
+//! voxelization pass (`hao/voxelize_static`) over `--runs` forced rebuilds. The GPU's grid is also held
+//! against the CPU voxelizer's on the same mesh: how many voxels differ is printed.
+//!
+//! Animated glTF files: `--list-animations` prints each file's clips; `--animation NAME|INDEX --time SECONDS`
+//! poses the file before voxelizing, with the project's own sampler of the clip's channels (translation,
+//! rotation, scale; step, linear and cubic-spline interpolation) and skinning by the joints' world
+//! transforms. With `--gpu` the plugin plays the same clip instead: Bevy loads the file as a scene, its
+//! `AnimationPlayer` is sought to the time and paused, the skinned meshes are voxelized as dynamic
+//! occluders, and the GPU time is the dynamic pass's (`hao/voxelize_dynamic`). Morph-target weights are not
+//! applied on either side (the base shape is voxelized).
 
 mod support;
 
@@ -48,11 +58,14 @@ struct Args {
     gpu: bool,
     max_memory_mb: u64,
     point_budget: u64,
+    animation: Option<String>,
+    time: f32,
+    list_animations: bool,
 }
 
 const USAGE: &str = "usage: voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0] \
 [--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu] \
-[--max-memory-mb 4096] [--point-budget 268435456]";
+[--max-memory-mb 4096] [--point-budget 268435456] [--animation NAME|INDEX --time SECONDS] [--list-animations]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -67,6 +80,9 @@ fn parse_args() -> Result<Args, String> {
         point_budget: 1 << 28,
         runs: 5,
         gpu: false,
+        animation: None,
+        time: 0.0,
+        list_animations: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -96,6 +112,14 @@ fn parse_args() -> Result<Args, String> {
                 a.point_budget = value("--point-budget")?.parse().map_err(|e| format!("bad --point-budget: {e}"))?
             }
             "--gpu" => a.gpu = true,
+            "--animation" => a.animation = Some(value("--animation")?),
+            "--time" => {
+                a.time = value("--time")?.parse().map_err(|e| format!("bad --time: {e}"))?;
+                if !a.time.is_finite() {
+                    return Err("--time must be a finite number of seconds".into());
+                }
+            }
+            "--list-animations" => a.list_animations = true,
             "--runs" => a.runs = value("--runs")?.parse::<usize>().map_err(|e| format!("bad --runs: {e}"))?.max(1),
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
@@ -135,27 +159,46 @@ fn median_ms<T>(runs: usize, grid: &mut VoxelOccupancy, f: impl Fn(&VoxelOccupan
 
 /// The same voxelization on the GPU: returns the grid read back, the GPU's counters, the median GPU time of
 /// the static pass over `runs` rebuilds, and the adapter's name.
+/// What the GPU voxelizes: a mesh as one static occluder, or a glTF file's scene played by Bevy's animation
+/// player at a clip's time (its skinned meshes dynamic).
+enum GpuSource<'a> {
+    Mesh(&'a TriangleMesh),
+    Posed { path: &'a std::path::Path, clip: usize, time: f32 },
+}
+
+/// Starts the posed clip on every animation player the scene spawns: sought to the time and paused.
+#[derive(Resource, Clone)]
+struct PosedClip {
+    graph: Handle<AnimationGraph>,
+    node: AnimationNodeIndex,
+    time: f32,
+}
+
+fn start_posed_clip(
+    mut commands: Commands,
+    clip: Res<PosedClip>,
+    mut players: Query<(Entity, &mut AnimationPlayer), Added<AnimationPlayer>>,
+) {
+    for (entity, mut player) in &mut players {
+        player.play(clip.node).seek_to(clip.time).pause();
+        commands.entity(entity).insert(AnimationGraphHandle(clip.graph.clone()));
+    }
+}
+
 fn gpu_voxelize(
-    mesh: &TriangleMesh,
+    source: GpuSource,
     bounds: (Vec3, Vec3),
     res: u32,
     settings: &VoxelizeSettings,
     runs: usize,
 ) -> Result<(VoxelOccupancy, VoxelizeCounters, Option<f64>, String), String> {
+    if let GpuSource::Posed { path, clip, time } = source {
+        return gpu_voxelize_posed(path, clip, time, bounds, res, settings, runs);
+    }
+    let GpuSource::Mesh(mesh) = source else { unreachable!("handled above") };
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-    let injection = match settings.mode {
-        InjectionMode::Centroid => VoxelInjection::Centroid,
-        InjectionMode::Conservative => VoxelInjection::Conservative,
-    };
-    let volume = VoxelVolume {
-        bounds: VolumeBounds::World { min: bounds.0, max: bounds.1 },
-        resolution: VolumeResolution::Cells(res),
-        gamma: settings.gamma,
-        injection,
-        point_budget: u32::MAX,
-        point_counts: false,
-    };
+    let volume = gpu_volume(bounds, res, settings);
     let mut app = support::headless_app(move |app| {
         app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
             let m =
@@ -194,6 +237,103 @@ fn gpu_voxelize(
     Ok((occupancy, counters, support::median(times), adapter))
 }
 
+/// The volume the GPU voxelizes into: the CPU's fitted grid.
+fn gpu_volume(bounds: (Vec3, Vec3), res: u32, settings: &VoxelizeSettings) -> VoxelVolume {
+    VoxelVolume {
+        bounds: VolumeBounds::World { min: bounds.0, max: bounds.1 },
+        resolution: VolumeResolution::Cells(res),
+        gamma: settings.gamma,
+        injection: match settings.mode {
+            InjectionMode::Centroid => VoxelInjection::Centroid,
+            InjectionMode::Conservative => VoxelInjection::Conservative,
+        },
+        point_budget: u32::MAX,
+        point_counts: false,
+    }
+}
+
+/// The GPU side of `--animation`: Bevy loads the file as a scene, plays the clip sought to the time and
+/// paused, and the plugin voxelizes it (a camera looks at it: Bevy uploads joint matrices only for skins a
+/// view sees). The grid is read once the pose has held for a few frames.
+fn gpu_voxelize_posed(
+    path: &std::path::Path,
+    clip: usize,
+    time: f32,
+    bounds: (Vec3, Vec3),
+    res: u32,
+    settings: &VoxelizeSettings,
+    runs: usize,
+) -> Result<(VoxelOccupancy, VoxelizeCounters, Option<f64>, String), String> {
+    // Bevy resolves a relative asset root against the executable's folder: give it an absolute one.
+    let path = std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let file = path.file_name().ok_or("no file name")?.to_string_lossy().into_owned();
+    let dir = path.parent().ok_or("no folder")?.to_string_lossy().into_owned();
+    support::set_asset_root(Some(dir));
+    let volume = gpu_volume(bounds, res, settings);
+    let center = (bounds.0 + bounds.1) * 0.5;
+    let extent = (bounds.1 - bounds.0).max_element().max(1e-3);
+    let mut app = support::headless_app(move |app| {
+        app.add_systems(Update, start_posed_clip.run_if(resource_exists::<PosedClip>));
+        app.add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  asset_server: Res<AssetServer>,
+                  mut graphs: ResMut<Assets<AnimationGraph>>,
+                  mut images: ResMut<Assets<Image>>| {
+                let (graph, node) = AnimationGraph::from_clip(
+                    asset_server.load(GltfAssetLabel::Animation(clip).from_asset(file.clone())),
+                );
+                commands.insert_resource(PosedClip { graph: graphs.add(graph), node, time });
+                commands.spawn(volume);
+                commands.spawn(WorldAssetRoot(asset_server.load(GltfAssetLabel::Scene(0).from_asset(file.clone()))));
+                commands.spawn((
+                    Camera3d::default(),
+                    bevy::camera::RenderTarget::Image(support::target_image(&mut images, UVec2::new(64, 64)).into()),
+                    Msaa::Off,
+                    Transform::from_translation(center + Vec3::new(0.0, 0.0, 2.5 * extent)).looking_at(center, Vec3::Y),
+                ));
+            },
+        );
+    });
+    let mut held = 0;
+    for _ in 0..600 {
+        app.update();
+        let s = support::stats(&app);
+        held = if s.dynamic_instances > 0 && s.counter_readbacks > 0 { held + 1 } else { 0 };
+        if held >= 6 {
+            break;
+        }
+    }
+    support::set_asset_root(None);
+    if held < 6 {
+        return Err("the posed scene was not voxelized within 600 frames (no skinned mesh seen?)".into());
+    }
+    let errors = support::take_render_errors();
+    if !errors.is_empty() {
+        return Err(format!("wgpu errors: {errors:?}"));
+    }
+    let occupancy = support::read_occupancy(&mut app);
+    let counters = support::stats(&app).dynamic_counters;
+    let before = support::diagnostic_history(&app, "render/hao/voxelize_dynamic/elapsed_gpu").len();
+    support::run(&mut app, runs + 4);
+    let history = support::diagnostic_history(&app, "render/hao/voxelize_dynamic/elapsed_gpu");
+    let times: Vec<f64> = history.iter().skip(before).copied().collect();
+    let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
+    Ok((occupancy, counters, support::median(times), adapter))
+}
+
+/// `--list-animations`: each file's clips.
+fn list_animations(inputs: &[String]) -> Result<(), String> {
+    println!("| file | index | name | duration s | channels |");
+    println!("|---|---:|---|---:|---:|");
+    for input in inputs {
+        for a in bevy_hao::meshes::gltf_file::gltf_animations(std::path::Path::new(input))? {
+            println!("| {input} | {} | {} | {:.3} | {} |", a.index, a.name.unwrap_or_default(), a.duration, a.channels);
+        }
+    }
+    Ok(())
+}
+
 fn main() {
     let args = match parse_args() {
         Ok(a) => a,
@@ -202,6 +342,13 @@ fn main() {
             std::process::exit(2);
         }
     };
+    if args.list_animations {
+        if let Err(e) = list_animations(&args.inputs) {
+            eprintln!("error: {e}");
+            std::process::exit(1);
+        }
+        return;
+    }
     let several_outputs = args.inputs.len() * args.resolutions.len() > 1;
     println!(
         "| mesh | res | grid | triangles | gamma | mode | points injected | eq. 5 estimate | voxels set | ground-truth voxels \
@@ -211,12 +358,29 @@ fn main() {
     let mut sweeps = Vec::new();
     let (mut failures, mut voxelized) = (0usize, false);
     for input in &args.inputs {
-        let loaded = match load_mesh(input) {
-            Ok(l) => l,
-            Err(e) => {
-                eprintln!("error: {e}");
-                std::process::exit(1);
+        // Posed by a clip (glTF only), or as the file has it.
+        let (loaded, clip) = match &args.animation {
+            Some(anim) => {
+                let path = std::path::Path::new(input);
+                match bevy_hao::meshes::gltf_file::load_gltf_posed(path, anim, args.time) {
+                    Ok((mesh, clip, warnings)) => {
+                        let stem = path.file_stem().map_or_else(|| input.clone(), |s| s.to_string_lossy().into_owned());
+                        let name = format!("{stem} (clip {clip} at {}s)", args.time);
+                        (bevy_hao::meshes::LoadedMesh { name, mesh, warnings }, Some(clip))
+                    }
+                    Err(e) => {
+                        eprintln!("error: {e}");
+                        std::process::exit(1);
+                    }
+                }
             }
+            None => match load_mesh(input) {
+                Ok(l) => (l, None),
+                Err(e) => {
+                    eprintln!("error: {e}");
+                    std::process::exit(1);
+                }
+            },
         };
         for w in &loaded.warnings {
             eprintln!("warning: {}: {w}", loaded.name);
@@ -320,12 +484,25 @@ fn main() {
             }
             let (t_vox, injected) = if args.gpu {
                 let settings = VoxelizeSettings { gamma, mode: args.mode };
-                match gpu_voxelize(&mesh, (lo, hi), res, &settings, args.runs) {
+                let source = match clip {
+                    Some(clip) => GpuSource::Posed { path: std::path::Path::new(input), clip, time: args.time },
+                    None => GpuSource::Mesh(&mesh),
+                };
+                match gpu_voxelize(source, (lo, hi), res, &settings, args.runs) {
                     Ok((occ, counters, t, adapter)) => {
                         if occ.grid() != &grid {
                             eprintln!("error: the GPU grid {:?} differs from the CPU's {:?}", occ.grid(), grid);
                             std::process::exit(1);
                         }
+                        // The CPU twin on the same mesh and grid: how many voxels the two disagree on.
+                        let twin = VoxelOccupancy::new(grid, false);
+                        voxelize_mesh(&mesh, to_grid, &settings, &twin);
+                        let (only_gpu, only_cpu) = (occ.count_not_in(&twin), twin.count_not_in(&occ));
+                        eprintln!(
+                            "  GPU vs CPU twin: {only_gpu} voxels only on the GPU, {only_cpu} only on the CPU, of {} ({:.3} per 1000)",
+                            twin.set_voxel_count(),
+                            1000.0 * (only_gpu + only_cpu) as f64 / twin.set_voxel_count().max(1) as f64
+                        );
                         eprintln!(
                             "  GPU ({adapter}): {} triangles read, {} injected at once, {} queued for expansion, {} invalid, {} degenerate, {} oversize",
                             counters.triangles,

@@ -3,10 +3,12 @@
 //! applied. Triangle strips and fans are unrolled into lists; point and line primitives are skipped with a
 //! warning. Skinned meshes come in their bind pose.
 
-use crate::cpu::TriangleMesh;
+use super::gltf_animation;
+use crate::cpu::{TriangleMesh, VertexSkin, skinned_mesh};
 use base64::Engine;
-use glam::{Affine3A, Mat4, Vec3};
+use glam::{Affine3A, Mat4, Quat, Vec3};
 use gltf::mesh::Mode;
+use std::collections::HashMap;
 use std::path::Path;
 
 /// Most node instances (a node reached along one path from a scene root) a file may expand to.
@@ -61,9 +63,15 @@ pub fn load_gltf(path: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
     read_gltf(&bytes, path.parent().unwrap_or(Path::new("."))).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// Reads a glTF or GLB file from its bytes; external buffers are looked up in `dir` (and nowhere else).
-/// Returns the mesh and any warnings.
-pub fn read_gltf(bytes: &[u8], dir: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
+/// A parsed and validated document with its buffers' bytes.
+struct Loaded {
+    gltf: gltf::Gltf,
+    buffers: Vec<Vec<u8>>,
+    buffer_bytes: u64,
+}
+
+/// Parses a document and reads its buffers (external ones only from `dir`).
+fn load_document(bytes: &[u8], dir: &Path) -> Result<Loaded, String> {
     let gltf = parse_document(bytes)?;
     // The bytes every accessor must fit in: no accessor (sparse ones included) may declare more data than
     // the file's buffers hold, so that a count in a tiny file cannot make a huge allocation.
@@ -96,8 +104,36 @@ pub fn read_gltf(bytes: &[u8], dir: &Path) -> Result<(TriangleMesh, Vec<String>)
         buffer_bytes += data.len() as u64;
         buffers.push(data);
     }
+    Ok(Loaded { gltf, buffers, buffer_bytes })
+}
+
+/// Reads a glTF or GLB file from its bytes; external buffers are looked up in `dir` (and nowhere else).
+/// Skinned meshes are posed by their joints' own transforms (as Bevy draws a glTF that is not animated).
+/// Returns the mesh and any warnings.
+pub fn read_gltf(bytes: &[u8], dir: &Path) -> Result<(TriangleMesh, Vec<String>), String> {
+    read_gltf_posed(bytes, dir, None)
+}
+
+/// Reads a glTF file posed by animation clip `pose.0` at `pose.1` seconds (see [`gltf_animation`]): the
+/// animated node transforms replace the nodes' own, and skinned meshes are skinned by the joints' resulting
+/// world transforms times their inverse bind matrices, as Bevy's `AnimationPlayer` and skinning do.
+pub fn read_gltf_posed(
+    bytes: &[u8],
+    dir: &Path,
+    pose: Option<(usize, f32)>,
+) -> Result<(TriangleMesh, Vec<String>), String> {
+    let Loaded { gltf, buffers, buffer_bytes } = load_document(bytes, dir)?;
     let mut mesh = TriangleMesh::default();
     let mut warnings = Vec::new();
+    let poses = match pose {
+        Some((animation, time)) => {
+            gltf_animation::sample_animation(&gltf.document, &buffers, animation, time, &mut warnings)
+        }
+        None => Default::default(),
+    };
+    // Each node's world transform (its first instance's), for the joints of skins.
+    let mut globals: HashMap<usize, Affine3A> = HashMap::new();
+    let mut mesh_instances: Vec<(gltf::Node, Affine3A)> = Vec::new();
     let scenes: Vec<_> = match gltf.default_scene() {
         Some(s) => vec![s],
         None => gltf.scenes().collect(),
@@ -120,9 +156,47 @@ pub fn read_gltf(bytes: &[u8], dir: &Path) -> Result<(TriangleMesh, Vec<String>)
         if instances > MAX_NODE_INSTANCES {
             return Err(format!("the scene expands to more than {MAX_NODE_INSTANCES} node instances"));
         }
-        let local = Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix()));
+        let local = match poses.get(&node.index()) {
+            // Animated: the clip's values over the node's own, as a scale-rotation-translation (Bevy's
+            // `Transform`).
+            Some(p) => {
+                let (t, r, s) = node.transform().decomposed();
+                Affine3A::from_scale_rotation_translation(
+                    p.scale.unwrap_or(Vec3::from(s)),
+                    p.rotation.unwrap_or(Quat::from_array(r)),
+                    p.translation.unwrap_or(Vec3::from(t)),
+                )
+            }
+            None => Affine3A::from_mat4(Mat4::from_cols_array_2d(&node.transform().matrix())),
+        };
         let world = parent * local;
-        if let Some(m) = node.mesh() {
+        globals.entry(node.index()).or_insert(world);
+        if node.mesh().is_some() {
+            mesh_instances.push((node.clone(), world));
+        }
+        let mut path = ancestors;
+        path.push(node.index());
+        stack.extend(node.children().map(|c| (c, world, path.clone())));
+    }
+    for (node, world) in mesh_instances {
+        let Some(m) = node.mesh() else { continue };
+        // A skinned node: each joint's world transform times its inverse bind matrix (the node's own
+        // transform is not applied, as the spec and Bevy have it).
+        let joint_matrices: Option<Vec<Mat4>> = node.skin().map(|skin| {
+            let reader = skin.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+            let inverse: Vec<Mat4> = reader
+                .read_inverse_bind_matrices()
+                .map(|m| m.map(|c| Mat4::from_cols_array_2d(&c)).collect())
+                .unwrap_or_default();
+            skin.joints()
+                .enumerate()
+                .map(|(j, joint)| {
+                    let g = globals.get(&joint.index()).copied().unwrap_or(Affine3A::IDENTITY);
+                    g * inverse.get(j).copied().unwrap_or(Mat4::IDENTITY)
+                })
+                .collect()
+        });
+        {
             for prim in m.primitives() {
                 let too_big = prim.attributes().map(|(_, a)| a.count()).chain(prim.indices().map(|a| a.count()));
                 if let Some(count) = too_big.into_iter().find(|&c| c > MAX_ACCESSOR_COUNT) {
@@ -175,14 +249,51 @@ pub fn read_gltf(bytes: &[u8], dir: &Path) -> Result<(TriangleMesh, Vec<String>)
                         continue;
                     }
                 };
-                mesh.append(&TriangleMesh::new(positions, triangles), world);
+                let skin = joint_matrices.as_ref().and_then(|matrices| {
+                    let joints = reader.read_joints(0)?.into_u16().collect::<Vec<_>>();
+                    let weights = reader.read_weights(0)?.into_f32().collect::<Vec<_>>();
+                    Some((VertexSkin { joints, weights }, matrices))
+                });
+                match skin {
+                    Some((skin, matrices)) => {
+                        let posed = skinned_mesh(&TriangleMesh::new(positions, triangles), &skin, matrices);
+                        mesh.append(&posed, Affine3A::IDENTITY);
+                    }
+                    None => {
+                        if joint_matrices.is_some() {
+                            warnings.push(format!(
+                                "a primitive of skinned mesh {:?} has no JOINTS_0/WEIGHTS_0; placed unskinned",
+                                m.name()
+                            ));
+                        }
+                        mesh.append(&TriangleMesh::new(positions, triangles), world);
+                    }
+                }
             }
         }
-        let mut path = ancestors;
-        path.push(node.index());
-        stack.extend(node.children().map(|c| (c, world, path.clone())));
     }
     Ok((mesh, warnings))
+}
+
+/// The animation clips of a glTF file.
+pub fn gltf_animations(path: &Path) -> Result<Vec<gltf_animation::AnimationInfo>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let loaded = load_document(&bytes, path.parent().unwrap_or(Path::new(".")))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(gltf_animation::animation_infos(&loaded.gltf.document, &loaded.buffers))
+}
+
+/// Reads a glTF file posed by the clip named (or numbered) `animation` at `time` seconds. Returns the mesh,
+/// the clip's index, and any warnings.
+pub fn load_gltf_posed(path: &Path, animation: &str, time: f32) -> Result<(TriangleMesh, usize, Vec<String>), String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let loaded = load_document(&bytes, dir).map_err(|e| format!("{}: {e}", path.display()))?;
+    let index = gltf_animation::find_animation(&loaded.gltf.document, animation)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let (mesh, warnings) =
+        read_gltf_posed(&bytes, dir, Some((index, time))).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok((mesh, index, warnings))
 }
 
 #[cfg(test)]

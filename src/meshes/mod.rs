@@ -2,6 +2,7 @@
 //! cathedral ([`mod@builtin`]), and OBJ and glTF files read from disk ([`obj`], [`gltf_file`]).
 
 pub mod builtin;
+pub mod gltf_animation;
 pub mod gltf_file;
 pub mod obj;
 
