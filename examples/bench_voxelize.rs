@@ -7,13 +7,15 @@
 //!
 //! For each mesh and resolution, a headless app (Mesa's lavapipe on a machine without a GPU) shows the mesh
 //! to a camera with a depth prepass, in a voxel volume fitted to it, and records GPU time spans for
-//! `--frames` frames after a warm-up, in two phases of one run:
+//! `--frames` frames after a warm-up, in three phases of one run:
 //!
 //! 1. the mesh is a `StaticOccluder` and the static grid is rebuilt every frame (`RebuildStaticVoxels`):
 //!    the cost of voxelizing the whole scene (`hao/voxelize_static`) and of resolving the full grid into the
 //!    voxel texture (`hao/resolve`);
 //! 2. the mesh is a `DynamicOccluder`: the per-frame cost of a moving scene (`hao/voxelize_dynamic`, which
-//!    includes copying the static grid) and of resolving the region it covers.
+//!    includes copying the static grid) and of resolving the region it covers;
+//! 3. the same triangles as a skinned mesh (four joints a vertex, weights 0.25, joints at rest): the
+//!    dynamic pass with every vertex skinned (the prepass then skins in its vertex shader too).
 //!
 //! Each is printed as a median beside the median of Bevy's depth prepass (`early prepass`) measured in the
 //! same frames, and as a ratio to it.
@@ -140,10 +142,43 @@ fn measure_moving(
 }
 
 /// Builds the app for one mesh at one resolution (`res == 0`: the default cascades, the camera inside).
-fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection) -> App {
-    let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
+/// The Bevy mesh the benchmark draws and voxelizes: the triangles with flat normals.
+fn bevy_mesh_of(mesh: &TriangleMesh) -> Mesh {
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+    let mut m = Mesh::new(bevy::mesh::PrimitiveTopology::TriangleList, bevy::asset::RenderAssetUsages::RENDER_WORLD)
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
+        .with_inserted_indices(bevy::mesh::Indices::U32(indices));
+    m.duplicate_vertices();
+    m.compute_flat_normals();
+    m
+}
+
+/// Makes the subject a skinned mesh: the same triangles with four joints per vertex (weights 0.25 each) on
+/// four joints at rest, so that it stays in place and every vertex pays for a full blend of four matrices,
+/// as in the vertex shader.
+fn make_subject_skinned(app: &mut App, mesh: &TriangleMesh) {
+    use bevy::mesh::VertexAttributeValues;
+    use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+    let m = bevy_mesh_of(mesh);
+    let n = m.count_vertices();
+    let m = m
+        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, VertexAttributeValues::Uint16x4(vec![[0, 1, 2, 3]; n]))
+        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[0.25f32; 4]; n]);
+    let world = app.world_mut();
+    let handle = world.resource_mut::<Assets<Mesh>>().add(m);
+    let inverse_bindposes = world.resource_mut::<Assets<SkinnedMeshInverseBindposes>>().add(vec![Mat4::IDENTITY; 4]);
+    let joints: Vec<Entity> = (0..4).map(|_| world.spawn(Transform::default()).id()).collect();
+    let e = world.query_filtered::<Entity, With<Subject>>().single(world).unwrap();
+    world
+        .entity_mut(e)
+        .remove::<(StaticOccluder, DynamicOccluder)>()
+        .insert((Mesh3d(handle), SkinnedMesh { inverse_bindposes, joints }));
+}
+
+fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection) -> App {
+    let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
+    let subject = bevy_mesh_of(mesh);
     support::headless_app(move |app| {
         app.add_systems(
             Startup,
@@ -151,14 +186,7 @@ fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection
                   mut meshes: ResMut<Assets<Mesh>>,
                   mut materials: ResMut<Assets<StandardMaterial>>,
                   mut images: ResMut<Assets<Image>>| {
-                let mut m = Mesh::new(
-                    bevy::mesh::PrimitiveTopology::TriangleList,
-                    bevy::asset::RenderAssetUsages::RENDER_WORLD,
-                )
-                .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions.clone())
-                .with_inserted_indices(bevy::mesh::Indices::U32(indices.clone()));
-                m.duplicate_vertices();
-                m.compute_flat_normals();
+                let m = subject.clone();
                 let bounds = if res == 0 { VolumeBounds::default() } else { VolumeBounds::World { min: lo, max: hi } };
                 commands.spawn(VoxelVolume {
                     bounds,
@@ -308,6 +336,14 @@ fn main() {
             let e = app.world_mut().query_filtered::<Entity, With<Subject>>().single(app.world()).unwrap();
             app.world_mut().entity_mut(e).remove::<StaticOccluder>().insert(DynamicOccluder);
             let b = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
+            // The same mesh skinned (four joints a vertex), voxelized in its pose every frame.
+            make_subject_skinned(&mut app, &loaded.mesh);
+            let mut frames = 0;
+            while support::stats(&app).dynamic_instances == 0 && frames < 60 {
+                app.update();
+                frames += 1;
+            }
+            let c = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
             let errors = support::take_render_errors();
             if !errors.is_empty() {
                 eprintln!("error: wgpu errors: {errors:?}");
@@ -322,6 +358,7 @@ fn main() {
                 ("resolve (full grid)", a[1], a[2]),
                 ("voxelize_dynamic (whole mesh, with the copy)", b[0], b[2]),
                 ("resolve (dynamic region)", b[1], b[2]),
+                ("voxelize_dynamic (whole mesh skinned, 4 joints a vertex)", c[0], c[2]),
             ] {
                 rows.push(format!(
                     "| {name} | {res} | {}x{}x{} | {tris} | {points} | {pass} | {} | {} | {} |",

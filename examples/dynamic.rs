@@ -1,24 +1,30 @@
 //! Static and dynamic occluders side by side: the built-in cathedral (static, voxelized once) with objects
 //! that move, and others that appear and vanish, marked `DynamicOccluder` (voxelized every frame on top of
-//! the cached static grid).
+//! the cached static grid), and an animated character walking among them (a skinned mesh: dynamic without
+//! a marker, voxelized in the pose Bevy draws it each frame).
 //!
 //! ```text
 //! cargo run --release --example dynamic -- [--view final|ao|voxels|counts|static-dynamic|cascades]
+//!     [--character PATH.glb|.gltf [--clip NAME|INDEX] [--character-scale S]]
 //!     [--headless --frames 90 --screenshot OUT.png [--size 960x540]]
 //! ```
+//!
+//! The character is a two-legged walker built in code (a skinned mesh with a pelvis and two hip joints),
+//! or a glTF character given by path, playing a clip on a loop: the shared Fox with
+//! `--character ../shared/models/fox-skinned/Fox.glb --clip Walk --character-scale 0.012`.
 //!
 //! Watch the occlusion under the rolling spheres and the sliding box move with them, and the shadows of the
 //! falling crates appear and vanish; `--view static-dynamic` shows static voxels blue and dynamic ones orange.
 //! In a window the inspector shows that the static grid is rebuilt once while the dynamic pass runs every
 //! frame. Time advances 1/30 s per frame, so headless runs are reproducible.
-//!
-//! Skinned meshes (animated characters) are not voxelized yet: the plugin skips them with a warning (Bevy
-//! skins in the vertex shader, and the voxelizer reads the bind pose from the mesh slabs).
 
 mod support;
 
 use bevy::camera::RenderTarget;
+use bevy::camera::visibility::DynamicSkinnedMeshBounds;
 use bevy::light::GlobalAmbientLight;
+use bevy::mesh::VertexAttributeValues;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hao::prelude::*;
@@ -49,6 +55,92 @@ struct Assets3d {
 #[derive(Resource)]
 struct ScreenshotTarget(Handle<Image>);
 
+/// The character to walk: built in code, or a glTF file's scene playing a clip.
+#[derive(Resource, Clone)]
+enum CharacterChoice {
+    Builtin,
+    Gltf { dir: String, file: String, clip: usize, scale: f32 },
+}
+
+/// The entity that walks (the built-in walker's pelvis, or the glTF scene's root).
+#[derive(Component)]
+struct Walker;
+
+/// The built-in walker's hip joints, with the phase of their swing.
+#[derive(Component)]
+struct Hip(f32);
+
+/// The clip the glTF character's animation players start, on a loop.
+#[derive(Resource)]
+struct CharacterClip {
+    graph: Handle<AnimationGraph>,
+    node: AnimationNodeIndex,
+}
+
+/// A box of `size` centred at `center` as a skinned piece wholly on `joint`: positions, normals and joint
+/// data appended to the lists.
+fn skinned_box(
+    center: Vec3,
+    size: Vec3,
+    joint: u16,
+    mesh: &mut (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[u16; 4]>, Vec<u32>),
+) {
+    let m = Cuboid::from_size(size).mesh().build();
+    let Some(VertexAttributeValues::Float32x3(p)) = m.attribute(Mesh::ATTRIBUTE_POSITION) else { return };
+    let Some(VertexAttributeValues::Float32x3(n)) = m.attribute(Mesh::ATTRIBUTE_NORMAL) else { return };
+    let base = mesh.0.len() as u32;
+    mesh.0.extend(p.iter().map(|v| (Vec3::from(*v) + center).to_array()));
+    mesh.1.extend(n.iter().copied());
+    mesh.2.extend(std::iter::repeat_n([joint, 0, 0, 0], p.len()));
+    mesh.3.extend(m.indices().into_iter().flat_map(|i| i.iter()).map(|i| base + i as u32));
+}
+
+/// A two-legged walker built in code: a body on the pelvis joint (0) and a leg on each hip joint (1, 2),
+/// bound with the pelvis at the origin and the hips at (+-0.25, 0.9, 0).
+fn spawn_builtin_walker(
+    commands: &mut Commands,
+    meshes: &mut Assets<Mesh>,
+    materials: &mut Assets<StandardMaterial>,
+    bindposes: &mut Assets<SkinnedMeshInverseBindposes>,
+) {
+    let hips = [Vec3::new(-0.25, 0.9, 0.0), Vec3::new(0.25, 0.9, 0.0)];
+    let mut parts = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    skinned_box(Vec3::new(0.0, 1.45, 0.0), Vec3::new(0.8, 1.1, 0.45), 0, &mut parts);
+    skinned_box(Vec3::new(0.0, 2.2, 0.0), Vec3::splat(0.4), 0, &mut parts);
+    for (k, hip) in hips.iter().enumerate() {
+        skinned_box(*hip - Vec3::Y * 0.45, Vec3::new(0.25, 0.9, 0.25), k as u16 + 1, &mut parts);
+    }
+    let (positions, normals, joints, indices) = parts;
+    let weights = vec![[1.0f32, 0.0, 0.0, 0.0]; positions.len()];
+    let mesh = Mesh::new(bevy::mesh::PrimitiveTopology::TriangleList, bevy::asset::RenderAssetUsages::default())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
+        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals)
+        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, VertexAttributeValues::Uint16x4(joints))
+        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, weights)
+        .with_inserted_indices(bevy::mesh::Indices::U32(indices))
+        .with_generated_skinned_mesh_bounds()
+        .expect("the walker's skin is valid");
+    let pelvis = commands.spawn((Transform::default(), Visibility::default(), Walker)).id();
+    let legs: Vec<Entity> = hips
+        .iter()
+        .enumerate()
+        .map(|(k, hip)| {
+            commands
+                .spawn((Transform::from_translation(*hip), Hip(k as f32 * std::f32::consts::PI), ChildOf(pelvis)))
+                .id()
+        })
+        .collect();
+    let inverse_bindposes =
+        bindposes.add(vec![Mat4::IDENTITY, Mat4::from_translation(-hips[0]), Mat4::from_translation(-hips[1])]);
+    commands.spawn((
+        Mesh3d(meshes.add(mesh)),
+        MeshMaterial3d(materials.add(StandardMaterial { base_color: Color::srgb(0.2, 0.35, 0.7), ..default() })),
+        SkinnedMesh { inverse_bindposes, joints: vec![pelvis, legs[0], legs[1]] },
+        DynamicSkinnedMeshBounds,
+        ChildOf(pelvis),
+    ));
+}
+
 fn setup(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
@@ -56,6 +148,9 @@ fn setup(
     server: Res<AssetServer>,
     target: Option<Res<ScreenshotTarget>>,
     view: Res<ViewChoice>,
+    character: Res<CharacterChoice>,
+    mut bindposes: ResMut<Assets<SkinnedMeshInverseBindposes>>,
+    mut graphs: ResMut<Assets<AnimationGraph>>,
 ) {
     spawn_scene(&SceneSource::Builtin("cathedral".into()), &mut commands, &mut meshes, &mut materials, &server)
         .expect("built-in scene");
@@ -83,6 +178,20 @@ fn setup(
         Slide,
     ));
     commands.insert_resource(Assets3d { cube, material: wood });
+    match &*character {
+        CharacterChoice::Builtin => spawn_builtin_walker(&mut commands, &mut meshes, &mut materials, &mut bindposes),
+        CharacterChoice::Gltf { file, clip, scale, .. } => {
+            let clip = GltfAssetLabel::Animation(*clip).from_asset(file.clone());
+            let file = file.clone();
+            let (graph, node) = AnimationGraph::from_clip(server.load(clip));
+            commands.insert_resource(CharacterClip { graph: graphs.add(graph), node });
+            commands.spawn((
+                WorldAssetRoot(server.load(GltfAssetLabel::Scene(0).from_asset(file))),
+                Transform::from_scale(Vec3::splat(*scale)),
+                Walker,
+            ));
+        }
+    }
     let mut camera = commands.spawn((
         Camera3d::default(),
         Msaa::Off,
@@ -110,6 +219,39 @@ fn animate(
     }
     for mut transform in &mut slides {
         transform.translation.z = (t * 0.5).sin() * 8.0;
+    }
+}
+
+/// Walks the character around a loop between the pillars and the rolling spheres, facing where it goes;
+/// the built-in walker swings its legs.
+fn walk(
+    time: Res<Time>,
+    mut walkers: Query<&mut Transform, With<Walker>>,
+    mut hips: Query<(&mut Transform, &Hip), Without<Walker>>,
+) {
+    let t = time.elapsed_secs();
+    let a = t * 0.35;
+    let at = |a: f32| Vec3::new(5.5 * a.cos(), 0.0, 3.0 * a.sin() - 2.0);
+    for mut transform in &mut walkers {
+        let scale = transform.scale;
+        let (here, ahead) = (at(a), at(a + 0.01));
+        *transform = Transform::from_translation(here).looking_to(here - ahead, Vec3::Y).with_scale(scale);
+    }
+    for (mut transform, hip) in &mut hips {
+        transform.rotation = Quat::from_rotation_x(0.5 * (t * 4.0 + hip.0).sin());
+    }
+}
+
+/// Starts the glTF character's clip on a loop when its animation player appears.
+fn play_character_clip(
+    mut commands: Commands,
+    clip: Option<Res<CharacterClip>>,
+    mut players: Query<(Entity, &mut AnimationPlayer), Added<AnimationPlayer>>,
+) {
+    let Some(clip) = clip else { return };
+    for (entity, mut player) in &mut players {
+        player.play(clip.node).repeat();
+        commands.entity(entity).insert(AnimationGraphHandle(clip.graph.clone()));
     }
 }
 
@@ -147,6 +289,7 @@ fn crates(
 fn main() {
     let mut view = HaoDebugView::Final;
     let (mut headless, mut frames, mut screenshot, mut size) = (false, 90usize, None, UVec2::new(960, 540));
+    let (mut character_path, mut clip, mut character_scale) = (None, "0".to_string(), 1.0f32);
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -164,6 +307,17 @@ fn main() {
                     }
                 }
             }
+            "--character" => character_path = it.next().map(std::path::PathBuf::from),
+            "--clip" => clip = it.next().unwrap_or_default(),
+            "--character-scale" => {
+                character_scale =
+                    it.next().and_then(|v| v.parse().ok()).filter(|s: &f32| *s > 0.0 && s.is_finite()).unwrap_or_else(
+                        || {
+                            eprintln!("--character-scale needs a positive number");
+                            std::process::exit(2)
+                        },
+                    )
+            }
             "--headless" => headless = true,
             "--frames" => frames = it.next().and_then(|v| v.parse().ok()).expect("--frames N"),
             "--screenshot" => screenshot = it.next(),
@@ -175,12 +329,43 @@ fn main() {
             }
             _ => {
                 eprintln!(
-                    "usage: dynamic [--view final|ao|voxels|counts|static-dynamic|cascades] [--headless --frames 90 --screenshot OUT.png [--size 960x540]]"
+                    "usage: dynamic [--view final|ao|voxels|counts|static-dynamic|cascades] [--character PATH.glb [--clip NAME|INDEX] [--character-scale S]] [--headless --frames 90 --screenshot OUT.png [--size 960x540]]"
                 );
                 std::process::exit(2);
             }
         }
     }
+    // A glTF character is loaded from its own folder (Bevy resolves a relative asset root against the
+    // executable's folder, so the path is made absolute).
+    let character = match character_path {
+        None => CharacterChoice::Builtin,
+        Some(p) => {
+            let found = std::fs::canonicalize(&p).map_err(|e| e.to_string()).and_then(|abs| {
+                let clips = bevy_hao::meshes::gltf_file::gltf_animations(&abs)?;
+                let index = clips
+                    .iter()
+                    .find(|c| c.name.as_deref() == Some(clip.as_str()) || c.index.to_string() == clip)
+                    .map(|c| c.index)
+                    .ok_or_else(|| format!("no clip {clip:?} (see voxelize --list-animations)"))?;
+                let dir = abs.parent().map(|d| d.to_string_lossy().into_owned()).unwrap_or_default();
+                let file = abs.file_name().unwrap_or_default().to_string_lossy().into_owned();
+                Ok(CharacterChoice::Gltf { dir, file, clip: index, scale: character_scale })
+            });
+            match found {
+                Ok(c) => c,
+                Err(e) => {
+                    eprintln!("--character {}: {e}", p.display());
+                    std::process::exit(2);
+                }
+            }
+        }
+    };
+    // A glTF character's textures and buffers are read from its own folder.
+    let asset_dir = match &character {
+        CharacterChoice::Gltf { dir, .. } => Some(dir.clone()),
+        CharacterChoice::Builtin => None,
+    };
+    support::set_asset_root(asset_dir.clone());
     let configure = move |app: &mut App| {
         app.insert_resource(GlobalAmbientLight {
             color: Color::srgb(0.95, 0.93, 0.88),
@@ -190,8 +375,9 @@ fn main() {
         .insert_resource(ClearColor(Color::srgb(0.55, 0.68, 0.85)))
         .insert_resource(TimeUpdateStrategy::ManualDuration(std::time::Duration::from_secs_f32(1.0 / 30.0)))
         .insert_resource(ViewChoice(view))
+        .insert_resource(character.clone())
         .add_systems(Startup, setup)
-        .add_systems(Update, (animate, crates));
+        .add_systems(Update, (animate, crates, walk, play_character_clip));
     };
     if headless {
         let Some(out) = screenshot else {
@@ -218,10 +404,16 @@ fn main() {
     }
     let mut app = App::new();
     app.add_plugins((
-        DefaultPlugins.set(WindowPlugin {
-            primary_window: Some(Window { title: "bevy_hao: dynamic occluders".into(), ..default() }),
-            ..default()
-        }),
+        DefaultPlugins
+            .set(WindowPlugin {
+                primary_window: Some(Window { title: "bevy_hao: dynamic occluders".into(), ..default() }),
+                ..default()
+            })
+            .set(AssetPlugin {
+                file_path: asset_dir.unwrap_or_else(|| "assets".into()),
+                meta_check: bevy::asset::AssetMetaCheck::Never,
+                ..default()
+            }),
         HaoPlugin,
         bevy_hao::inspector::HaoInspectorPlugin,
     ));

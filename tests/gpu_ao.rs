@@ -288,6 +288,49 @@ fn a_moving_box_carries_its_occlusion() {
     assert!(take_render_errors().is_empty());
 }
 
+#[test]
+fn a_walking_skinned_character_carries_its_occlusion() {
+    use bevy::mesh::VertexAttributeValues;
+    use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(0.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y);
+    // A 1 m box skinned to one joint (no occluder marker: skinned meshes are dynamic); the joint walks.
+    let mut app = scene_app(camera, Ao::Hao(hao_settings()), |c, m, mat| {
+        let mesh = Mesh::from(Cuboid::from_size(Vec3::ONE));
+        let n = mesh.count_vertices();
+        let mesh = mesh
+            .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, VertexAttributeValues::Uint16x4(vec![[0; 4]; n]))
+            .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, vec![[1.0f32, 0.0, 0.0, 0.0]; n]);
+        let mesh = m.add(mesh);
+        c.queue(move |world: &mut World| {
+            let bindposes = world.resource_mut::<Assets<SkinnedMeshInverseBindposes>>().add(vec![Mat4::IDENTITY]);
+            let joint = world.spawn((Transform::from_xyz(-2.0, 0.5, 0.0), Mover)).id();
+            world.spawn((
+                Mesh3d(mesh),
+                MeshMaterial3d(mat),
+                SkinnedMesh { inverse_bindposes: bindposes, joints: vec![joint] },
+            ));
+        });
+    });
+    run(&mut app, 8);
+    assert_eq!(stats(&app).dynamic_instances, 1, "the skinned mesh is a dynamic occluder");
+    let left = Vec3::new(-2.0, 0.0, 0.65);
+    let right = Vec3::new(2.0, 0.0, 0.65);
+    let ao = ao_image(&mut app);
+    let (l0, r0) = (ao_at(&mut app, &ao, left, 1), ao_at(&mut app, &ao, right, 1));
+    for step in 1..=4 {
+        let mut q = app.world_mut().query_filtered::<&mut Transform, With<Mover>>();
+        q.single_mut(app.world_mut()).unwrap().translation.x = -2.0 + step as f32;
+        run(&mut app, 1);
+    }
+    let ao = ao_image(&mut app);
+    assert_valid(&ao);
+    let (l1, r1) = (ao_at(&mut app, &ao, left, 1), ao_at(&mut app, &ao, right, 1));
+    println!("beside the character's first place: {l0:.3} -> {l1:.3}; beside its last place: {r0:.3} -> {r1:.3}");
+    assert!(l0 < r0 - 0.1 && r1 < l1 - 0.1);
+    assert!(take_render_errors().is_empty());
+}
+
 fn luminance(app: &mut App) -> Vec<f32> {
     let targets = app.world().resource::<Targets>().clone();
     let (_, _, _, bytes) = read_image(app, targets.color, 4);

@@ -133,7 +133,7 @@ pub fn read_gltf_posed(
     };
     // Each node's world transform (its first instance's), for the joints of skins.
     let mut globals: HashMap<usize, Affine3A> = HashMap::new();
-    let mut mesh_instances: Vec<(gltf::Node, Affine3A)> = Vec::new();
+    let mut deferred: Vec<(gltf::Node, Affine3A)> = Vec::new();
     let scenes: Vec<_> = match gltf.default_scene() {
         Some(s) => vec![s],
         None => gltf.scenes().collect(),
@@ -172,107 +172,128 @@ pub fn read_gltf_posed(
         let world = parent * local;
         globals.entry(node.index()).or_insert(world);
         if node.mesh().is_some() {
-            mesh_instances.push((node.clone(), world));
+            if node.skin().is_some() {
+                deferred.push((node.clone(), world));
+            } else {
+                emit_node(&node, world, &globals, &buffers, buffer_bytes, &mut mesh, &mut warnings)?;
+            }
         }
         let mut path = ancestors;
         path.push(node.index());
         stack.extend(node.children().map(|c| (c, world, path.clone())));
     }
-    for (node, world) in mesh_instances {
-        let Some(m) = node.mesh() else { continue };
-        // A skinned node: each joint's world transform times its inverse bind matrix (the node's own
-        // transform is not applied, as the spec and Bevy have it).
-        let joint_matrices: Option<Vec<Mat4>> = node.skin().map(|skin| {
-            let reader = skin.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-            let inverse: Vec<Mat4> = reader
-                .read_inverse_bind_matrices()
-                .map(|m| m.map(|c| Mat4::from_cols_array_2d(&c)).collect())
-                .unwrap_or_default();
-            skin.joints()
-                .enumerate()
-                .map(|(j, joint)| {
-                    let g = globals.get(&joint.index()).copied().unwrap_or(Affine3A::IDENTITY);
-                    g * inverse.get(j).copied().unwrap_or(Mat4::IDENTITY)
-                })
-                .collect()
-        });
-        {
-            for prim in m.primitives() {
-                let too_big = prim.attributes().map(|(_, a)| a.count()).chain(prim.indices().map(|a| a.count()));
-                if let Some(count) = too_big.into_iter().find(|&c| c > MAX_ACCESSOR_COUNT) {
-                    return Err(format!(
-                        "mesh {:?} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
-                        m.name()
-                    ));
-                }
-                let declared = prim
-                    .attributes()
-                    .map(|(_, a)| a)
-                    .chain(prim.indices())
-                    .map(|a| a.count() as u64 * a.size() as u64)
-                    .max()
-                    .unwrap_or(0);
-                if declared > buffer_bytes {
-                    return Err(format!(
-                        "mesh {:?} has an accessor of {declared} bytes, but the file's buffers hold only {buffer_bytes}",
-                        m.name()
-                    ));
-                }
-                let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-                let Some(positions) = reader.read_positions() else {
-                    warnings.push(format!(
-                        "a primitive of mesh {:?} has no positions, or its position accessor does not fit its buffer; \
-                         skipped",
-                        m.name()
-                    ));
-                    continue;
-                };
-                let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
-                let indices: Vec<u32> = match reader.read_indices() {
-                    Some(i) => i.into_u32().collect(),
-                    None => (0..positions.len() as u32).collect(),
-                };
-                let triangles: Vec<[u32; 3]> = match prim.mode() {
-                    Mode::Triangles => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-                    Mode::TriangleStrip => (2..indices.len())
-                        .map(|k| {
-                            if k % 2 == 0 {
-                                [indices[k - 2], indices[k - 1], indices[k]]
-                            } else {
-                                [indices[k - 1], indices[k - 2], indices[k]]
-                            }
-                        })
-                        .collect(),
-                    Mode::TriangleFan => (2..indices.len()).map(|k| [indices[0], indices[k - 1], indices[k]]).collect(),
-                    other => {
-                        warnings.push(format!("a {other:?} primitive of mesh {:?} skipped (not triangles)", m.name()));
-                        continue;
-                    }
-                };
-                let skin = joint_matrices.as_ref().and_then(|matrices| {
-                    let joints = reader.read_joints(0)?.into_u16().collect::<Vec<_>>();
-                    let weights = reader.read_weights(0)?.into_f32().collect::<Vec<_>>();
-                    Some((VertexSkin { joints, weights }, matrices))
-                });
-                match skin {
-                    Some((skin, matrices)) => {
-                        let posed = skinned_mesh(&TriangleMesh::new(positions, triangles), &skin, matrices);
-                        mesh.append(&posed, Affine3A::IDENTITY);
-                    }
-                    None => {
-                        if joint_matrices.is_some() {
-                            warnings.push(format!(
-                                "a primitive of skinned mesh {:?} has no JOINTS_0/WEIGHTS_0; placed unskinned",
-                                m.name()
-                            ));
+    // Skinned nodes last: their joints' world transforms are all known once the walk is done.
+    for (node, world) in deferred {
+        emit_node(&node, world, &globals, &buffers, buffer_bytes, &mut mesh, &mut warnings)?;
+    }
+    Ok((mesh, warnings))
+}
+
+/// Appends the triangles of a node's mesh at `world` (or, for a skinned node, skinned by its joints' world
+/// transforms in `globals`).
+#[allow(clippy::too_many_arguments)]
+fn emit_node(
+    node: &gltf::Node,
+    world: Affine3A,
+    globals: &HashMap<usize, Affine3A>,
+    buffers: &[Vec<u8>],
+    buffer_bytes: u64,
+    mesh: &mut TriangleMesh,
+    warnings: &mut Vec<String>,
+) -> Result<(), String> {
+    let Some(m) = node.mesh() else { return Ok(()) };
+    // A skinned node: each joint's world transform times its inverse bind matrix (the node's own
+    // transform is not applied, as the spec and Bevy have it).
+    let joint_matrices: Option<Vec<Mat4>> = node.skin().map(|skin| {
+        let reader = skin.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+        let inverse: Vec<Mat4> = reader
+            .read_inverse_bind_matrices()
+            .map(|m| m.map(|c| Mat4::from_cols_array_2d(&c)).collect())
+            .unwrap_or_default();
+        skin.joints()
+            .enumerate()
+            .map(|(j, joint)| {
+                let g = globals.get(&joint.index()).copied().unwrap_or(Affine3A::IDENTITY);
+                g * inverse.get(j).copied().unwrap_or(Mat4::IDENTITY)
+            })
+            .collect()
+    });
+    {
+        for prim in m.primitives() {
+            let too_big = prim.attributes().map(|(_, a)| a.count()).chain(prim.indices().map(|a| a.count()));
+            if let Some(count) = too_big.into_iter().find(|&c| c > MAX_ACCESSOR_COUNT) {
+                return Err(format!(
+                    "mesh {:?} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
+                    m.name()
+                ));
+            }
+            let declared = prim
+                .attributes()
+                .map(|(_, a)| a)
+                .chain(prim.indices())
+                .map(|a| a.count() as u64 * a.size() as u64)
+                .max()
+                .unwrap_or(0);
+            if declared > buffer_bytes {
+                return Err(format!(
+                    "mesh {:?} has an accessor of {declared} bytes, but the file's buffers hold only {buffer_bytes}",
+                    m.name()
+                ));
+            }
+            let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+            let Some(positions) = reader.read_positions() else {
+                warnings.push(format!(
+                    "a primitive of mesh {:?} has no positions, or its position accessor does not fit its buffer; \
+                     skipped",
+                    m.name()
+                ));
+                continue;
+            };
+            let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+            let indices: Vec<u32> = match reader.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..positions.len() as u32).collect(),
+            };
+            let triangles: Vec<[u32; 3]> = match prim.mode() {
+                Mode::Triangles => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                Mode::TriangleStrip => (2..indices.len())
+                    .map(|k| {
+                        if k % 2 == 0 {
+                            [indices[k - 2], indices[k - 1], indices[k]]
+                        } else {
+                            [indices[k - 1], indices[k - 2], indices[k]]
                         }
-                        mesh.append(&TriangleMesh::new(positions, triangles), world);
+                    })
+                    .collect(),
+                Mode::TriangleFan => (2..indices.len()).map(|k| [indices[0], indices[k - 1], indices[k]]).collect(),
+                other => {
+                    warnings.push(format!("a {other:?} primitive of mesh {:?} skipped (not triangles)", m.name()));
+                    continue;
+                }
+            };
+            let skin = joint_matrices.as_ref().and_then(|matrices| {
+                let joints = reader.read_joints(0)?.into_u16().collect::<Vec<_>>();
+                let weights = reader.read_weights(0)?.into_f32().collect::<Vec<_>>();
+                Some((VertexSkin { joints, weights }, matrices))
+            });
+            match skin {
+                Some((skin, matrices)) => {
+                    let posed = skinned_mesh(&TriangleMesh::new(positions, triangles), &skin, matrices);
+                    mesh.append(&posed, Affine3A::IDENTITY);
+                }
+                None => {
+                    if joint_matrices.is_some() {
+                        warnings.push(format!(
+                            "a primitive of skinned mesh {:?} has no JOINTS_0/WEIGHTS_0; placed unskinned",
+                            m.name()
+                        ));
                     }
+                    mesh.append(&TriangleMesh::new(positions, triangles), world);
                 }
             }
         }
     }
-    Ok((mesh, warnings))
+    Ok(())
 }
 
 /// The animation clips of a glTF file.
