@@ -271,19 +271,25 @@ fn a_moving_box_carries_its_occlusion() {
         ));
     });
     run(&mut app, 8);
+    assert_occlusion_follows_the_mover(&mut app, "box");
+}
+
+/// The `Mover` (a 1 m occluder at x = -2) moves to x = 2 a metre a frame: the floor beside its first place
+/// gets lighter and the floor beside its last place darker.
+fn assert_occlusion_follows_the_mover(app: &mut App, what: &str) {
     let left = Vec3::new(-2.0, 0.0, 0.65);
     let right = Vec3::new(2.0, 0.0, 0.65);
-    let ao = ao_image(&mut app);
-    let (l0, r0) = (ao_at(&mut app, &ao, left, 1), ao_at(&mut app, &ao, right, 1));
+    let ao = ao_image(app);
+    let (l0, r0) = (ao_at(app, &ao, left, 1), ao_at(app, &ao, right, 1));
     for step in 1..=4 {
         let mut q = app.world_mut().query_filtered::<&mut Transform, With<Mover>>();
         q.single_mut(app.world_mut()).unwrap().translation.x = -2.0 + step as f32;
-        run(&mut app, 1);
+        run(app, 1);
     }
-    let ao = ao_image(&mut app);
+    let ao = ao_image(app);
     assert_valid(&ao);
-    let (l1, r1) = (ao_at(&mut app, &ao, left, 1), ao_at(&mut app, &ao, right, 1));
-    println!("beside the box's first place: {l0:.3} -> {l1:.3}; beside its last place: {r0:.3} -> {r1:.3}");
+    let (l1, r1) = (ao_at(app, &ao, left, 1), ao_at(app, &ao, right, 1));
+    println!("beside the {what}'s first place: {l0:.3} -> {l1:.3}; beside its last place: {r0:.3} -> {r1:.3}");
     assert!(l0 < r0 - 0.1 && r1 < l1 - 0.1);
     assert!(take_render_errors().is_empty());
 }
@@ -314,21 +320,7 @@ fn a_walking_skinned_character_carries_its_occlusion() {
     });
     run(&mut app, 8);
     assert_eq!(stats(&app).dynamic_instances, 1, "the skinned mesh is a dynamic occluder");
-    let left = Vec3::new(-2.0, 0.0, 0.65);
-    let right = Vec3::new(2.0, 0.0, 0.65);
-    let ao = ao_image(&mut app);
-    let (l0, r0) = (ao_at(&mut app, &ao, left, 1), ao_at(&mut app, &ao, right, 1));
-    for step in 1..=4 {
-        let mut q = app.world_mut().query_filtered::<&mut Transform, With<Mover>>();
-        q.single_mut(app.world_mut()).unwrap().translation.x = -2.0 + step as f32;
-        run(&mut app, 1);
-    }
-    let ao = ao_image(&mut app);
-    assert_valid(&ao);
-    let (l1, r1) = (ao_at(&mut app, &ao, left, 1), ao_at(&mut app, &ao, right, 1));
-    println!("beside the character's first place: {l0:.3} -> {l1:.3}; beside its last place: {r0:.3} -> {r1:.3}");
-    assert!(l0 < r0 - 0.1 && r1 < l1 - 0.1);
-    assert!(take_render_errors().is_empty());
+    assert_occlusion_follows_the_mover(&mut app, "character");
 }
 
 fn luminance(app: &mut App) -> Vec<f32> {
