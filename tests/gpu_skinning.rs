@@ -199,3 +199,30 @@ fn bad_skin_data_is_voxelized_as_drawn_or_skipped_without_errors() {
     assert_eq!(stats(&app).static_instances, 1);
     assert!(take_render_errors().is_empty());
 }
+
+#[test]
+fn a_skinned_static_occluder_keeps_the_pose_it_was_voxelized_in() {
+    let _gpu = gpu_lock();
+    let (mesh, skin) = bar();
+    let mut app = skinned_app(std::f32::consts::FRAC_PI_2, mesh.clone(), skin.clone(), true);
+    app.update();
+    let e = app.world_mut().query_filtered::<Entity, With<Character>>().single(app.world()).unwrap();
+    app.world_mut().entity_mut(e).insert(StaticOccluder);
+    run(&mut app, 8);
+    let s = stats(&app);
+    assert_eq!((s.static_instances, s.dynamic_instances), (1, 0), "marked static");
+    let bent = read_occupancy(&mut app);
+    let matrices = joint_matrices(&mut app);
+    let cpu = cpu_grid(&app, &skinned_mesh(&mesh, &skin, &matrices));
+    let differ = bent.count_not_in(&cpu) + cpu.count_not_in(&bent);
+    assert!(differ * 1000 <= cpu.set_voxel_count(), "{differ} differ from the bent pose");
+    // The bone straightens: the static voxels keep the bent pose, and nothing is rebuilt.
+    let rebuilds = stats(&app).static_rebuilds;
+    let mut q = app.world_mut().query_filtered::<&mut Transform, With<Bone>>();
+    q.single_mut(app.world_mut()).unwrap().rotation = Quat::IDENTITY;
+    run(&mut app, 4);
+    let later = read_occupancy(&mut app);
+    assert_eq!(later.words(), bent.words(), "the static voxels changed with the pose");
+    assert_eq!(stats(&app).static_rebuilds, rebuilds);
+    assert!(take_render_errors().is_empty());
+}

@@ -10,6 +10,7 @@ use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::DynamicSkinnedMeshBounds;
 use bevy::math::Affine3A;
 use bevy::mesh::VertexAttributeValues;
+use bevy::mesh::morph::MeshMorphWeights;
 use bevy::mesh::skinning::SkinnedMesh;
 use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
@@ -97,6 +98,7 @@ pub fn extract_voxel_occluders(
                 Has<PromotedToDynamic>,
                 Option<&SkinnedMesh>,
                 Has<DynamicSkinnedMeshBounds>,
+                Has<MeshMorphWeights>,
             ),
             Without<NoVoxelOcclusion>,
         >,
@@ -104,13 +106,20 @@ pub fn extract_voxel_occluders(
     requests: Extract<Res<StaticRebuildRequests>>,
     meshes: Extract<Res<Assets<Mesh>>>,
     mut checked: Local<HashSet<(AssetId<Mesh>, Option<u32>)>>,
+    mut warned_morph: Local<bool>,
 ) {
     extracted.statics.clear();
     extracted.dynamics.clear();
     extracted.rebuild_requests = requests.0;
-    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds) in &occluders {
+    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed) in &occluders {
         if !visible.get() {
             continue;
+        }
+        if morphed && !std::mem::replace(&mut *warned_morph, true) {
+            warn!(
+                "bevy_hao: {entity} has morph targets; they are not applied to the voxels (its base shape is \
+                 voxelized, skinned if it is skinned)"
+            );
         }
         let skin_joints = skin.map(|k| k.joints.len() as u32);
         if checked.insert((mesh.id(), skin_joints))
@@ -131,7 +140,7 @@ pub fn extract_voxel_occluders(
         };
         // Skinned meshes move by themselves: dynamic unless marked static (then voxelized in the pose they
         // have when the static voxels are built).
-        if occluder_is_dynamic(s, d || skin_joints.is_some(), p) {
+        if occluder_is_dynamic(s, d, p || skin_joints.is_some()) {
             extracted.dynamics.push(occluder);
         } else {
             extracted.statics.push(occluder);
