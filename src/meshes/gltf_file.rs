@@ -373,4 +373,76 @@ mod tests {
         assert!(e.contains("buffers hold only 36"), "{e}");
         assert!(load(&document(None, r#"[{"mesh":0}]"#, "[0]", 2_000_000_000), "huge").is_err());
     }
+
+    /// A two-joint skin with an animated bone, written in code: posed by the clip, the upper triangle turns
+    /// about the bone as `cpu::skinning` skins it, the lower one stays.
+    #[test]
+    fn a_posed_skinned_gltf_matches_the_skinning_twin() {
+        use glam::{Quat, UVec4, Vec4};
+        let positions =
+            [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 3.0, 0.0], [1.0, 3.0, 0.0], [0.0, 4.0, 0.0]];
+        let joints: [[u16; 4]; 6] =
+            [[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0], [1, 0, 0, 0], [1, 0, 0, 0], [1, 0, 0, 0]];
+        let weights = [[1.0f32, 0.0, 0.0, 0.0]; 6];
+        let ibm = [Mat4::IDENTITY, Mat4::from_translation(Vec3::new(0.0, -2.0, 0.0))];
+        let times = [0.0f32, 1.0];
+        let rotations = [Quat::IDENTITY, Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)];
+        let mut bin: Vec<u8> = Vec::new();
+        let mut view = |bytes: &[u8]| {
+            let offset = bin.len();
+            bin.extend_from_slice(bytes);
+            (offset, bytes.len())
+        };
+        let views = [
+            view(bytemuck::cast_slice(&positions)),
+            view(bytemuck::cast_slice(&joints)),
+            view(bytemuck::cast_slice(&weights)),
+            view(bytemuck::cast_slice(&ibm.map(|m| m.to_cols_array()))),
+            view(bytemuck::cast_slice(&times)),
+            view(bytemuck::cast_slice(&rotations.map(|q| q.to_array()))),
+        ];
+        let uri =
+            format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+        let buffer_views: Vec<String> =
+            views.iter().map(|(o, l)| format!(r#"{{"buffer":0,"byteOffset":{o},"byteLength":{l}}}"#)).collect();
+        let doc = format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0,1]}}],
+            "nodes":[{{"mesh":0,"skin":0}},{{"children":[2]}},{{"translation":[0,2,0]}}],
+            "skins":[{{"joints":[1,2],"inverseBindMatrices":3}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"JOINTS_0":1,"WEIGHTS_0":2}}}}]}}],
+            "animations":[{{"name":"bend","channels":[{{"sampler":0,"target":{{"node":2,"path":"rotation"}}}}],
+                "samplers":[{{"input":4,"output":5,"interpolation":"LINEAR"}}]}}],
+            "accessors":[
+              {{"bufferView":0,"componentType":5126,"count":6,"type":"VEC3","min":[0,0,0],"max":[1,4,0]}},
+              {{"bufferView":1,"componentType":5123,"count":6,"type":"VEC4"}},
+              {{"bufferView":2,"componentType":5126,"count":6,"type":"VEC4"}},
+              {{"bufferView":3,"componentType":5126,"count":2,"type":"MAT4"}},
+              {{"bufferView":4,"componentType":5126,"count":2,"type":"SCALAR","min":[0],"max":[1]}},
+              {{"bufferView":5,"componentType":5126,"count":2,"type":"VEC4"}}],
+            "bufferViews":[{}],"buffers":[{{"uri":"{uri}","byteLength":{}}}]}}"#,
+            buffer_views.join(","),
+            bin.len()
+        );
+        let dir = std::env::temp_dir();
+        let (rest, w) = read_gltf(doc.as_bytes(), &dir).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(rest.positions, positions.map(Vec3::from).to_vec(), "at rest, the bind pose");
+        let (posed, w) = read_gltf_posed(doc.as_bytes(), &dir, Some((0, 0.5))).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        let bone =
+            Affine3A::from_rotation_translation(Quat::IDENTITY.slerp(rotations[1], 0.5), Vec3::new(0.0, 2.0, 0.0));
+        let matrices = [Mat4::IDENTITY, bone * ibm[1]];
+        for (v, p) in positions.iter().enumerate() {
+            let j = UVec4::from_array(joints[v].map(u32::from));
+            let expected =
+                crate::cpu::skin_position(Vec3::from(*p), j, Vec4::from_array(weights[v]), &matrices).unwrap();
+            assert!(posed.positions[v].abs_diff_eq(expected, 1e-5), "vertex {v}: {} vs {expected}", posed.positions[v]);
+        }
+        // Half of a quarter turn about z at (0, 2, 0): the top vertex at (0, 4) goes to (-sqrt 2, 2 + sqrt 2).
+        let s = std::f32::consts::SQRT_2;
+        assert!(posed.positions[5].abs_diff_eq(Vec3::new(-s, 2.0 + s, 0.0), 1e-5), "{}", posed.positions[5]);
+        assert_eq!(posed.positions[0], Vec3::ZERO);
+        let clips = crate::meshes::gltf_animation::animation_infos(&parse_document(doc.as_bytes()).unwrap(), &[bin]);
+        assert_eq!((clips.len(), clips[0].name.as_deref(), clips[0].duration), (1, Some("bend"), 1.0));
+    }
 }
