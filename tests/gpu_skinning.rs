@@ -1,5 +1,6 @@
-//! Skinned meshes on a headless Bevy app (lavapipe here): the voxelizer skins each vertex with Bevy's joint
-//! matrices before voxelizing, and the GPU's grid is held against the CPU twin (`cpu::skinning`).
+//! Skinned and morphed meshes on a headless Bevy app (lavapipe here): the voxelizer morphs and skins each
+//! vertex with Bevy's morph weights and joint matrices before voxelizing, and the GPU's grid is held against
+//! the CPU twin (`cpu::skinning`).
 
 #[path = "../examples/support/mod.rs"]
 mod support;
@@ -224,5 +225,71 @@ fn a_skinned_static_occluder_keeps_the_pose_it_was_voxelized_in() {
     let later = read_occupancy(&mut app);
     assert_eq!(later.words(), bent.words(), "the static voxels changed with the pose");
     assert_eq!(stats(&app).static_rebuilds, rebuilds);
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn a_morph_target_moves_its_face_in_the_voxels() {
+    use bevy::mesh::morph::{MeshMorphWeights, MorphAttributes};
+    let _gpu = gpu_lock();
+    let (mesh, _) = bar();
+    // One target: the top ring and cap slide 1.5 along +x (a shear of the upper bar); weight 0.8.
+    let top = mesh.positions.len() - 4;
+    let deltas: Vec<Vec3> =
+        (0..mesh.positions.len()).map(|v| if v >= top { Vec3::X * 1.5 } else { Vec3::ZERO }).collect();
+    let weight = 0.8;
+    let targets: Vec<MorphAttributes> =
+        deltas.iter().map(|d| MorphAttributes::new(*d, Vec3::ZERO, Vec3::ZERO)).collect();
+    let bevy_mesh_with_target = {
+        let mut m = bevy_mesh(&mesh, Layout::U32);
+        m.set_morph_targets(targets);
+        m
+    };
+    let mut app = headless_app(move |app| {
+        let m = bevy_mesh_with_target.clone();
+        app.add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut images: ResMut<Assets<Image>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>| {
+                commands.spawn(VoxelVolume {
+                    bounds: VolumeBounds::World { min: Vec3::splat(-4.0), max: Vec3::splat(4.0) },
+                    resolution: VolumeResolution::Cells(64),
+                    ..default()
+                });
+                commands.spawn((
+                    Mesh3d(meshes.add(m.clone())),
+                    MeshMaterial3d(materials.add(StandardMaterial::default())),
+                    MeshMorphWeights::Value { weights: vec![weight] },
+                    Character,
+                ));
+                commands.spawn((
+                    Camera3d::default(),
+                    RenderTarget::Image(target_image(&mut images, UVec2::new(64, 48)).into()),
+                    Msaa::Off,
+                    Tonemapping::None,
+                    Transform::from_xyz(0.0, 2.0, 9.0).looking_at(Vec3::new(0.0, 2.0, 0.0), Vec3::Y),
+                ));
+            },
+        );
+    });
+    run(&mut app, 8);
+    let gpu = read_occupancy(&mut app);
+    let cpu = cpu_grid(&app, &bevy_hao::cpu::morphed_mesh(&mesh, &[deltas], &[weight]));
+    let base = cpu_grid(&app, &mesh);
+    let (only_gpu, only_cpu) = (gpu.count_not_in(&cpu), cpu.count_not_in(&gpu));
+    let moved = base.count_not_in(&gpu) + gpu.count_not_in(&base);
+    println!(
+        "morphed bar: {} voxels on the CPU, {only_gpu} only on the GPU, {only_cpu} only on the CPU; {moved} differ from the base shape",
+        cpu.set_voxel_count()
+    );
+    assert!((only_gpu + only_cpu) * 1000 <= cpu.set_voxel_count(), "{only_gpu} + {only_cpu} differ");
+    assert!(moved > 50, "only {moved} voxels differ from the base shape");
+    let grid = grid_assets(&app).unwrap().grid;
+    let cell = |p: Vec3| grid.cell_of_point(grid.world_to_grid(p)).unwrap();
+    assert!(gpu.is_set(cell(Vec3::new(1.2, 4.0, 0.0))), "the top face moved 1.2 along x");
+    let s = stats(&app);
+    assert_eq!((s.dynamic_instances, s.static_instances), (1, 0), "morphed meshes are dynamic");
     assert!(take_render_errors().is_empty());
 }

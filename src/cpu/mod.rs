@@ -13,7 +13,7 @@
 //!   ground truth.
 //! * [`metrics`]: bias, excess voxels and the six-direction watertight ray test; [`bias_model`]: equation 3.
 //! * [`binvox`]: export and import of the widely used binvox format.
-//! * [`skinning`]: linear blend skinning as Bevy renders it, applied before voxelizing a skinned mesh.
+//! * [`skinning`]: morph targets and linear blend skinning as Bevy renders them, applied before voxelizing.
 //! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
 //!   through the voxel grid with empty-space skipping).
@@ -57,7 +57,7 @@ pub use ground_truth::{GroundTruthStats, ground_truth_mesh, ground_truth_mesh_wi
 pub use mesh::{MeshStats, TriangleMesh};
 pub use metrics::{Comparison, GrazeSplit, WatertightReport, compare, enclosed_voxels, graze_split, watertight};
 pub use overlap::{OverlapKind, OverlapTriangle, triangle_box_overlap};
-pub use skinning::{VertexSkin, skin_matrix, skin_position, skinned_mesh};
+pub use skinning::{VertexSkin, morph_position, morphed_mesh, skin_matrix, skin_position, skinned_mesh};
 pub use tessellation::{
     LatticeRange, SubTriangle, TessellationFactors, expected_point_count, sub_triangle, sub_triangle_centroid,
     subdivision_count, tessellation_factors,

@@ -1,5 +1,7 @@
-//! Linear blend skinning as Bevy renders it (`bevy_pbr::skinning::skin_model`) and as the classify pass
-//! applies it before equation 1 (WGSL: `skin_matrix` and `vertex_position` in `voxelize_classify.wgsl`):
+//! Morph targets and linear blend skinning as Bevy renders them (`bevy_pbr`'s `morph_vertex`, then
+//! `skin_model`) and as the classify pass applies them before equation 1 (WGSL: `vertex_position` and
+//! `skin_matrix` in `voxelize_classify.wgsl`). A vertex is first morphed: each target's displacement times
+//! its weight is added, in target order, zero weights skipped. Then it is skinned:
 //! the skin matrix is the weighted sum of four joint matrices, in the order x, y, z, w, and it maps the
 //! bind-pose position straight to world space (the joint matrices are each joint's world transform times
 //! its inverse bind pose; the mesh entity's own transform is not applied). Weights are used as given, as
@@ -51,6 +53,31 @@ pub fn skinned_mesh(mesh: &TriangleMesh, skin: &VertexSkin, matrices: &[Mat4]) -
     TriangleMesh::new(positions, mesh.triangles.clone())
 }
 
+/// A vertex morphed by its displacements (`deltas[t]`: this vertex's displacement in target `t`) and the
+/// targets' weights (WGSL `vertex_position` under `VOXELIZE_MORPH`).
+#[inline]
+pub fn morph_position(p: Vec3, deltas: impl Iterator<Item = Vec3>, weights: &[f32]) -> Vec3 {
+    let mut out = p;
+    for (d, &w) in deltas.zip(weights) {
+        if w != 0.0 {
+            out += w * d;
+        }
+    }
+    out
+}
+
+/// The mesh morphed by `targets` (per target, one displacement per vertex; a target shorter than the mesh
+/// displaces the rest by nothing) and their `weights`.
+pub fn morphed_mesh(mesh: &TriangleMesh, targets: &[Vec<Vec3>], weights: &[f32]) -> TriangleMesh {
+    let positions = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(v, p)| morph_position(*p, targets.iter().map(|t| t.get(v).copied().unwrap_or(Vec3::ZERO)), weights))
+        .collect();
+    TriangleMesh::new(positions, mesh.triangles.clone())
+}
+
 /// Whether every vertex's weights sum to one within `tolerance` (Bevy's glTF loader normalizes them; a mesh
 /// built in code may not).
 pub fn weights_are_normalized(skin: &VertexSkin, tolerance: f32) -> bool {
@@ -89,6 +116,11 @@ mod tests {
         assert_eq!(posed.positions[0], p);
         assert!(posed.positions[2].is_nan(), "a vertex without joint data");
         assert!(weights_are_normalized(&skin, 1e-4));
+        // Morphing: weighted displacements added in order, before skinning.
+        let targets = vec![vec![Vec3::Y; 3], vec![Vec3::X; 3]];
+        let morphed = morphed_mesh(&mesh, &targets, &[0.5, 0.0]);
+        assert_eq!(morphed.positions[0], p + Vec3::Y * 0.5);
+        assert_eq!(morph_position(p, [Vec3::Y, Vec3::X].into_iter(), &[1.0, 2.0]), p + Vec3::Y + Vec3::X * 2.0);
         assert_eq!(max_joint_index(&skin), Some(1));
     }
 }

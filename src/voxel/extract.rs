@@ -115,10 +115,10 @@ pub fn extract_voxel_occluders(
         if !visible.get() {
             continue;
         }
-        if morphed && !std::mem::replace(&mut *warned_morph, true) {
+        if morphed && !cfg!(feature = "morph") && !std::mem::replace(&mut *warned_morph, true) {
             warn!(
-                "bevy_hao: {entity} has morph targets; they are not applied to the voxels (its base shape is \
-                 voxelized, skinned if it is skinned)"
+                "bevy_hao: {entity} has morph targets, and bevy_hao was built without its `morph` feature: its base \
+                 shape is voxelized (skinned if it is skinned)"
             );
         }
         let skin_joints = skin.map(|k| k.joints.len() as u32);
@@ -128,8 +128,8 @@ pub fn extract_voxel_occluders(
             check_skin_data(entity, m, skin_joints);
         }
         // A skinned mesh's `Aabb` follows its pose only with `DynamicSkinnedMeshBounds` (which Bevy's glTF
-        // loader adds); otherwise it is the bind pose's, and the whole cascade is treated as touched.
-        let bounds_valid = skin_joints.is_none() || dynamic_bounds;
+        // loader adds), and a morphed mesh's never does; otherwise the whole cascade is treated as touched.
+        let bounds_valid = (skin_joints.is_none() || dynamic_bounds) && !morphed;
         let occluder = ExtractedOccluder {
             entity,
             mesh: mesh.id(),
@@ -138,9 +138,9 @@ pub fn extract_voxel_occluders(
             marked_static: s,
             skin_joints,
         };
-        // Skinned meshes move by themselves: dynamic unless marked static (then voxelized in the pose they
-        // have when the static voxels are built).
-        if occluder_is_dynamic(s, d, p || skin_joints.is_some()) {
+        // Skinned and morphed meshes move by themselves: dynamic unless marked static (then voxelized in the
+        // pose they have when the static voxels are built).
+        if occluder_is_dynamic(s, d, p || skin_joints.is_some() || morphed) {
             extracted.dynamics.push(occluder);
         } else {
             extracted.statics.push(occluder);

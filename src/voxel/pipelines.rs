@@ -41,6 +41,14 @@ pub struct GpuOccluderInstance {
     pub joint_offset: u32,
     /// Offset of the joint weights (`Float32x4`) in a vertex, in words.
     pub weight_offset: u32,
+    /// First of the instance's morph weights in Bevy's `MorphUniforms::current_buffer`.
+    pub morph_weights_offset: u32,
+    /// Morph targets of the mesh (0: not morphed).
+    pub morph_weight_count: u32,
+    /// First of the mesh's morph displacements in its morph-target slab (target-major).
+    pub morph_targets_offset: u32,
+    /// Vertices per morph target.
+    pub morph_vertex_count: u32,
 }
 
 /// [`GpuOccluderInstance::skin_index`] of an instance that is not skinned (WGSL `NO_SKIN`).
@@ -113,6 +121,9 @@ pub const PARAMS_IN_STORAGE_BUFFERS: u32 = 10;
 /// Storage buffers per shader stage the classify pass needs to skin meshes (its settings in storage, and
 /// Bevy's joint matrices); see [`VoxelizePipelines::skinning`].
 pub const SKINNING_STORAGE_BUFFERS: u32 = 11;
+/// Storage buffers per shader stage the classify pass needs to apply morph targets as well (Bevy's morph
+/// weights and a morph-target slab); see [`VoxelizePipelines::morph`].
+pub const MORPH_STORAGE_BUFFERS: u32 = 13;
 
 /// The voxelization pipelines, layouts and the small buffers they share.
 #[derive(Resource)]
@@ -150,6 +161,10 @@ pub struct VoxelizePipelines {
     /// matrices): wherever the device has [`SKINNING_STORAGE_BUFFERS`]. Elsewhere skinned meshes are skipped
     /// with a warning.
     pub skinning: bool,
+    /// Whether classify applies morph targets (WGSL `VOXELIZE_MORPH`, group 0 bindings 5 and 6: Bevy's morph
+    /// weights and a morph-target slab): with this crate's `morph` feature, wherever the device has
+    /// [`MORPH_STORAGE_BUFFERS`]. Elsewhere morphed meshes are voxelized in their base shape, with a warning.
+    pub morph: bool,
     /// A 64-byte storage buffer bound (read only) where a mesh has no index slab, and as the joint matrices
     /// (one matrix) where Bevy has none.
     pub dummy: Buffer,
@@ -182,6 +197,7 @@ impl FromWorld for VoxelizePipelines {
         let storage_buffers = world.resource::<RenderDevice>().limits().max_storage_buffers_per_shader_stage;
         let params_in_storage = storage_buffers >= PARAMS_IN_STORAGE_BUFFERS;
         let skinning = storage_buffers >= SKINNING_STORAGE_BUFFERS;
+        let morph = cfg!(feature = "morph") && storage_buffers >= MORPH_STORAGE_BUFFERS;
         let params_binding = || {
             if params_in_storage {
                 storage_buffer_read_only_sized(false, None)
@@ -195,14 +211,21 @@ impl FromWorld for VoxelizePipelines {
             storage_buffer_read_only_sized(false, None),
             params_binding(),
         );
-        let slab_layout = if skinning {
+        let read_only = || storage_buffer_read_only_sized(false, None);
+        let slab_layout = if morph {
             let (a, b, c, d) = slab_entries;
             BindGroupLayoutDescriptor::new(
                 "hao_voxelize_slab_layout",
                 &BindGroupLayoutEntries::sequential(
                     ShaderStages::COMPUTE,
-                    (a, b, c, d, storage_buffer_read_only_sized(false, None)),
+                    (a, b, c, d, read_only(), read_only(), read_only()),
                 ),
+            )
+        } else if skinning {
+            let (a, b, c, d) = slab_entries;
+            BindGroupLayoutDescriptor::new(
+                "hao_voxelize_slab_layout",
+                &BindGroupLayoutEntries::sequential(ShaderStages::COMPUTE, (a, b, c, d, read_only())),
             )
         } else {
             BindGroupLayoutDescriptor::new(
@@ -256,6 +279,9 @@ impl FromWorld for VoxelizePipelines {
         let mut classify_defs = pass_defs.clone();
         if skinning {
             classify_defs.push("VOXELIZE_SKINNING".into());
+        }
+        if morph {
+            classify_defs.push("VOXELIZE_MORPH".into());
         }
         let texture_defs: Vec<ShaderDefVal> =
             if texture_format == TextureFormat::R8Unorm { vec!["VOXEL_TEXTURE_R8".into()] } else { vec![] };
@@ -320,6 +346,7 @@ impl FromWorld for VoxelizePipelines {
             texture_format,
             params_in_storage,
             skinning,
+            morph,
             dummy,
             dummy_counts,
         }

@@ -11,6 +11,8 @@ use crate::cpu::{self, InjectionMode, VoxelGrid};
 use bevy::math::{Affine3A, IVec3};
 use bevy::mesh::VertexFormat;
 use bevy::pbr::SkinUniforms;
+#[cfg(feature = "morph")]
+use bevy::pbr::{MorphIndices, MorphUniforms};
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::mesh::allocator::MeshAllocator;
@@ -271,9 +273,11 @@ pub struct VoxelizeFrame {
 /// An occluder ready for the GPU.
 #[derive(Clone)]
 struct ResolvedInstance {
-    slabs: (BufferId, Option<BufferId>),
+    /// The vertex, index and morph-target slabs: instances sharing them share a classify dispatch.
+    slabs: (BufferId, Option<BufferId>, Option<BufferId>),
     vertex_buffer: Buffer,
     index_buffer: Option<Buffer>,
+    morph_buffer: Option<Buffer>,
     gpu: GpuOccluderInstance,
     ranges: [u32; 4],
 }
@@ -286,12 +290,60 @@ enum Resolution {
     Skipped,
 }
 
-/// Where skinned meshes get their joint matrices this frame.
+/// Where skinned and morphed meshes get their joint matrices and morph weights this frame.
 struct Skins<'a> {
     /// Bevy's joint matrices (`None` if the device cannot bind them as storage).
     uniforms: Option<&'a SkinUniforms>,
     /// Whether the classify pipeline skins (see `VoxelizePipelines::skinning`).
     supported: bool,
+    /// Bevy's morph descriptors per entity, where the pipeline applies morph targets.
+    #[cfg(feature = "morph")]
+    morphs: Option<(&'a MorphIndices, &'a MorphUniforms)>,
+}
+
+/// An instance's morph data: (weights offset, weight count, targets offset, vertices per target) and the
+/// morph-target slab, or `None` if it is not morphed. `Err` while Bevy has not placed its weights (a mesh not
+/// visible to any view).
+#[cfg(feature = "morph")]
+fn resolve_morph(
+    o: &ExtractedOccluder,
+    allocator: &MeshAllocator,
+    skins: &Skins,
+    warned: &mut HashSet<AssetId<Mesh>>,
+) -> Result<Option<([u32; 4], Buffer)>, ()> {
+    let Some(slice) = allocator.mesh_morph_target_slice(&o.mesh) else { return Ok(None) };
+    let Some((indices, uniforms)) = skins.morphs else {
+        if warned.insert(o.mesh) {
+            warn!(
+                "bevy_hao: mesh {:?} has morph targets, and this device cannot bind them for voxelization: its base \
+                 shape is voxelized",
+                o.mesh
+            );
+        }
+        return Ok(None);
+    };
+    if !slice.buffer.usage().contains(BufferUsages::STORAGE) {
+        if warned.insert(o.mesh) {
+            warn!(
+                "bevy_hao: mesh {:?}'s morph targets cannot be bound as storage: its base shape is voxelized",
+                o.mesh
+            );
+        }
+        return Ok(None);
+    }
+    let descriptor = indices
+        .morph_descriptor_index(MainEntity::from(o.entity))
+        .and_then(|i| uniforms.descriptors_buffer.as_ref()?.values().get(i.0 as usize).copied())
+        .ok_or(())?;
+    Ok(Some((
+        [
+            descriptor.current_weights_offset,
+            descriptor.weight_count,
+            descriptor.targets_offset,
+            descriptor.vertex_count,
+        ],
+        slice.buffer.clone(),
+    )))
 }
 
 /// Joint indices (`Uint16x4`) and weights (`Float32x4`) of a mesh layout, in words; `None` if either is
@@ -317,18 +369,19 @@ fn resolve_occluder(
     warned: &mut HashSet<AssetId<Mesh>>,
 ) -> Resolution {
     let Some(mesh) = meshes.get(o.mesh) else { return Resolution::Pending };
-    let mut skip = |why: &str| {
+    let skip = |warned: &mut HashSet<AssetId<Mesh>>, why: &str| {
         if warned.insert(o.mesh) {
             warn!("bevy_hao: mesh {:?} is not voxelized: {why}", o.mesh);
         }
         Resolution::Skipped
     };
     if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return skip(&format!("its topology is {:?}, not a triangle list", mesh.primitive_topology()));
+        return skip(warned, &format!("its topology is {:?}, not a triangle list", mesh.primitive_topology()));
     }
     let Some(vertices) = allocator.mesh_vertex_slice(&o.mesh) else { return Resolution::Pending };
     if !vertices.buffer.usage().contains(BufferUsages::STORAGE) {
         return skip(
+            warned,
             "it sits in a vertex slab that cannot be bound as storage (a mesh above the slab allocator's large_threshold)",
         );
     }
@@ -342,10 +395,10 @@ fn resolve_occluder(
         .position(|id| *id == Mesh::ATTRIBUTE_POSITION.id)
         .map(|i| layout.attributes[i])
     else {
-        return skip("it has no positions");
+        return skip(warned, "it has no positions");
     };
     if position.format != VertexFormat::Float32x3 || stride % 4 != 0 || position.offset % 4 != 0 {
-        return skip("its positions are not 4-byte aligned Float32x3");
+        return skip(warned, "its positions are not 4-byte aligned Float32x3");
     }
     // A skinned mesh: its joint data in the vertex layout, and its skin's place in Bevy's joint matrices
     // (allocated only while the mesh is visible to a view). Without joint data it is voxelized unskinned
@@ -353,16 +406,25 @@ fn resolve_occluder(
     let (mut skin_index, mut joint_count, mut joint_offset, mut weight_offset) = (NO_SKIN, 0, 0, 0);
     if let (Some(joints), Some((j, w))) = (o.skin_joints, joint_attributes(mesh)) {
         let Some(uniforms) = skins.uniforms.filter(|_| skins.supported) else {
-            return skip("it is skinned, and this device cannot bind the joint matrices for voxelization");
+            return skip(warned, "it is skinned, and this device cannot bind the joint matrices for voxelization");
         };
         let Some(index) = uniforms.skin_index(MainEntity::from(o.entity)) else { return Resolution::Pending };
         (skin_index, joint_count, joint_offset, weight_offset) = (index, joints, j, w);
     }
+    // A morphed mesh: its targets' slab and Bevy's descriptor of its weights.
+    #[cfg(feature = "morph")]
+    let (morph, morph_buffer) = match resolve_morph(o, allocator, skins, warned) {
+        Ok(Some((m, b))) => (m, Some(b)),
+        Ok(None) => ([0; 4], None),
+        Err(()) => return Resolution::Pending,
+    };
+    #[cfg(not(feature = "morph"))]
+    let (morph, morph_buffer): ([u32; 4], Option<Buffer>) = ([0; 4], None);
     let (index_buffer, index_start, index_format, triangles) = match &mesh.buffer_info {
         RenderMeshBufferInfo::Indexed { count, index_format } => {
             let Some(indices) = allocator.mesh_index_slice(&o.mesh) else { return Resolution::Pending };
             if !indices.buffer.usage().contains(BufferUsages::STORAGE) || indices.buffer.size() % 4 != 0 {
-                return skip("it sits in an index slab that cannot be bound as storage");
+                return skip(warned, "it sits in an index slab that cannot be bound as storage");
             }
             let format = match index_format {
                 IndexFormat::Uint16 => 1,
@@ -373,9 +435,10 @@ fn resolve_occluder(
         RenderMeshBufferInfo::NonIndexed => (None, 0, 0, mesh.vertex_count / 3),
     };
     Resolution::Ready(ResolvedInstance {
-        slabs: (vertices.buffer.id(), index_buffer.as_ref().map(|b| b.id())),
+        slabs: (vertices.buffer.id(), index_buffer.as_ref().map(|b| b.id()), morph_buffer.as_ref().map(|b| b.id())),
         vertex_buffer: vertices.buffer.clone(),
         index_buffer,
+        morph_buffer,
         ranges: [vertices.range.start, vertices.range.end, index_start, triangles],
         gpu: GpuOccluderInstance {
             grid_from_local: [[0.0; 4]; 4],
@@ -391,6 +454,10 @@ fn resolve_occluder(
             joint_count,
             joint_offset,
             weight_offset,
+            morph_weights_offset: morph[0],
+            morph_weight_count: morph[1],
+            morph_targets_offset: morph[2],
+            morph_vertex_count: morph[3],
         },
     })
 }
@@ -447,6 +514,7 @@ fn build_slab_dispatches(
     cache: &PipelineCache,
     mut instances: Vec<ResolvedInstance>,
     joints: &Buffer,
+    morph_weights: &Buffer,
     label: &'static str,
 ) -> (Vec<SlabDispatch>, u64) {
     instances.sort_by_key(|i| i.slabs);
@@ -497,7 +565,20 @@ fn build_slab_dispatches(
                 index.as_entire_binding(),
                 params.as_entire_binding(),
             );
-            let bind_group = if pipelines.skinning {
+            let bind_group = if pipelines.morph {
+                let (a, b, c, d) = entries;
+                let targets = first.morph_buffer.as_ref().unwrap_or(&pipelines.dummy);
+                let entries = BindGroupEntries::sequential((
+                    a,
+                    b,
+                    c,
+                    d,
+                    joints.as_entire_binding(),
+                    morph_weights.as_entire_binding(),
+                    targets.as_entire_binding(),
+                ));
+                device.create_bind_group("hao_voxelize_slab_bind_group", &layout, &entries)
+            } else if pipelines.skinning {
                 let (a, b, c, d) = entries;
                 let entries = BindGroupEntries::sequential((a, b, c, d, joints.as_entire_binding()));
                 device.create_bind_group("hao_voxelize_slab_bind_group", &layout, &entries)
@@ -565,6 +646,8 @@ pub fn prepare_voxelize(
     mut state: ResMut<VoxelizeState>,
     stats: Res<VoxelizationStats>,
     skin_uniforms: Option<Res<SkinUniforms>>,
+    #[cfg(feature = "morph")] morph_indices: Option<Res<MorphIndices>>,
+    #[cfg(feature = "morph")] morph_uniforms: Option<Res<MorphUniforms>>,
 ) {
     commands.remove_resource::<VoxelizeFrame>();
     let invalidate = |state: &mut VoxelizeState| {
@@ -613,7 +696,22 @@ pub fn prepare_voxelize(
     // Bevy's joint matrices, if they can be bound as storage (they are a uniform buffer on devices without
     // storage buffers, where the voxelizer is off anyway).
     let skin_uniforms = skin_uniforms.as_deref().filter(|u| u.current_buffer.usage().contains(BufferUsages::STORAGE));
-    let skins = Skins { uniforms: skin_uniforms, supported: pipelines.skinning };
+    // Bevy's morph weights and descriptors (storage buffers only; `None` where the pipeline does not morph).
+    #[cfg(feature = "morph")]
+    let morphs = match (morph_indices.as_deref(), morph_uniforms.as_deref()) {
+        (Some(i), Some(u)) if pipelines.morph && u.descriptors_buffer.is_some() => Some((i, u)),
+        _ => None,
+    };
+    #[cfg(feature = "morph")]
+    let morph_weights = morphs.and_then(|(_, u)| u.current_buffer.buffer()).unwrap_or(&pipelines.dummy);
+    #[cfg(not(feature = "morph"))]
+    let morph_weights = &pipelines.dummy;
+    let skins = Skins {
+        uniforms: skin_uniforms,
+        supported: pipelines.skinning,
+        #[cfg(feature = "morph")]
+        morphs,
+    };
     let statics = resolve_list(&occluders.statics, &meshes, &allocator, &skins, &mut state, &mut skipped);
     let dynamics = resolve_list(&occluders.dynamics, &meshes, &allocator, &skins, &mut state, &mut skipped);
     // Bound to every classify dispatch where the pipeline skins (a placeholder when Bevy has none).
@@ -849,7 +947,7 @@ pub fn prepare_voxelize(
         let level = &levels[p.level];
         let is_static = p.clear.is_some();
         let label = if is_static { "hao_static_instances" } else { "hao_dynamic_instances" };
-        let (slabs, _) = build_slab_dispatches(&device, &pipelines, &cache, p.instances, joints, label);
+        let (slabs, _) = build_slab_dispatches(&device, &pipelines, &cache, p.instances, joints, morph_weights, label);
         let region = level.region(p.region);
         let params = GpuVoxelizeParams {
             region_min: region.min.to_array(),

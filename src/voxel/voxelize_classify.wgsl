@@ -33,6 +33,12 @@ struct OccluderInstance {
     joint_count: u32,
     joint_offset: u32,
     weight_offset: u32,
+    // Morphed instances: where their weights and displacements are, how many targets (0: not morphed), and
+    // the vertices per target.
+    morph_weights_offset: u32,
+    morph_weight_count: u32,
+    morph_targets_offset: u32,
+    morph_vertex_count: u32,
 }
 
 // The instances of this dispatch: those whose meshes live in the bound pair of slabs.
@@ -55,6 +61,21 @@ struct SlabGroup {
 #ifdef VOXELIZE_SKINNING
 // Bevy's joint matrices of this frame (`bevy::pbr::SkinUniforms::current_buffer`).
 @group(0) @binding(4) var<storage, read> joint_matrices: array<mat4x4<f32>>;
+#endif
+
+#ifdef VOXELIZE_MORPH
+// Bevy's `MorphAttributes`: one vertex's displacement by one target.
+struct MorphTarget {
+    position: vec3<f32>,
+    pad_a: f32,
+    normal: vec3<f32>,
+    pad_b: f32,
+    tangent: vec3<f32>,
+    pad_c: f32,
+}
+// Bevy's morph weights of this frame (`MorphUniforms::current_buffer`) and the bound slab of morph targets.
+@group(0) @binding(5) var<storage, read> morph_weights: array<f32>;
+@group(0) @binding(6) var<storage, read> morph_targets: array<MorphTarget>;
 #endif
 
 const INDEX_NONE: u32 = 0u;
@@ -100,10 +121,27 @@ fn skin_matrix(inst: OccluderInstance, vertex: u32, m: ptr<function, mat4x4<f32>
 }
 #endif
 
-// skinning.rs: skin_position for a skinned instance (bind pose to world space), else the vertex's own
-// position. False if the vertex cannot be skinned (its triangle is then invalid).
+// skinning.rs: morph_position then skin_position, as Bevy draws the vertex: morphed, then for a skinned
+// instance skinned from bind pose to world space. False if a joint or target is out of range (the triangle
+// is then invalid).
 fn vertex_position(inst: OccluderInstance, vertex: u32, p: ptr<function, vec3<f32>>) -> bool {
-    let local = read_position(inst, vertex);
+    var local = read_position(inst, vertex);
+#ifdef VOXELIZE_MORPH
+    // skinning.rs: morph_position (Bevy's `morph_vertex`, before skinning): each target's displacement
+    // times its weight, added in target order, zero weights skipped.
+    for (var i = 0u; i < inst.morph_weight_count; i++) {
+        let w = inst.morph_weights_offset + i;
+        let t = inst.morph_targets_offset + i * inst.morph_vertex_count + vertex;
+        if w >= arrayLength(&morph_weights) || t >= arrayLength(&morph_targets) {
+            return false;
+        }
+        let weight = morph_weights[w];
+        if weight == 0.0 {
+            continue;
+        }
+        local += weight * morph_targets[t].position;
+    }
+#endif
     *p = local;
 #ifdef VOXELIZE_SKINNING
     if inst.skin_index != NO_SKIN {
