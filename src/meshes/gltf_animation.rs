@@ -3,7 +3,8 @@
 //! defines them. Used to pose a glTF file before voxelizing it on the CPU (`voxelize --animation`), the
 //! twin of Bevy's `AnimationPlayer` sought to the same time.
 //!
-//! Morph-target weight channels are read but not applied (the voxelizer voxelizes the base shape).
+//! Morph-target weight channels give the weights of the node's mesh at that time (each target's weight
+//! interpolated on its own).
 
 use glam::{Quat, Vec3};
 use gltf::animation::util::ReadOutputs;
@@ -24,7 +25,7 @@ pub struct AnimationInfo {
 }
 
 /// What a clip sets on one node at a time (`None`: the node's own value stands).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct NodePose {
     /// Translation.
     pub translation: Option<Vec3>,
@@ -32,6 +33,8 @@ pub struct NodePose {
     pub rotation: Option<Quat>,
     /// Scale.
     pub scale: Option<Vec3>,
+    /// The morph-target weights of the node's mesh.
+    pub weights: Option<Vec<f32>>,
 }
 
 /// The clips of a document.
@@ -97,6 +100,37 @@ impl Keyframe for Vec3 {
     }
 }
 
+impl Keyframe for f32 {
+    fn lerp_to(self, other: Self, s: f32) -> Self {
+        self + (other - self) * s
+    }
+    fn scaled(self, k: f32) -> Self {
+        self * k
+    }
+    fn plus(self, other: Self) -> Self {
+        self + other
+    }
+}
+
+/// Morph weights at `t`: `outputs` holds, per keyframe, one value per target (for cubic splines the in
+/// tangents, values and out tangents of all targets), each target interpolated on its own.
+fn sample_weights(inputs: &[f32], outputs: &[f32], interpolation: Interpolation, t: f32) -> Option<Vec<f32>> {
+    let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+    if inputs.is_empty() || outputs.len() % (inputs.len() * per_key) != 0 {
+        return None;
+    }
+    let targets = outputs.len() / (inputs.len() * per_key);
+    (0..targets)
+        .map(|target| {
+            // This target's series, laid out as `sample` expects (triplets per key for cubic splines).
+            let series: Vec<f32> = (0..inputs.len())
+                .flat_map(|k| (0..per_key).map(move |part| outputs[(k * per_key + part) * targets + target]))
+                .collect();
+            sample(inputs, &series, interpolation, t)
+        })
+        .collect()
+}
+
 impl Keyframe for Quat {
     fn lerp_to(self, other: Self, s: f32) -> Self {
         self.slerp(other, s)
@@ -160,7 +194,6 @@ pub fn sample_animation(
 ) -> HashMap<usize, NodePose> {
     let mut poses: HashMap<usize, NodePose> = HashMap::new();
     let Some(anim) = document.animations().nth(animation) else { return poses };
-    let mut morph_channels = 0;
     for channel in anim.channels() {
         let reader = channel.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
         let interpolation = channel.sampler().interpolation();
@@ -183,20 +216,15 @@ pub fn sample_animation(
                 let v: Vec<Quat> = v.into_f32().map(Quat::from_array).collect();
                 sample(&inputs, &v, interpolation, time).map(|x| pose.rotation = Some(x))
             }
-            (Property::MorphTargetWeights, _) => {
-                morph_channels += 1;
-                Some(())
+            (Property::MorphTargetWeights, Some(ReadOutputs::MorphTargetWeights(v))) => {
+                let v: Vec<f32> = v.into_f32().collect();
+                sample_weights(&inputs, &v, interpolation, time).map(|w| pose.weights = Some(w))
             }
             _ => None,
         };
         if sampled.is_none() {
             warnings.push(format!("animation {animation}: a channel of node {node} could not be read; skipped"));
         }
-    }
-    if morph_channels > 0 {
-        warnings.push(format!(
-            "animation {animation}: {morph_channels} morph-weight channels are not applied (the base shape is voxelized)"
-        ));
     }
     poses
 }
@@ -227,6 +255,12 @@ mod tests {
         let tangent = [z, Vec3::ZERO, Vec3::Y, z, Vec3::ZERO, z];
         let early = sample(&[0.0, 2.0], &tangent, Interpolation::CubicSpline, 0.01).unwrap();
         assert!((early.y - 0.01).abs() < 1e-3, "{early}");
+        // Morph weights: two targets, each interpolated on its own; cubic splines read the middle of each
+        // triplet at the keys.
+        let w = [0.0, 1.0, 1.0, 0.0];
+        assert_eq!(sample_weights(&[0.0, 1.0], &w, Interpolation::Linear, 0.25), Some(vec![0.25, 0.75]));
+        let cubic_w = [0.0, 0.0, 0.2, 0.4, 0.0, 0.0, 0.0, 0.0, 0.6, 0.8, 0.0, 0.0];
+        assert_eq!(sample_weights(&[0.0, 1.0], &cubic_w, Interpolation::CubicSpline, 1.0), Some(vec![0.6, 0.8]));
         // Too few outputs: nothing.
         assert_eq!(sample(&[0.0, 1.0], &v[..1], Interpolation::Linear, 0.5), None);
     }

@@ -4,7 +4,7 @@
 //! warning. Skinned meshes come in their bind pose.
 
 use super::gltf_animation;
-use crate::cpu::{TriangleMesh, VertexSkin, skinned_mesh};
+use crate::cpu::{TriangleMesh, VertexSkin, morphed_mesh, skinned_mesh};
 use base64::Engine;
 use glam::{Affine3A, Mat4, Quat, Vec3};
 use gltf::mesh::Mode;
@@ -134,6 +134,7 @@ pub fn read_gltf_posed(
     // Each node's world transform (its first instance's), for the joints of skins.
     let mut globals: HashMap<usize, Affine3A> = HashMap::new();
     let mut deferred: Vec<(gltf::Node, Affine3A)> = Vec::new();
+    let weights_of = |node: &gltf::Node| poses.get(&node.index()).and_then(|p| p.weights.as_deref());
     let scenes: Vec<_> = match gltf.default_scene() {
         Some(s) => vec![s],
         None => gltf.scenes().collect(),
@@ -175,7 +176,7 @@ pub fn read_gltf_posed(
             if node.skin().is_some() {
                 deferred.push((node.clone(), world));
             } else {
-                emit_node(&node, world, &globals, &buffers, buffer_bytes, &mut mesh, &mut warnings)?;
+                emit_node(&node, world, &globals, &buffers, buffer_bytes, weights_of(&node), &mut mesh, &mut warnings)?;
             }
         }
         let mut path = ancestors;
@@ -184,7 +185,7 @@ pub fn read_gltf_posed(
     }
     // Skinned nodes last: their joints' world transforms are all known once the walk is done.
     for (node, world) in deferred {
-        emit_node(&node, world, &globals, &buffers, buffer_bytes, &mut mesh, &mut warnings)?;
+        emit_node(&node, world, &globals, &buffers, buffer_bytes, weights_of(&node), &mut mesh, &mut warnings)?;
     }
     Ok((mesh, warnings))
 }
@@ -198,6 +199,7 @@ fn emit_node(
     globals: &HashMap<usize, Affine3A>,
     buffers: &[Vec<u8>],
     buffer_bytes: u64,
+    morph_weights: Option<&[f32]>,
     mesh: &mut TriangleMesh,
     warnings: &mut Vec<String>,
 ) -> Result<(), String> {
@@ -220,20 +222,20 @@ fn emit_node(
     });
     {
         for prim in m.primitives() {
-            let too_big = prim.attributes().map(|(_, a)| a.count()).chain(prim.indices().map(|a| a.count()));
-            if let Some(count) = too_big.into_iter().find(|&c| c > MAX_ACCESSOR_COUNT) {
+            // Every accessor the primitive reads: attributes, indices, morph-target positions.
+            let accessors = || {
+                prim.attributes()
+                    .map(|(_, a)| a)
+                    .chain(prim.indices())
+                    .chain(prim.morph_targets().filter_map(|t| t.positions()))
+            };
+            if let Some(count) = accessors().map(|a| a.count()).find(|&c| c > MAX_ACCESSOR_COUNT) {
                 return Err(format!(
                     "mesh {:?} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
                     m.name()
                 ));
             }
-            let declared = prim
-                .attributes()
-                .map(|(_, a)| a)
-                .chain(prim.indices())
-                .map(|a| a.count() as u64 * a.size() as u64)
-                .max()
-                .unwrap_or(0);
+            let declared = accessors().map(|a| a.count() as u64 * a.size() as u64).max().unwrap_or(0);
             if declared > buffer_bytes {
                 return Err(format!(
                     "mesh {:?} has an accessor of {declared} bytes, but the file's buffers hold only {buffer_bytes}",
@@ -249,7 +251,17 @@ fn emit_node(
                 ));
                 continue;
             };
-            let positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+            let mut positions: Vec<Vec3> = positions.map(Vec3::from).collect();
+            // Morph targets, weighted by the clip's weights for this node or else the mesh's own (as Bevy's
+            // glTF loader starts them), before skinning.
+            let targets: Vec<Vec<Vec3>> = reader
+                .read_morph_targets()
+                .map(|(p, _, _)| p.map(|p| p.map(Vec3::from).collect()).unwrap_or_default())
+                .collect();
+            let weights: &[f32] = morph_weights.or(m.weights()).unwrap_or(&[]);
+            if !targets.is_empty() && weights.iter().any(|w| *w != 0.0) {
+                positions = morphed_mesh(&TriangleMesh::new(positions, Vec::new()), &targets, weights).positions;
+            }
             let indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None => (0..positions.len() as u32).collect(),
@@ -444,5 +456,48 @@ mod tests {
         assert_eq!(posed.positions[0], Vec3::ZERO);
         let clips = crate::meshes::gltf_animation::animation_infos(&parse_document(doc.as_bytes()).unwrap(), &[bin]);
         assert_eq!((clips.len(), clips[0].name.as_deref(), clips[0].duration), (1, Some("bend"), 1.0));
+    }
+
+    /// A mesh with one morph target and a clip of its weight: at rest the mesh's own weight applies, posed
+    /// the clip's, each as `cpu::morph_position` adds it.
+    #[test]
+    fn a_posed_morphed_gltf_follows_its_weights() {
+        let positions = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let target = [[0.0f32, 0.0, 0.0], [0.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+        let times = [0.0f32, 1.0];
+        let weights = [0.0f32, 1.0];
+        let bin: Vec<u8> = [&positions[..], &target[..]]
+            .concat()
+            .iter()
+            .flatten()
+            .chain(times.iter())
+            .chain(weights.iter())
+            .flat_map(|f| f.to_le_bytes())
+            .collect();
+        let uri =
+            format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(&bin));
+        let doc = format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+            "meshes":[{{"weights":[0.25],"primitives":[{{"attributes":{{"POSITION":0}},"targets":[{{"POSITION":1}}]}}]}}],
+            "animations":[{{"channels":[{{"sampler":0,"target":{{"node":0,"path":"weights"}}}}],
+                "samplers":[{{"input":2,"output":3,"interpolation":"LINEAR"}}]}}],
+            "accessors":[
+              {{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+              {{"bufferView":1,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[2,0,0]}},
+              {{"bufferView":2,"componentType":5126,"count":2,"type":"SCALAR","min":[0],"max":[1]}},
+              {{"bufferView":3,"componentType":5126,"count":2,"type":"SCALAR"}}],
+            "bufferViews":[{{"buffer":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":36}},
+              {{"buffer":0,"byteOffset":72,"byteLength":8}},{{"buffer":0,"byteOffset":80,"byteLength":8}}],
+            "buffers":[{{"uri":"{uri}","byteLength":{}}}]}}"#,
+            bin.len()
+        );
+        let dir = std::env::temp_dir();
+        let (rest, w) = read_gltf(doc.as_bytes(), &dir).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(rest.positions[2], Vec3::new(0.5, 1.0, 0.0), "the mesh's own weight, 0.25");
+        let (posed, w) = read_gltf_posed(doc.as_bytes(), &dir, Some((0, 0.75))).unwrap();
+        assert!(w.is_empty(), "{w:?}");
+        assert_eq!(posed.positions[2], Vec3::new(1.5, 1.0, 0.0), "the clip's weight at 0.75 s");
+        assert_eq!(&posed.positions[..2], &rest.positions[..2]);
     }
 }
