@@ -31,11 +31,11 @@
 //!
 //! Animated glTF files: `--list-animations` prints each file's clips; `--animation NAME|INDEX --time SECONDS`
 //! poses the file before voxelizing, with the project's own sampler of the clip's channels (translation,
-//! rotation, scale; step, linear and cubic-spline interpolation) and skinning by the joints' world
-//! transforms. With `--gpu` the plugin plays the same clip instead: Bevy loads the file as a scene, its
-//! `AnimationPlayer` is sought to the time and paused, the skinned meshes are voxelized as dynamic
-//! occluders, and the GPU time is the dynamic pass's (`hao/voxelize_dynamic`). Morph-target weights are not
-//! applied on either side (the base shape is voxelized).
+//! rotation, scale, morph weights; step, linear and cubic-spline interpolation), morph targets, and skinning
+//! by the joints' world transforms. With `--gpu` the plugin plays the same clip instead: Bevy loads the file as a scene, its
+//! `AnimationPlayer` is sought to the time and paused, the skinned and morphed meshes are voxelized as
+//! dynamic occluders, and the GPU time is the dynamic pass's (`hao/voxelize_dynamic`). Morph targets are applied on
+//! both sides (the clip's weight channels, or the mesh's own weights), before skinning.
 
 mod support;
 
