@@ -41,6 +41,8 @@ pub struct ExtractedOccluder {
     /// For a skinned mesh ([`SkinnedMesh`]), the number of joints of its skin. Its vertices are skinned to
     /// world space by Bevy's joint matrices, so `world_from_local` is not applied to them.
     pub skin_joints: Option<u32>,
+    /// Whether it has morph weights ([`MeshMorphWeights`]): its mesh's morph targets are applied with them.
+    pub morphed: bool,
 }
 
 /// This frame's occluders, split into static and dynamic.
@@ -137,6 +139,7 @@ pub fn extract_voxel_occluders(
             world_bounds: aabb.filter(|_| bounds_valid).map(|a| world_aabb(a, transform)),
             marked_static: s,
             skin_joints,
+            morphed,
         };
         // Skinned and morphed meshes move by themselves: dynamic unless marked static (then voxelized in the
         // pose they have when the static voxels are built).

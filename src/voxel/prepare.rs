@@ -311,6 +311,10 @@ fn resolve_morph(
     skins: &Skins,
     warned: &mut HashSet<AssetId<Mesh>>,
 ) -> Result<Option<([u32; 4], Buffer)>, ()> {
+    // Without morph weights Bevy draws the base shape, and so is it voxelized.
+    if !o.morphed {
+        return Ok(None);
+    }
     let Some(slice) = allocator.mesh_morph_target_slice(&o.mesh) else { return Ok(None) };
     let Some((indices, uniforms)) = skins.morphs else {
         if warned.insert(o.mesh) {
