@@ -6,6 +6,7 @@
 //! Morph-target weight channels give the weights of the node's mesh at that time (each target's weight
 //! interpolated on its own).
 
+use super::gltf_file::MAX_ACCESSOR_COUNT;
 use glam::{Quat, Vec3};
 use gltf::animation::util::ReadOutputs;
 use gltf::animation::{Interpolation, Property};
@@ -37,6 +38,14 @@ pub struct NodePose {
     pub weights: Option<Vec<f32>>,
 }
 
+/// Whether reading `accessor` stays within the file's bytes: at most [`MAX_ACCESSOR_COUNT`] elements and no
+/// more bytes than the buffers hold (a sparse accessor without a buffer view would otherwise yield as many
+/// zeros as its count asks, from a file of a few hundred bytes).
+pub(crate) fn accessor_fits(accessor: &gltf::Accessor, buffers: &[Vec<u8>]) -> bool {
+    let total: u64 = buffers.iter().map(|b| b.len() as u64).sum();
+    accessor.count() <= MAX_ACCESSOR_COUNT && accessor.count() as u64 * accessor.size() as u64 <= total
+}
+
 /// The clips of a document.
 pub fn animation_infos(document: &gltf::Document, buffers: &[Vec<u8>]) -> Vec<AnimationInfo> {
     document
@@ -44,6 +53,7 @@ pub fn animation_infos(document: &gltf::Document, buffers: &[Vec<u8>]) -> Vec<An
         .map(|a| {
             let duration = a
                 .channels()
+                .filter(|c| accessor_fits(&c.sampler().input(), buffers))
                 .filter_map(|c| {
                     let reader = c.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
                     reader.read_inputs().and_then(|i| i.fold(None, |m: Option<f32>, t| Some(m.map_or(t, |m| m.max(t)))))
@@ -198,6 +208,13 @@ pub fn sample_animation(
         let reader = channel.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
         let interpolation = channel.sampler().interpolation();
         let node = channel.target().node().index();
+        let sampler = channel.sampler();
+        if !(accessor_fits(&sampler.input(), buffers) && accessor_fits(&sampler.output(), buffers)) {
+            warnings.push(format!(
+                "animation {animation}: a channel of node {node} declares more keyframes than the file holds; skipped"
+            ));
+            continue;
+        }
         let Some(inputs) = reader.read_inputs().map(|i| i.collect::<Vec<f32>>()) else {
             warnings.push(format!("animation {animation}: a channel without keyframe times; skipped"));
             continue;

@@ -206,6 +206,11 @@ fn emit_node(
     let Some(m) = node.mesh() else { return Ok(()) };
     // A skinned node: each joint's world transform times its inverse bind matrix (the node's own
     // transform is not applied, as the spec and Bevy have it).
+    if let Some(ibm) = node.skin().and_then(|s| s.inverse_bind_matrices())
+        && !gltf_animation::accessor_fits(&ibm, buffers)
+    {
+        return Err(format!("skin {} declares more inverse bind matrices than the file holds", ibm.index()));
+    }
     let joint_matrices: Option<Vec<Mat4>> = node.skin().map(|skin| {
         let reader = skin.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
         let inverse: Vec<Mat4> = reader
@@ -258,6 +263,7 @@ fn emit_node(
                 .read_morph_targets()
                 .map(|(p, _, _)| p.map(|p| p.map(Vec3::from).collect()).unwrap_or_default())
                 .collect();
+            // (Bevy's loader starts from the mesh's weights and ignores a node's own `weights`; so does this.)
             let weights: &[f32] = morph_weights.or(m.weights()).unwrap_or(&[]);
             if !targets.is_empty() && weights.iter().any(|w| *w != 0.0) {
                 positions = morphed_mesh(&TriangleMesh::new(positions, Vec::new()), &targets, weights).positions;
@@ -499,5 +505,33 @@ mod tests {
         assert!(w.is_empty(), "{w:?}");
         assert_eq!(posed.positions[2], Vec3::new(1.5, 1.0, 0.0), "the clip's weight at 0.75 s");
         assert_eq!(&posed.positions[..2], &rest.positions[..2]);
+    }
+
+    /// An animation whose keyframe accessor is sparse, with no data behind its base and a count of two
+    /// billion: skipped with a warning at once, not read as two billion zeros.
+    #[test]
+    fn an_animation_cannot_make_a_tiny_file_allocate() {
+        let doc = document(None, r#"[{"mesh":0}]"#, "[0]", 3).replacen(
+            r#""accessors":["#,
+            r#""animations":[{"channels":[{"sampler":0,"target":{"node":0,"path":"translation"}}],
+              "samplers":[{"input":1,"output":1}]}],
+              "accessors":[{"componentType":5126,"count":2000000000,"type":"SCALAR","min":[0],"max":[1],
+                "sparse":{"count":1,"indices":{"bufferView":0,"componentType":5125},"values":{"bufferView":0}}},"#,
+            1,
+        );
+        // The position accessor is now the second: point the mesh at it.
+        let doc = doc.replacen(r#""POSITION":0"#, r#""POSITION":1"#, 1).replacen(
+            r#""input":1,"output":1"#,
+            r#""input":0,"output":0"#,
+            1,
+        );
+        let start = std::time::Instant::now();
+        let (mesh, warnings) = read_gltf_posed(doc.as_bytes(), &std::env::temp_dir(), Some((0, 0.5))).unwrap();
+        assert_eq!(mesh.triangle_count(), 1);
+        assert!(warnings.iter().any(|w| w.contains("more keyframes than the file holds")), "{warnings:?}");
+        let loaded = load_document(doc.as_bytes(), &std::env::temp_dir()).unwrap();
+        let clips = gltf_animation::animation_infos(&loaded.gltf.document, &loaded.buffers);
+        assert_eq!(clips[0].duration, 0.0);
+        assert!(start.elapsed().as_secs() < 2);
     }
 }

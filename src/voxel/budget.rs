@@ -15,10 +15,12 @@ use bevy::prelude::*;
 
 /// `(triangles, mean edge length)` of a mesh in its local space, if its data is in the main world.
 fn mesh_edge_stats(mesh: &Mesh) -> Option<(u64, f64)> {
-    let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
+    // A mesh kept only in the render world has no data here (the `try_` accessors say so; the others panic).
+    let Ok(Some(VertexAttributeValues::Float32x3(positions))) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION)
+    else {
         return None;
     };
-    let index: Vec<usize> = match mesh.indices() {
+    let index: Vec<usize> = match mesh.try_indices_option().ok()? {
         Some(Indices::U16(i)) => i.iter().map(|&i| i as usize).collect(),
         Some(Indices::U32(i)) => i.iter().map(|&i| i as usize).collect(),
         None => (0..positions.len()).collect(),

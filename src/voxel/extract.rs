@@ -124,9 +124,11 @@ pub fn extract_voxel_occluders(
             );
         }
         let skin_joints = skin.map(|k| k.joints.len() as u32);
-        if checked.insert((mesh.id(), skin_joints))
+        // Checked once per mesh and skin, once the mesh has loaded.
+        if !checked.contains(&(mesh.id(), skin_joints))
             && let Some(m) = meshes.get(mesh)
         {
+            checked.insert((mesh.id(), skin_joints));
             check_skin_data(entity, m, skin_joints);
         }
         // A skinned mesh's `Aabb` follows its pose only with `DynamicSkinnedMeshBounds` (which Bevy's glTF
@@ -158,8 +160,13 @@ pub fn extract_voxel_occluders(
 /// voxelized in the bind pose), joint indices past the skin (those triangles are skipped), and weights
 /// that do not sum to one (used as given, as Bevy's shader does).
 fn check_skin_data(entity: Entity, mesh: &Mesh, skin_joints: Option<u32>) {
-    let joints = mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX);
-    let weights = mesh.attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT);
+    // A mesh kept only in the render world has no data left here: nothing to check.
+    let (Ok(joints), Ok(weights)) = (
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_INDEX),
+        mesh.try_attribute_option(Mesh::ATTRIBUTE_JOINT_WEIGHT),
+    ) else {
+        return;
+    };
     let Some(joint_count) = skin_joints else {
         if joints.is_some() {
             warn!(
