@@ -1,7 +1,8 @@
 //! glTF 2.0 (`.gltf` with external or embedded buffers, and `.glb`) read as a [`TriangleMesh`]: every mesh
-//! primitive of the default scene (or of all scenes, if none is marked default), with node transforms
+//! primitive of the scene Bevy would show (the default scene, else the first), with node transforms
 //! applied. Triangle strips and fans are unrolled into lists; point and line primitives are skipped with a
-//! warning. Skinned meshes come in their bind pose.
+//! warning. Skinned meshes are skinned by their joints' transforms and morphed meshes take their weights:
+//! the nodes' own ([`read_gltf`]), or an animation clip's at a time ([`read_gltf_posed`]).
 
 use super::gltf_animation;
 use crate::cpu::{TriangleMesh, VertexSkin, morphed_mesh, skinned_mesh};
@@ -135,10 +136,8 @@ pub fn read_gltf_posed(
     let mut globals: HashMap<usize, Affine3A> = HashMap::new();
     let mut deferred: Vec<(gltf::Node, Affine3A)> = Vec::new();
     let weights_of = |node: &gltf::Node| poses.get(&node.index()).and_then(|p| p.weights.as_deref());
-    let scenes: Vec<_> = match gltf.default_scene() {
-        Some(s) => vec![s],
-        None => gltf.scenes().collect(),
-    };
+    // The scene Bevy would show: the default one, else the first.
+    let scenes: Vec<_> = gltf.default_scene().or_else(|| gltf.scenes().next()).into_iter().collect();
     // Each entry carries its ancestors, so that a node that is its own ancestor (a cycle) is refused; the
     // depth and the number of instances are bounded (a DAG can expand to exponentially many paths).
     let mut stack: Vec<(gltf::Node, Affine3A, Vec<usize>)> =
@@ -312,6 +311,13 @@ fn emit_node(
         }
     }
     Ok(())
+}
+
+/// The index of the scene [`read_gltf`] reads: the file's default scene, else the first (`None`: no scene).
+pub fn gltf_scene_index(path: &Path) -> Result<Option<usize>, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let gltf = parse_document(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(gltf.default_scene().or_else(|| gltf.scenes().next()).map(|s| s.index()))
 }
 
 /// The animation clips of a glTF file.
