@@ -323,6 +323,30 @@ fn a_walking_skinned_character_carries_its_occlusion() {
     assert_occlusion_follows_the_mover(&mut app, "character");
 }
 
+#[test]
+fn bevys_ssao_passes_are_skipped_where_hao_overwrites_them() {
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(0.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y);
+    let mut app = scene_app(camera, Ao::Hao(hao_settings()), |c, m, mat| {
+        c.spawn((box_at(m, Vec3::ONE), MeshMaterial3d(mat), Transform::from_xyz(0.0, 0.5, 0.0), StaticOccluder));
+    });
+    run(&mut app, 10);
+    // The time of the latest measurement of a pass's GPU span (a span not recorded keeps its old one).
+    let latest =
+        |app: &App, span: &str| diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu")).map(|m| m.0);
+    let (ssao, trace) = (latest(&app, "ssao"), latest(&app, "hao/trace"));
+    run(&mut app, 6);
+    assert!(latest(&app, "hao/trace") != trace && trace.is_some(), "HAO's passes run");
+    assert_eq!(latest(&app, "ssao"), ssao, "Bevy's SSAO passes ran, their result overwritten by HAO's");
+    // With the near field on, SSAO's result is used: its passes run again.
+    let mut q = app.world_mut().query_filtered::<&mut HybridAmbientOcclusion, With<TheCamera>>();
+    q.single_mut(app.world_mut()).unwrap().near_field = true;
+    run(&mut app, 6);
+    let with_near_field = latest(&app, "ssao");
+    assert!(with_near_field.is_some() && with_near_field != ssao, "the near field needs Bevy's SSAO passes");
+    assert!(take_render_errors().is_empty());
+}
+
 fn luminance(app: &mut App) -> Vec<f32> {
     let targets = app.world().resource::<Targets>().clone();
     let (_, _, _, bytes) = read_image(app, targets.color, 4);

@@ -25,9 +25,10 @@ pub use settings::{HaoAddedSsao, HaoDebugImages, HaoQuality, HybridAmbientOcclus
 use bevy::asset::embedded_asset;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
-use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel};
+use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel, SsaoPipelineId};
 use bevy::prelude::*;
 use bevy::render::extract_component::ExtractComponentPlugin;
+use bevy::render::render_resource::PipelineCache;
 use bevy::render::renderer::RenderDevice;
 use bevy::render::{GpuResourceAppExt, Render, RenderApp, RenderSystems};
 use bevy::shader::load_shader_library;
@@ -68,6 +69,10 @@ impl Plugin for HybridAmbientOcclusionPlugin {
                 (
                     prepare::prepare_hao_textures.in_set(RenderSystems::PrepareResources),
                     prepare::prepare_hao_bind_groups.in_set(RenderSystems::PrepareBindGroups),
+                    skip_unused_ssao
+                        .in_set(RenderSystems::PrepareBindGroups)
+                        .after(prepare::prepare_hao_bind_groups)
+                        .after(crate::voxel::bindings::prepare_voxel_grid_bindings),
                 ),
             )
             .add_systems(
@@ -81,8 +86,35 @@ impl Plugin for HybridAmbientOcclusionPlugin {
     }
 }
 
+/// Keeps Bevy's SSAO passes from running on a HAO view whose near field is off: their result would be
+/// overwritten by HAO's apply pass, which writes every texel of the texture PBR reads. Bevy's SSAO node
+/// runs only on views with an `SsaoPipelineId`, so removing it this frame skips the passes while the texture
+/// and PBR's binding of it stay. Only when HAO's passes will run this frame (their bind groups, the voxel
+/// grid and the pipelines are ready); otherwise SSAO fills the texture as before.
+fn skip_unused_ssao(
+    mut commands: Commands,
+    views: Query<(Entity, &HybridAmbientOcclusion), (With<SsaoPipelineId>, With<prepare::HaoBindGroups>)>,
+    pipelines: Res<pipelines::HaoPipelines>,
+    voxel_grid: Option<Res<crate::voxel::VoxelGridBindings>>,
+    cache: Res<PipelineCache>,
+) {
+    let ready = voxel_grid.is_some()
+        && [pipelines.trace, pipelines.denoise_horizontal, pipelines.denoise_vertical, pipelines.apply]
+            .iter()
+            .all(|id| cache.get_compute_pipeline(*id).is_some());
+    if !ready {
+        return;
+    }
+    for (entity, hao) in &views {
+        if !hao.near_field {
+            commands.entity(entity).remove::<SsaoPipelineId>();
+        }
+    }
+}
+
 /// The SSAO quality a HAO camera asks for: its near-field quality, or the cheapest when the near field is
-/// off (the SSAO pass still runs, since PBR reads AO from its texture, but its result is unused).
+/// off (PBR reads AO from SSAO's texture, so the component must be there; its passes are skipped while HAO's
+/// run, see `skip_unused_ssao`, and fill the texture in the frames before HAO is ready).
 fn ssao_for(hao: &HybridAmbientOcclusion) -> ScreenSpaceAmbientOcclusion {
     ScreenSpaceAmbientOcclusion {
         quality_level: if hao.near_field {
