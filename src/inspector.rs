@@ -95,8 +95,11 @@ enum AoMode {
     Both,
 }
 
+/// A pass's smoothed GPU time, or `None` if it has not run in the last second (a diagnostic keeps its last
+/// value when its pass stops: the static voxelization between rebuilds, Bevy's SSAO where HAO replaces it).
 fn gpu_ms(store: &DiagnosticsStore, span: &str) -> Option<f64> {
-    store.get(&DiagnosticPath::new(format!("render/{span}/elapsed_gpu"))).and_then(|d| d.smoothed())
+    let d = store.get(&DiagnosticPath::new(format!("render/{span}/elapsed_gpu")))?;
+    (d.measurement()?.time.elapsed() < std::time::Duration::from_secs(1)).then(|| d.smoothed()).flatten()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -328,6 +331,7 @@ fn inspector_window(
                 ui.end_row();
             }
         });
+        ui.label("-: not run in the last second");
     });
     Ok(())
 }
