@@ -17,7 +17,7 @@ use bevy_hao::meshes::gltf_file::read_gltf;
 use bevy_hao::meshes::obj::ObjModel;
 use glam::{Affine3A, UVec3, Vec3};
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestRunner};
+use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};
 
 // ---------------------------------------------------------------------------------------------------------
 // Allocation accounting: the bytes this thread has live, and their peak since the last reset.
@@ -83,6 +83,15 @@ fn cases(default: u32) -> Config {
     Config { cases, failure_persistence: None, ..Config::default() }
 }
 
+/// A runner whose cases come from a fixed seed, so that the test command is reproducible;
+/// `PROPTEST_SEED=N` explores others (with `PROPTEST_CASES` for more of them).
+fn seeded_runner(default_cases: u32) -> TestRunner {
+    let seed: u64 = std::env::var("PROPTEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0x0b0a_0b0a);
+    let mut bytes = [0u8; 32];
+    bytes[..8].copy_from_slice(&seed.to_le_bytes());
+    TestRunner::new_with_rng(cases(default_cases), TestRng::from_seed(RngAlgorithm::ChaCha, &bytes))
+}
+
 // ---------------------------------------------------------------------------------------------------------
 // Values: ordinary ones, and the ones that break arithmetic.
 
@@ -136,7 +145,7 @@ fn assert_usable(g: &VoxelGrid) {
 
 #[test]
 fn grid_constructors_never_panic_and_ok_grids_are_usable() {
-    let mut runner = TestRunner::new(cases(512));
+    let mut runner = seeded_runner(512);
     runner
         .run(&(any_vec3(), any_vec3(), any_f32(), any_u32(), any_u32(), any_u32()), |(a, b, cell, x, y, z)| {
             if let Ok(g) = VoxelGrid::new(a, cell, UVec3::new(x, y, z)) {
@@ -170,7 +179,7 @@ fn triangles() -> impl Strategy<Value = TriangleMesh> {
 #[test]
 fn voxelization_never_panics_and_stays_inside_the_ground_truth() {
     let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::new(16, 13, 16)).unwrap();
-    let mut runner = TestRunner::new(cases(256));
+    let mut runner = seeded_runner(256);
     runner
         .run(&(triangles(), prop_oneof![Just(1.0f32), Just(2.0), 0.0f32..8.0, special_f32()]), |(mesh, gamma)| {
             let truth = VoxelOccupancy::new(grid, false);
@@ -184,8 +193,16 @@ fn voxelization_never_panics_and_stays_inside_the_ground_truth() {
             let k = compare(&cons, &truth);
             prop_assert_eq!(k.excess, 0, "conservative mode outside the ground truth");
             // A triangle needing more than MAX_SUBDIVISION segments on an edge (longer than 2^20 cells) is
-            // skipped and counted as oversize; every other one is found whole.
-            if stats.oversize == 0 {
+            // skipped and counted as oversize; every other one is found whole, except one that reaches into
+            // the grid by less than 1e-6 cells past a face (lying in the face, or outside it and touching):
+            // whether it touches the closed boundary cells beside that face is a float tie, which the clip
+            // against the grid (exact at 1e-30) and the exact overlap test (rounded at the scale of a cell)
+            // may call differently.
+            let dims = grid.dims.as_vec3();
+            let in_face =
+                |v: [Vec3; 3]| (0..3).any(|k| v.iter().all(|p| p[k] < 1e-6) || v.iter().all(|p| p[k] > dims[k] - 1e-6));
+            let any_in_face = (0..mesh.triangle_count()).any(|t| mesh.triangle(t).is_some_and(in_face));
+            if stats.oversize == 0 && !any_in_face {
                 prop_assert_eq!(k.missing, 0, "conservative mode missed voxels of the ground truth");
             }
             Ok(())
@@ -202,7 +219,7 @@ fn mesh_append_takes_any_indices() {
         )
             .prop_map(|(p, t)| TriangleMesh::new(p, t))
     };
-    let mut runner = TestRunner::new(cases(512));
+    let mut runner = seeded_runner(512);
     runner
         .run(&(mesh(), mesh()), |(mut a, b)| {
             let before = a.triangle_count();
@@ -393,7 +410,7 @@ fn mutated(seed: Vec<u8>) -> impl Strategy<Value = Vec<u8>> {
 fn the_readers_survive_arbitrary_and_mutated_bytes() {
     let seeds = corpus();
     let formats = ["obj", "binvox", "gltf"];
-    let mut runner = TestRunner::new(cases(256));
+    let mut runner = seeded_runner(256);
     runner
         .run(&proptest::collection::vec(any::<u8>(), 0..2048), |bytes| {
             for format in formats {
@@ -402,7 +419,7 @@ fn the_readers_survive_arbitrary_and_mutated_bytes() {
             Ok(())
         })
         .unwrap();
-    let mut runner = TestRunner::new(cases(256));
+    let mut runner = seeded_runner(256);
     let mutations = (0..seeds.len()).prop_flat_map(move |k| {
         let (format, seed, _) = corpus().swap_remove(k);
         mutated(seed).prop_map(move |b| (format, b))

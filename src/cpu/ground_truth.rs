@@ -74,8 +74,9 @@ pub fn ground_truth_triangle(v: [Vec3; 3], out: &VoxelOccupancy, cut: Option<&Vo
                 w_lo = w_lo.min(h);
                 w_hi = w_hi.max(h);
             }
-            let from = ((w_lo.floor() as i64 - 1).max(cell_lo[w] as i64)) as i32;
-            let to = ((w_hi.floor() as i64 + 1).min(cell_hi[w] as i64)) as i32;
+            // (`as i64` saturates for a plane nearly parallel to w; the +-1 must not overflow then.)
+            let from = ((w_lo.floor() as i64).saturating_sub(1).max(cell_lo[w] as i64)) as i32;
+            let to = ((w_hi.floor() as i64).saturating_add(1).min(cell_hi[w] as i64)) as i32;
             for cw in from..=to {
                 let mut cell = IVec3::ZERO;
                 cell[u] = cu;

@@ -32,6 +32,14 @@ fn buffer_file(dir: &Path, uri: &str) -> Result<std::path::PathBuf, String> {
     Ok(dir.join(rel))
 }
 
+/// Adds a warning unless the same one is already there: a file whose node graph reaches one broken mesh
+/// 65,536 times gets one line, not 65,536.
+fn push_once(warnings: &mut Vec<String>, warning: String) {
+    if !warnings.contains(&warning) {
+        warnings.push(warning);
+    }
+}
+
 /// Parses and validates a glTF document. The `gltf` crate's own validation reads a primitive's POSITION
 /// accessor by an unchecked index (a panic on a file naming an accessor that does not exist), so every
 /// attribute index is checked before it runs.
@@ -145,11 +153,17 @@ pub fn read_gltf_posed(
     let mut instances = 0usize;
     while let Some((node, parent, ancestors)) = stack.pop() {
         if ancestors.contains(&node.index()) {
-            warnings.push(format!("node {} is its own ancestor (a cycle); its subtree is skipped", node.index()));
+            push_once(
+                &mut warnings,
+                format!("node {} is its own ancestor (a cycle); its subtree is skipped", node.index()),
+            );
             continue;
         }
         if ancestors.len() >= MAX_NODE_DEPTH {
-            warnings.push(format!("the node hierarchy is deeper than {MAX_NODE_DEPTH}; deeper nodes are skipped"));
+            push_once(
+                &mut warnings,
+                format!("the node hierarchy is deeper than {MAX_NODE_DEPTH}; deeper nodes are skipped"),
+            );
             continue;
         }
         instances += 1;
@@ -248,11 +262,14 @@ fn emit_node(
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
             let Some(positions) = reader.read_positions() else {
-                warnings.push(format!(
-                    "a primitive of mesh {:?} has no positions, or its position accessor does not fit its buffer; \
+                push_once(
+                    warnings,
+                    format!(
+                        "a primitive of mesh {:?} has no positions, or its position accessor does not fit its buffer; \
                      skipped",
-                    m.name()
-                ));
+                        m.name()
+                    ),
+                );
                 continue;
             };
             let mut positions: Vec<Vec3> = positions.map(Vec3::from).collect();
@@ -284,7 +301,10 @@ fn emit_node(
                     .collect(),
                 Mode::TriangleFan => (2..indices.len()).map(|k| [indices[0], indices[k - 1], indices[k]]).collect(),
                 other => {
-                    warnings.push(format!("a {other:?} primitive of mesh {:?} skipped (not triangles)", m.name()));
+                    push_once(
+                        warnings,
+                        format!("a {other:?} primitive of mesh {:?} skipped (not triangles)", m.name()),
+                    );
                     continue;
                 }
             };
@@ -300,10 +320,13 @@ fn emit_node(
                 }
                 None => {
                     if joint_matrices.is_some() {
-                        warnings.push(format!(
-                            "a primitive of skinned mesh {:?} has no JOINTS_0/WEIGHTS_0; placed unskinned",
-                            m.name()
-                        ));
+                        push_once(
+                            warnings,
+                            format!(
+                                "a primitive of skinned mesh {:?} has no JOINTS_0/WEIGHTS_0; placed unskinned",
+                                m.name()
+                            ),
+                        );
                     }
                     mesh.append(&TriangleMesh::new(positions, triangles), world);
                 }
