@@ -4,7 +4,7 @@
 //! cargo run --release --example ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
 //!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
 //!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--cascades 4,128,0.125] [--world]
-//!     [--out ao_compare.png]
+//!     [--pattern strips|uniform] [--out ao_compare.png]
 //! ```
 //!
 //! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 192^3 following the
@@ -43,12 +43,13 @@ struct Args {
     fit: bool,
     cascades: Option<(u32, u32, f32)>,
     world: bool,
+    subdivision: VoxelSubdivision,
     out: String,
 }
 
 const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
 [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] \
-[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--out ao_compare.png]";
+[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--pattern strips|uniform] [--out ao_compare.png]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -64,6 +65,7 @@ fn parse_args() -> Result<Args, String> {
         fit: false,
         cascades: None,
         world: false,
+        subdivision: VoxelSubdivision::Strips,
         out: "ao_compare.png".into(),
     };
     let (mut eye, mut look) = (None, None);
@@ -111,6 +113,13 @@ fn parse_args() -> Result<Args, String> {
                     "cascades" => false,
                     "fit" => true,
                     v => return Err(format!("unknown volume {v} (cascades or fit)")),
+                }
+            }
+            "--pattern" => {
+                a.subdivision = match value("--pattern")?.as_str() {
+                    "strips" => VoxelSubdivision::Strips,
+                    "uniform" => VoxelSubdivision::Uniform,
+                    p => return Err(format!("unknown pattern {p} (strips or uniform)")),
                 }
             }
             "--out" => a.out = value("--out")?,
@@ -180,6 +189,7 @@ fn main() {
     let setup_hao = hao.clone();
     let fit = args.fit;
     let cascades = args.cascades;
+    let subdivision = args.subdivision;
     let mut app = support::headless_app(move |app| {
         let source = setup_source.clone();
         let hao = setup_hao.clone();
@@ -208,15 +218,17 @@ fn main() {
                     commands.spawn(VoxelVolume {
                         bounds: VolumeBounds::FitStaticScene { margin },
                         resolution: VolumeResolution::Cells(res),
+                        subdivision,
                         ..default()
                     });
                 } else if let Some((cascades, cells, finest_cell_size)) = cascades {
                     commands.spawn(VoxelVolume {
                         bounds: VolumeBounds::FollowCamera { cascades, cells, finest_cell_size },
+                        subdivision,
                         ..default()
                     });
                 } else {
-                    commands.spawn(VoxelVolume::default());
+                    commands.spawn(VoxelVolume { subdivision, ..default() });
                 }
                 let mut outputs = Vec::new();
                 for k in 0..3 {

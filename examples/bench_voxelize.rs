@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! cargo run --release --example bench_voxelize -- <PATH or builtin:NAME>... [--res 128,256,512]
-//!     [--frames 30] [--size 1280x720] [--mode centroid|conservative]
+//!     [--frames 30] [--size 1280x720] [--mode centroid|conservative] [--pattern strips,uniform]
 //! ```
 //!
 //! For each mesh and resolution, a headless app (Mesa's lavapipe on a machine without a GPU) shows the mesh
@@ -18,7 +18,8 @@
 //!    dynamic pass with every vertex skinned (the prepass then skins in its vertex shader too).
 //!
 //! Each is printed as a median beside the median of Bevy's depth prepass (`early prepass`) measured in the
-//! same frames, and as a ratio to it.
+//! same frames, and as a ratio to it. `--pattern` picks the subdivision pattern (`strips`, the default, or
+//! `uniform`); a list measures each in turn, rows side by side.
 //!
 //! With `--cascades`, each mesh is also put in the plugin's default volume (4 cascades of 192^3 following
 //! the camera) with the camera inside it, moving along its longest horizontal axis, in three phases: at
@@ -41,7 +42,7 @@ use bevy_hao::prelude::*;
 use bevy_hao::voxel::RebuildStaticVoxels;
 
 const USAGE: &str = "usage: bench_voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--frames 30] [--size 1280x720] \
-[--mode centroid|conservative] [--cascades]";
+[--mode centroid|conservative] [--pattern strips,uniform] [--cascades]";
 
 struct Args {
     inputs: Vec<String>,
@@ -49,6 +50,7 @@ struct Args {
     frames: usize,
     size: UVec2,
     injection: VoxelInjection,
+    patterns: Vec<VoxelSubdivision>,
     cascades: bool,
 }
 
@@ -59,6 +61,7 @@ fn parse_args() -> Result<Args, String> {
         frames: 30,
         size: UVec2::new(1280, 720),
         injection: VoxelInjection::Centroid,
+        patterns: vec![VoxelSubdivision::Strips],
         cascades: false,
     };
     let mut it = std::env::args().skip(1);
@@ -76,6 +79,16 @@ fn parse_args() -> Result<Args, String> {
                     "conservative" => VoxelInjection::Conservative,
                     m => return Err(format!("unknown mode {m}")),
                 }
+            }
+            "--pattern" => {
+                a.patterns = value("--pattern")?
+                    .split(',')
+                    .map(|p| match p {
+                        "strips" => Ok(VoxelSubdivision::Strips),
+                        "uniform" => Ok(VoxelSubdivision::Uniform),
+                        p => Err(format!("unknown pattern {p} (expected strips or uniform)")),
+                    })
+                    .collect::<Result<_, _>>()?
             }
             "--cascades" => a.cascades = true,
             "-h" | "--help" => return Err(USAGE.into()),
@@ -176,7 +189,13 @@ fn make_subject_skinned(app: &mut App, mesh: &TriangleMesh) {
         .insert((Mesh3d(handle), SkinnedMesh { inverse_bindposes, joints }));
 }
 
-fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection) -> App {
+fn app_for(
+    mesh: &TriangleMesh,
+    res: u32,
+    size: UVec2,
+    injection: VoxelInjection,
+    subdivision: VoxelSubdivision,
+) -> App {
     let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
     let subject = bevy_mesh_of(mesh);
     support::headless_app(move |app| {
@@ -192,6 +211,7 @@ fn app_for(mesh: &TriangleMesh, res: u32, size: UVec2, injection: VoxelInjection
                     bounds,
                     resolution: VolumeResolution::Cells(res.max(1)),
                     injection,
+                    subdivision,
                     point_budget: u32::MAX,
                     ..default()
                 });
@@ -273,7 +293,7 @@ fn main() {
         };
         if args.cascades {
             eprintln!("{} in the default cascades...", loaded.name);
-            let mut app = app_for(&loaded.mesh, 0, args.size, args.injection);
+            let mut app = app_for(&loaded.mesh, 0, args.size, args.injection, args.patterns[0]);
             let mut frames = 0;
             while support::stats(&app).static_rebuilds == 0 && frames < 120 {
                 app.update();
@@ -321,57 +341,59 @@ fn main() {
             }
         }
         for &res in &args.resolutions {
-            eprintln!("{} at {res}...", loaded.name);
-            let mut app = app_for(&loaded.mesh, res, args.size, args.injection);
-            // Warm up until the pipelines are compiled and the grid is built.
-            let mut frames = 0;
-            while support::stats(&app).static_rebuilds == 0 && frames < 120 {
-                app.update();
-                frames += 1;
-            }
-            adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
-            let prepass = "early prepass";
-            let a = measure(&mut app, args.frames, true, &["hao/voxelize_static", "hao/resolve", prepass]);
-            let counters = support::stats(&app).static_counters;
-            let e = app.world_mut().query_filtered::<Entity, With<Subject>>().single(app.world()).unwrap();
-            app.world_mut().entity_mut(e).remove::<StaticOccluder>().insert(DynamicOccluder);
-            let b = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
-            // The same mesh skinned (four joints a vertex), voxelized in its pose every frame.
-            make_subject_skinned(&mut app, &loaded.mesh);
-            let mut frames = 0;
-            while support::stats(&app).dynamic_instances == 0 && frames < 60 {
-                app.update();
-                frames += 1;
-            }
-            let c = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
-            let errors = support::take_render_errors();
-            if !errors.is_empty() {
-                eprintln!("error: wgpu errors: {errors:?}");
-                std::process::exit(1);
-            }
-            let grid = support::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
-            let name = &loaded.name;
-            let tris = loaded.mesh.triangle_count();
-            let points = counters.sub_triangles as u64;
-            for (pass, t, p) in [
-                ("voxelize_static (whole mesh)", a[0], a[2]),
-                ("resolve (full grid)", a[1], a[2]),
-                ("voxelize_dynamic (whole mesh, with the copy)", b[0], b[2]),
-                ("resolve (dynamic region)", b[1], b[2]),
-                ("voxelize_dynamic (whole mesh skinned, 4 joints a vertex)", c[0], c[2]),
-            ] {
-                rows.push(format!(
-                    "| {name} | {res} | {}x{}x{} | {tris} | {points} | {pass} | {} | {} | {} |",
-                    grid.x,
-                    grid.y,
-                    grid.z,
-                    t.map_or("-".into(), |t| format!("{t:.3}")),
-                    p.map_or("-".into(), |p| format!("{p:.3}")),
-                    match (t, p) {
-                        (Some(t), Some(p)) if p > 0.0 => format!("{:.2}", t / p),
-                        _ => "-".into(),
-                    }
-                ));
+            for &pattern in &args.patterns {
+                eprintln!("{} at {res}, {pattern:?}...", loaded.name);
+                let mut app = app_for(&loaded.mesh, res, args.size, args.injection, pattern);
+                // Warm up until the pipelines are compiled and the grid is built.
+                let mut frames = 0;
+                while support::stats(&app).static_rebuilds == 0 && frames < 120 {
+                    app.update();
+                    frames += 1;
+                }
+                adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
+                let prepass = "early prepass";
+                let a = measure(&mut app, args.frames, true, &["hao/voxelize_static", "hao/resolve", prepass]);
+                let counters = support::stats(&app).static_counters;
+                let e = app.world_mut().query_filtered::<Entity, With<Subject>>().single(app.world()).unwrap();
+                app.world_mut().entity_mut(e).remove::<StaticOccluder>().insert(DynamicOccluder);
+                let b = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
+                // The same mesh skinned (four joints a vertex), voxelized in its pose every frame.
+                make_subject_skinned(&mut app, &loaded.mesh);
+                let mut frames = 0;
+                while support::stats(&app).dynamic_instances == 0 && frames < 60 {
+                    app.update();
+                    frames += 1;
+                }
+                let c = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
+                let errors = support::take_render_errors();
+                if !errors.is_empty() {
+                    eprintln!("error: wgpu errors: {errors:?}");
+                    std::process::exit(1);
+                }
+                let grid = support::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
+                let name = &loaded.name;
+                let tris = loaded.mesh.triangle_count();
+                let points = counters.sub_triangles as u64;
+                for (pass, t, p) in [
+                    ("voxelize_static (whole mesh)", a[0], a[2]),
+                    ("resolve (full grid)", a[1], a[2]),
+                    ("voxelize_dynamic (whole mesh, with the copy)", b[0], b[2]),
+                    ("resolve (dynamic region)", b[1], b[2]),
+                    ("voxelize_dynamic (whole mesh skinned, 4 joints a vertex)", c[0], c[2]),
+                ] {
+                    rows.push(format!(
+                        "| {name} | {res} | {}x{}x{} | {tris} | {pattern:?} | {points} | {pass} | {} | {} | {} |",
+                        grid.x,
+                        grid.y,
+                        grid.z,
+                        t.map_or("-".into(), |t| format!("{t:.3}")),
+                        p.map_or("-".into(), |p| format!("{p:.3}")),
+                        match (t, p) {
+                            (Some(t), Some(p)) if p > 0.0 => format!("{:.2}", t / p),
+                            _ => "-".into(),
+                        }
+                    ));
+                }
             }
         }
     }
@@ -380,9 +402,9 @@ fn main() {
         args.frames, args.size.x, args.size.y, args.injection
     );
     println!(
-        "| mesh | res | grid | triangles | points | pass | median GPU ms | depth prepass median GPU ms | ratio to prepass |"
+        "| mesh | res | grid | triangles | pattern | points | pass | median GPU ms | depth prepass median GPU ms | ratio to prepass |"
     );
-    println!("|---|---:|---|---:|---:|---|---:|---:|---:|");
+    println!("|---|---:|---|---:|---|---:|---|---:|---:|---:|");
     for r in rows {
         println!("{r}");
     }

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release --example voxelize -- <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0]
-//!     [--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]
+//!     [--mode centroid|conservative] [--pattern strips,uniform] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]
 //!     [--gpu] [--max-memory-mb 4096] [--point-budget 268435456]
 //!     [--animation NAME|INDEX --time SECONDS] [--list-animations]
 //! ```
@@ -14,6 +14,8 @@
 //! voxels (the paper's figure), of which the share the surface only grazes (touches, or enters less than
 //! 1/1000 cell deep), excess voxels (set but overlapped by no triangle), the six-direction watertight test
 //! (n/a when the mesh encloses no voxel), and the median times of both voxelizers on all cores.
+//! `--pattern` picks the subdivision pattern (`strips`, the default, or `uniform`); a list runs each, one row
+//! apiece, against the same ground truth, with the points each injects per voxel it sets side by side.
 //! `--target-bias` fits equation 3 to the mesh (biases measured at gamma 1, 1.5, 2, 3, 4) and uses the
 //! gamma it predicts for the target; `--gamma-sweep` prints bias and time against gamma (Figure 5d).
 //!
@@ -51,6 +53,7 @@ struct Args {
     resolutions: Vec<u32>,
     gamma: f32,
     mode: InjectionMode,
+    patterns: Vec<SubdivisionPattern>,
     target_bias: Option<f64>,
     export: Option<String>,
     gamma_sweep: bool,
@@ -64,7 +67,7 @@ struct Args {
 }
 
 const USAGE: &str = "usage: voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0] \
-[--mode centroid|conservative] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu] \
+[--mode centroid|conservative] [--pattern strips,uniform] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu] \
 [--max-memory-mb 4096] [--point-budget 268435456] [--animation NAME|INDEX --time SECONDS] [--list-animations]";
 
 fn parse_args() -> Result<Args, String> {
@@ -73,6 +76,7 @@ fn parse_args() -> Result<Args, String> {
         resolutions: vec![128],
         gamma: 1.0,
         mode: InjectionMode::Centroid,
+        patterns: vec![SubdivisionPattern::Strips],
         target_bias: None,
         export: None,
         gamma_sweep: false,
@@ -96,6 +100,12 @@ fn parse_args() -> Result<Args, String> {
             }
             "--gamma" => a.gamma = value("--gamma")?.parse().map_err(|e| format!("bad --gamma: {e}"))?,
             "--mode" => a.mode = value("--mode")?.parse()?,
+            "--pattern" => {
+                a.patterns = value("--pattern")?.split(',').map(str::parse).collect::<Result<_, _>>()?;
+                if a.patterns.is_empty() {
+                    return Err("--pattern needs at least one of strips, uniform".into());
+                }
+            }
             "--target-bias" => {
                 let p: f64 = value("--target-bias")?.parse().map_err(|e| format!("bad --target-bias: {e}"))?;
                 if !(p > 0.0 && p < 100.0) {
@@ -132,7 +142,10 @@ fn parse_args() -> Result<Args, String> {
     if !(a.gamma.is_finite() && a.gamma > 0.0) {
         return Err("--gamma must be positive".into());
     }
-    let used = VoxelizeSettings { gamma: a.gamma, mode: a.mode }.effective_gamma();
+    if a.export.is_some() && a.patterns.len() > 1 {
+        return Err("--export writes one grid per mesh and resolution: give one --pattern".into());
+    }
+    let used = VoxelizeSettings { gamma: a.gamma, mode: a.mode, ..Default::default() }.effective_gamma();
     if used != a.gamma {
         eprintln!("warning: --gamma {} is out of range for {} mode; using {used}", a.gamma, a.mode);
         a.gamma = used;
@@ -246,6 +259,10 @@ fn gpu_volume(bounds: (Vec3, Vec3), res: u32, settings: &VoxelizeSettings) -> Vo
         injection: match settings.mode {
             InjectionMode::Centroid => VoxelInjection::Centroid,
             InjectionMode::Conservative => VoxelInjection::Conservative,
+        },
+        subdivision: match settings.pattern {
+            SubdivisionPattern::Strips => VoxelSubdivision::Strips,
+            SubdivisionPattern::Uniform => VoxelSubdivision::Uniform,
         },
         point_budget: u32::MAX,
         point_counts: false,
@@ -372,10 +389,11 @@ fn main() {
     }
     let several_outputs = args.inputs.len() * args.resolutions.len() > 1;
     println!(
-        "| mesh | res | grid | triangles | gamma | mode | points injected | eq. 5 estimate | voxels set | ground-truth voxels \
-         | bias % | grazed share of bias % | excess voxels | watertight | voxelize ms (median) | ground truth ms (median) |"
+        "| mesh | res | grid | triangles | gamma | mode | pattern | points injected | estimated points | voxels set \
+         | points per voxel | ground-truth voxels | bias % | grazed share of bias % | excess voxels | watertight \
+         | voxelize ms (median) | ground truth ms (median) |"
     );
-    println!("|---|---:|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|");
+    println!("|---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|");
     let mut sweeps = Vec::new();
     let (mut failures, mut voxelized) = (0usize, false);
     for input in &args.inputs {
@@ -432,8 +450,8 @@ fn main() {
                 failures += 1;
                 continue;
             }
-            // The point budget, as the plugin has one: equation 1's subdivision of every triangle, counted
-            // before any is voxelized.
+            // The point budget, as the plugin has one: every triangle's subdivision (equation 1 and the
+            // pattern), counted before any is voxelized.
             let mut points = 0u64;
             for t in 0..mesh.triangle_count() {
                 if let Some(v) = mesh.triangle(t) {
@@ -446,9 +464,10 @@ fn main() {
                     } else {
                         args.gamma
                     };
-                    let gamma = VoxelizeSettings { gamma: most, mode: args.mode }.effective_gamma();
-                    let n = subdivision_count(&tessellation_factors(v[0], v[1], v[2], gamma)) as u64;
-                    points = points.saturating_add(n.saturating_mul(n));
+                    let gamma =
+                        VoxelizeSettings { gamma: most, mode: args.mode, ..Default::default() }.effective_gamma();
+                    let most_points = args.patterns.iter().map(|&p| subdivision(v, gamma, p).sub_triangle_count());
+                    points = points.saturating_add(most_points.max().unwrap_or(0));
                 }
             }
             if points > args.point_budget {
@@ -469,157 +488,166 @@ fn main() {
             let cut = VoxelOccupancy::new(grid, false);
             let check = VoxelOccupancy::new(grid, false);
             ground_truth_mesh_with_cuts(&mesh, to_grid, &check, Some(&cut));
-            let mut result = VoxelOccupancy::new(grid, true);
-            let run = |gamma: f32, runs: usize, result: &mut VoxelOccupancy| {
-                let settings = VoxelizeSettings { gamma, mode: args.mode };
-                median_ms(runs, result, |out| voxelize_mesh(&mesh, to_grid, &settings, out))
-            };
-            let mut gamma = args.gamma;
-            if let Some(target) = args.target_bias {
-                let samples: Vec<(f32, f64)> = [1.0f32, 1.5, 2.0, 3.0, 4.0]
-                    .iter()
-                    .map(|&g| {
-                        run(g, 1, &mut result);
-                        (g, compare(&result, &truth).bias())
-                    })
-                    .collect();
-                match BiasModel::fit(&samples) {
-                    Some(model) => {
-                        gamma = model.gamma_for_bias(target, 16.0);
-                        eprintln!(
-                            "  equation 3 fitted: p1 = {:.3}%, A = {:.2}, B = {:.3}; gamma for {:.3}% = {gamma:.3}",
-                            model.p1 * 100.0,
-                            model.a,
-                            model.b,
-                            target * 100.0
-                        );
-                    }
-                    None => {
-                        gamma = 1.0;
-                        eprintln!(
-                            "  equation 3 cannot be fitted (bias at gamma 1 is {:.3}% and does not fall); gamma = 1",
-                            samples[0].1 * 100.0
-                        );
+            for &pattern in &args.patterns {
+                let mut result = VoxelOccupancy::new(grid, true);
+                let run = |gamma: f32, runs: usize, result: &mut VoxelOccupancy| {
+                    let settings = VoxelizeSettings { gamma, mode: args.mode, pattern };
+                    median_ms(runs, result, |out| voxelize_mesh(&mesh, to_grid, &settings, out))
+                };
+                let mut gamma = args.gamma;
+                if let Some(target) = args.target_bias {
+                    let samples: Vec<(f32, f64)> = [1.0f32, 1.5, 2.0, 3.0, 4.0]
+                        .iter()
+                        .map(|&g| {
+                            run(g, 1, &mut result);
+                            (g, compare(&result, &truth).bias())
+                        })
+                        .collect();
+                    match BiasModel::fit(&samples) {
+                        Some(model) => {
+                            gamma = model.gamma_for_bias(target, 16.0);
+                            eprintln!(
+                                "  equation 3 fitted: p1 = {:.3}%, A = {:.2}, B = {:.3}; gamma for {:.3}% = {gamma:.3}",
+                                model.p1 * 100.0,
+                                model.a,
+                                model.b,
+                                target * 100.0
+                            );
+                        }
+                        None => {
+                            gamma = 1.0;
+                            eprintln!(
+                                "  equation 3 cannot be fitted (bias at gamma 1 is {:.3}% and does not fall); gamma = 1",
+                                samples[0].1 * 100.0
+                            );
+                        }
                     }
                 }
-            }
-            let (t_vox, injected) = if args.gpu {
-                let settings = VoxelizeSettings { gamma, mode: args.mode };
-                let source = match clip {
-                    Some(clip) => GpuSource::Posed { path: std::path::Path::new(input), clip, time: args.time },
-                    None => GpuSource::Mesh(&mesh),
-                };
-                match gpu_voxelize(source, (lo, hi), res, &settings, args.runs) {
-                    Ok((occ, counters, t, adapter)) => {
-                        if occ.grid() != &grid {
-                            eprintln!("error: the GPU grid {:?} differs from the CPU's {:?}", occ.grid(), grid);
+                let (t_vox, injected) = if args.gpu {
+                    let settings = VoxelizeSettings { gamma, mode: args.mode, pattern };
+                    let source = match clip {
+                        Some(clip) => GpuSource::Posed { path: std::path::Path::new(input), clip, time: args.time },
+                        None => GpuSource::Mesh(&mesh),
+                    };
+                    match gpu_voxelize(source, (lo, hi), res, &settings, args.runs) {
+                        Ok((occ, counters, t, adapter)) => {
+                            if occ.grid() != &grid {
+                                eprintln!("error: the GPU grid {:?} differs from the CPU's {:?}", occ.grid(), grid);
+                                std::process::exit(1);
+                            }
+                            // The CPU twin on the same mesh and grid: how many voxels the two disagree on.
+                            let twin = VoxelOccupancy::new(grid, false);
+                            voxelize_mesh(&mesh, to_grid, &settings, &twin);
+                            let (only_gpu, only_cpu) = (occ.count_not_in(&twin), twin.count_not_in(&occ));
+                            eprintln!(
+                                "  GPU vs CPU twin: {only_gpu} voxels only on the GPU, {only_cpu} only on the CPU, of {} ({:.3} per 1000)",
+                                twin.set_voxel_count(),
+                                1000.0 * (only_gpu + only_cpu) as f64 / twin.set_voxel_count().max(1) as f64
+                            );
+                            eprintln!(
+                                "  GPU ({adapter}): {} triangles read, {} injected at once, {} queued for expansion, {} invalid, {} degenerate, {} oversize",
+                                counters.triangles,
+                                counters.small,
+                                counters.big_triangles,
+                                counters.invalid,
+                                counters.degenerate,
+                                counters.oversize
+                            );
+                            result = occ;
+                            (t.unwrap_or(f64::NAN), counters.injected as u64)
+                        }
+                        Err(e) => {
+                            eprintln!("error: {} at {res} on the GPU: {e}", loaded.name);
                             std::process::exit(1);
                         }
-                        // The CPU twin on the same mesh and grid: how many voxels the two disagree on.
-                        let twin = VoxelOccupancy::new(grid, false);
-                        voxelize_mesh(&mesh, to_grid, &settings, &twin);
-                        let (only_gpu, only_cpu) = (occ.count_not_in(&twin), twin.count_not_in(&occ));
-                        eprintln!(
-                            "  GPU vs CPU twin: {only_gpu} voxels only on the GPU, {only_cpu} only on the CPU, of {} ({:.3} per 1000)",
-                            twin.set_voxel_count(),
-                            1000.0 * (only_gpu + only_cpu) as f64 / twin.set_voxel_count().max(1) as f64
-                        );
-                        eprintln!(
-                            "  GPU ({adapter}): {} triangles read, {} injected at once, {} queued for expansion, {} invalid, {} degenerate, {} oversize",
-                            counters.triangles,
-                            counters.small,
-                            counters.big_triangles,
-                            counters.invalid,
-                            counters.degenerate,
-                            counters.oversize
-                        );
-                        result = occ;
-                        (t.unwrap_or(f64::NAN), counters.injected as u64)
                     }
-                    Err(e) => {
-                        eprintln!("error: {} at {res} on the GPU: {e}", loaded.name);
-                        std::process::exit(1);
-                    }
-                }
-            } else {
-                let (t, vstats) = run(gamma, args.runs, &mut result);
-                if vstats.invalid + vstats.degenerate + vstats.oversize > 0 {
-                    eprintln!(
-                        "  skipped triangles: {} invalid, {} degenerate, {} oversize",
-                        vstats.invalid, vstats.degenerate, vstats.oversize
-                    );
-                }
-                (t, vstats.injected)
-            };
-            let cmp = compare(&result, &truth);
-            voxelized |= cmp.result_voxels > 0;
-            let split = graze_split(&result, &truth, &cut);
-            let wt = watertight(&result, &truth);
-            let estimate =
-                expected_point_count(stats.triangles, stats.average_edge_length, grid.cell_size as f64, gamma as f64);
-            let watertight_cell = if !wt.applies() {
-                "n/a".to_string()
-            } else if wt.is_watertight() {
-                "yes".to_string()
-            } else {
-                format!("no ({} of {} rays leak)", wt.leaks, wt.rays)
-            };
-            println!(
-                "| {} | {res} | {}x{}x{} | {} | {:.2} | {} | {} | {:.0} | {} | {} | {:.3} | {:.3} | {} | {} | {:.1} | {:.1} |",
-                loaded.name,
-                grid.dims.x,
-                grid.dims.y,
-                grid.dims.z,
-                stats.triangles,
-                gamma,
-                if args.gpu { format!("{} (gpu)", args.mode) } else { args.mode.to_string() },
-                injected,
-                estimate,
-                cmp.result_voxels,
-                cmp.truth_voxels,
-                100.0 * cmp.bias(),
-                if cmp.truth_voxels == 0 { 0.0 } else { 100.0 * split.missing_grazed as f64 / cmp.truth_voxels as f64 },
-                cmp.excess,
-                watertight_cell,
-                t_vox,
-                t_truth
-            );
-            if let Some(out) = &args.export {
-                let path = if several_outputs {
-                    let stem = out.strip_suffix(".binvox").unwrap_or(out);
-                    format!("{stem}-{}-{res}.binvox", loaded.name)
                 } else {
-                    out.clone()
+                    let (t, vstats) = run(gamma, args.runs, &mut result);
+                    if vstats.invalid + vstats.degenerate + vstats.oversize > 0 {
+                        eprintln!(
+                            "  skipped triangles: {} invalid, {} degenerate, {} oversize",
+                            vstats.invalid, vstats.degenerate, vstats.oversize
+                        );
+                    }
+                    (t, vstats.injected)
                 };
-                let written =
-                    std::fs::File::create(&path).and_then(|f| write_binvox(&result, &mut std::io::BufWriter::new(f)));
-                match written {
-                    Ok(()) => eprintln!("  wrote {path}"),
-                    Err(e) => {
-                        eprintln!("error: writing {path}: {e}");
-                        std::process::exit(1);
+                let cmp = compare(&result, &truth);
+                voxelized |= cmp.result_voxels > 0;
+                let split = graze_split(&result, &truth, &cut);
+                let wt = watertight(&result, &truth);
+                let estimate = expected_point_count(&stats.sizes, grid.cell_size as f64, gamma as f64, pattern);
+                let watertight_cell = if !wt.applies() {
+                    "n/a".to_string()
+                } else if wt.is_watertight() {
+                    "yes".to_string()
+                } else {
+                    format!("no ({} of {} rays leak)", wt.leaks, wt.rays)
+                };
+                println!(
+                    "| {} | {res} | {}x{}x{} | {} | {:.2} | {} | {pattern} | {} | {:.0} | {} | {:.2} | {} | {:.3} | {:.3} | {} | {} | {:.1} | {:.1} |",
+                    loaded.name,
+                    grid.dims.x,
+                    grid.dims.y,
+                    grid.dims.z,
+                    stats.triangles,
+                    gamma,
+                    if args.gpu { format!("{} (gpu)", args.mode) } else { args.mode.to_string() },
+                    injected,
+                    estimate,
+                    cmp.result_voxels,
+                    injected as f64 / cmp.result_voxels.max(1) as f64,
+                    cmp.truth_voxels,
+                    100.0 * cmp.bias(),
+                    if cmp.truth_voxels == 0 {
+                        0.0
+                    } else {
+                        100.0 * split.missing_grazed as f64 / cmp.truth_voxels as f64
+                    },
+                    cmp.excess,
+                    watertight_cell,
+                    t_vox,
+                    t_truth
+                );
+                if let Some(out) = &args.export {
+                    let path = if several_outputs {
+                        let stem = out.strip_suffix(".binvox").unwrap_or(out);
+                        format!("{stem}-{}-{res}.binvox", loaded.name)
+                    } else {
+                        out.clone()
+                    };
+                    let written = std::fs::File::create(&path)
+                        .and_then(|f| write_binvox(&result, &mut std::io::BufWriter::new(f)));
+                    match written {
+                        Ok(()) => eprintln!("  wrote {path}"),
+                        Err(e) => {
+                            eprintln!("error: writing {path}: {e}");
+                            std::process::exit(1);
+                        }
                     }
                 }
-            }
-            if args.gamma_sweep {
-                let mut rows = Vec::new();
-                for g in [0.5f32, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0] {
-                    eprintln!("  sweep gamma {g}");
-                    let (t, s) = run(g, args.runs.min(3), &mut result);
-                    rows.push((
-                        g,
-                        compare(&result, &truth).bias(),
-                        graze_split(&result, &truth, &cut).missing_grazed,
-                        s.injected,
-                        t,
-                    ));
+                if args.gamma_sweep {
+                    let mut rows = Vec::new();
+                    for g in [0.5f32, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0] {
+                        eprintln!("  sweep gamma {g}");
+                        let (t, s) = run(g, args.runs.min(3), &mut result);
+                        rows.push((
+                            g,
+                            compare(&result, &truth).bias(),
+                            graze_split(&result, &truth, &cut).missing_grazed,
+                            s.injected,
+                            t,
+                        ));
+                    }
+                    sweeps.push((loaded.name.clone(), res, pattern, cmp.truth_voxels, rows));
                 }
-                sweeps.push((loaded.name.clone(), res, cmp.truth_voxels, rows));
             }
         }
     }
-    for (name, res, truth_voxels, rows) in sweeps {
-        println!("\nGamma sweep, {name} at {res} ({} mode): bias and time against gamma (Figure 5d)\n", args.mode);
+    for (name, res, pattern, truth_voxels, rows) in sweeps {
+        println!(
+            "\nGamma sweep, {name} at {res} ({} mode, {pattern} pattern): bias and time against gamma (Figure 5d)\n",
+            args.mode
+        );
         println!("| gamma | bias % | grazed share % | points injected | voxelize ms (median) |");
         println!("|---:|---:|---:|---:|---:|");
         for (g, bias, grazed, points, t) in rows {

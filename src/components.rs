@@ -122,6 +122,28 @@ pub enum VolumeResolution {
     CellSize(f32),
 }
 
+/// How triangles are cut into sub-triangles before injection (see [`cpu::SubdivisionPattern`]).
+#[derive(Reflect, Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[reflect(Default, Debug, PartialEq, Hash)]
+pub enum VoxelSubdivision {
+    /// A segment count per edge: long thin triangles are cut into strips along their length (about `2L`
+    /// sub-triangles for one `L` cells long and under a cell wide), others as by `Uniform`, whichever has
+    /// fewer sub-triangles.
+    #[default]
+    Strips,
+    /// The `n x n` pattern for the longest edge (`L^2` sub-triangles for that sliver). For comparison.
+    Uniform,
+}
+
+impl From<VoxelSubdivision> for cpu::SubdivisionPattern {
+    fn from(p: VoxelSubdivision) -> Self {
+        match p {
+            VoxelSubdivision::Strips => cpu::SubdivisionPattern::Strips,
+            VoxelSubdivision::Uniform => cpu::SubdivisionPattern::Uniform,
+        }
+    }
+}
+
 /// The voxel volume: where the grid is, how fine, and how geometry is voxelized into it. Put it on any
 /// entity (one per app: if there are several, the first found is used and the plugin warns). Without one,
 /// [`VoxelVolume::default()`] is used: 4 camera-following cascades of 192^3 cells, the finest with cells of
@@ -139,8 +161,10 @@ pub struct VoxelVolume {
     pub gamma: f32,
     /// Centroid or conservative injection.
     pub injection: VoxelInjection,
+    /// How triangles are cut into sub-triangles: `Strips` (the default) or the old `Uniform` pattern.
+    pub subdivision: VoxelSubdivision,
     /// Most sub-triangle points generated per frame (static rebuild and dynamic geometry together);
-    /// more are dropped with a warning. Equation 5 estimates the need of each mesh.
+    /// more are dropped with a warning. The need of each mesh is estimated (equation 5, or its strip counterpart).
     pub point_budget: u32,
     /// Keep a per-voxel point count (multi-valued voxelization; 4 bytes per voxel, twice; off by default,
     /// since cascades have millions of voxels). Turned off with a warning if the count buffers would exceed
@@ -155,6 +179,7 @@ impl Default for VoxelVolume {
             resolution: VolumeResolution::Cells(128),
             gamma: 1.0,
             injection: VoxelInjection::Centroid,
+            subdivision: VoxelSubdivision::Strips,
             point_budget: 32 << 20,
             point_counts: false,
         }
@@ -162,9 +187,9 @@ impl Default for VoxelVolume {
 }
 
 impl VoxelVolume {
-    /// The CPU settings equivalent to this volume's gamma and injection mode.
+    /// The CPU settings equivalent to this volume's gamma, injection mode and subdivision pattern.
     pub fn voxelize_settings(&self) -> cpu::VoxelizeSettings {
-        cpu::VoxelizeSettings { gamma: self.gamma, mode: self.injection.into() }
+        cpu::VoxelizeSettings { gamma: self.gamma, mode: self.injection.into(), pattern: self.subdivision.into() }
     }
 
     /// This volume with every invalid value replaced by a usable one, and one message per replacement naming

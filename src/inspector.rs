@@ -14,7 +14,7 @@
 //! an [`HaoInspected`] marker.
 
 use crate::ao::{HaoQuality, HybridAmbientOcclusion};
-use crate::components::{VolumeResolution, VoxelInjection, VoxelVolume};
+use crate::components::{VolumeResolution, VoxelInjection, VoxelSubdivision, VoxelVolume};
 use crate::debug::HaoDebugView;
 use crate::voxel::{VoxelGridAssets, VoxelizationStats};
 use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
@@ -254,6 +254,10 @@ fn inspector_window(
                     ui.selectable_value(&mut volume.injection, VoxelInjection::Centroid, "centroid");
                     ui.selectable_value(&mut volume.injection, VoxelInjection::Conservative, "conservative");
                 });
+                ui.horizontal(|ui| {
+                    ui.selectable_value(&mut volume.subdivision, VoxelSubdivision::Strips, "strips");
+                    ui.selectable_value(&mut volume.subdivision, VoxelSubdivision::Uniform, "uniform");
+                });
                 let mut budget_m = volume.point_budget as f64 / (1 << 20) as f64;
                 if ui
                     .add(egui::Slider::new(&mut budget_m, 0.25..=512.0).logarithmic(true).text("point budget (Mi)"))
@@ -305,7 +309,7 @@ fn inspector_window(
             s.dynamic_instances
         ));
         ui.label(format!(
-            "equation 5 estimate: static {} points, dynamic {} per frame (budget {})",
+            "estimated points: static {} points, dynamic {} per frame (budget {})",
             s.estimated_static_points,
             s.estimated_dynamic_points,
             assets.as_ref().map_or(0, |a| a.point_budget)

@@ -10,8 +10,8 @@ use std::cell::Cell;
 use std::time::{Duration, Instant};
 
 use bevy_hao::cpu::{
-    InjectionMode, TriangleMesh, VoxelGrid, VoxelOccupancy, VoxelizeSettings, compare, ground_truth_mesh, read_binvox,
-    voxelize,
+    InjectionMode, LatticeRange, SubdivisionPattern, TriangleMesh, VoxelGrid, VoxelOccupancy, VoxelizeSettings,
+    compare, ground_truth_mesh, read_binvox, rotate_to_apex, sub_triangle, sub_triangle_corners, subdivision, voxelize,
 };
 use bevy_hao::meshes::gltf_file::read_gltf;
 use bevy_hao::meshes::obj::ObjModel;
@@ -176,37 +176,81 @@ fn triangles() -> impl Strategy<Value = TriangleMesh> {
     })
 }
 
+fn patterns() -> impl Strategy<Value = SubdivisionPattern> {
+    prop_oneof![Just(SubdivisionPattern::Strips), Just(SubdivisionPattern::Uniform)]
+}
+
+/// Long thin triangles in any direction, and others: corners up to 300 cells apart.
+fn any_shape() -> impl Strategy<Value = [Vec3; 3]> {
+    let v = |r: f32| (-r..r, -r..r, -r..r).prop_map(|(x, y, z)| Vec3::new(x, y, z));
+    (v(50.0), v(300.0), v(8.0), 0.0f32..1.0).prop_map(|(a, long, short, t)| [a, a + long, a + long * t + short])
+}
+
+#[test]
+fn the_strip_pattern_tiles_every_triangle_with_pieces_within_a_cell_per_axis() {
+    let mut runner = seeded_runner(512);
+    runner
+        .run(&(any_shape(), prop_oneof![Just(1.0f32), 1.0f32..3.0]), |(v, gamma)| {
+            let sub = subdivision(v, gamma, SubdivisionPattern::Strips);
+            let uniform = subdivision(v, gamma, SubdivisionPattern::Uniform);
+            prop_assert!(sub.sub_triangle_count() <= uniform.sub_triangle_count());
+            let range = LatticeRange::whole(&sub);
+            let [v0, v1, v2] = rotate_to_apex(v, sub.apex);
+            let inv_n = 1.0 / range.fine() as f32;
+            let mut doubled_area = 0i64;
+            for s in 0..range.sub_triangle_count() as u32 {
+                let piece = sub_triangle(&range, s).unwrap();
+                let [p, q, r] = sub_triangle_corners(&range, piece).map(|c| c.as_i64vec2());
+                doubled_area += (q - p).perp_dot(r - p).abs();
+                let [a, b, c] =
+                    [p, q, r].map(|c| v0 + (v1 - v0) * (c.x as f32 * inv_n) + (v2 - v0) * (c.y as f32 * inv_n));
+                let extent = a.max(b).max(c) - a.min(b).min(c);
+                prop_assert!(extent.max_element() * gamma <= 1.0 + 1e-3, "{sub:?} {piece:?}: {extent}");
+            }
+            let fine = range.fine() as i64;
+            prop_assert_eq!(doubled_area, fine * fine);
+            Ok(())
+        })
+        .unwrap();
+}
+
 #[test]
 fn voxelization_never_panics_and_stays_inside_the_ground_truth() {
     let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::new(16, 13, 16)).unwrap();
     let mut runner = seeded_runner(256);
     runner
-        .run(&(triangles(), prop_oneof![Just(1.0f32), Just(2.0), 0.0f32..8.0, special_f32()]), |(mesh, gamma)| {
-            let truth = VoxelOccupancy::new(grid, false);
-            ground_truth_mesh(&mesh, grid.grid_from_world(), &truth);
-            let (centroid, _) = voxelize(&mesh, &grid, &VoxelizeSettings { gamma, mode: InjectionMode::Centroid });
-            let c = compare(&centroid, &truth);
-            // As in the unit tests: a centroid a few ulp off a cell face may land in a cell the triangle
-            // does not reach; allow one in 10^4 set voxels.
-            prop_assert!(c.excess * 10_000 <= c.result_voxels, "centroid mode outside the ground truth: {c:?}");
-            let (cons, stats) = voxelize(&mesh, &grid, &VoxelizeSettings { gamma, mode: InjectionMode::Conservative });
-            let k = compare(&cons, &truth);
-            prop_assert_eq!(k.excess, 0, "conservative mode outside the ground truth");
-            // A triangle needing more than MAX_SUBDIVISION segments on an edge (longer than 2^20 cells) is
-            // skipped and counted as oversize; every other one is found whole, except one that reaches into
-            // the grid by less than 1e-6 cells past a face (lying in the face, or outside it and touching):
-            // whether it touches the closed boundary cells beside that face is a float tie, which the clip
-            // against the grid (exact at 1e-30) and the exact overlap test (rounded at the scale of a cell)
-            // may call differently.
-            let dims = grid.dims.as_vec3();
-            let in_face =
-                |v: [Vec3; 3]| (0..3).any(|k| v.iter().all(|p| p[k] < 1e-6) || v.iter().all(|p| p[k] > dims[k] - 1e-6));
-            let any_in_face = (0..mesh.triangle_count()).any(|t| mesh.triangle(t).is_some_and(in_face));
-            if stats.oversize == 0 && !any_in_face {
-                prop_assert_eq!(k.missing, 0, "conservative mode missed voxels of the ground truth");
-            }
-            Ok(())
-        })
+        .run(
+            &(triangles(), prop_oneof![Just(1.0f32), Just(2.0), 0.0f32..8.0, special_f32()], patterns()),
+            |(mesh, gamma, pattern)| {
+                let truth = VoxelOccupancy::new(grid, false);
+                ground_truth_mesh(&mesh, grid.grid_from_world(), &truth);
+                let (centroid, _) =
+                    voxelize(&mesh, &grid, &VoxelizeSettings { gamma, mode: InjectionMode::Centroid, pattern });
+                let c = compare(&centroid, &truth);
+                // As in the unit tests: a centroid a few ulp off a cell face may land in a cell the triangle
+                // does not reach; allow one in 10^4 set voxels.
+                prop_assert!(c.excess * 10_000 <= c.result_voxels, "centroid mode outside the ground truth: {c:?}");
+                let settings = VoxelizeSettings { gamma, mode: InjectionMode::Conservative, pattern };
+                let (cons, stats) = voxelize(&mesh, &grid, &settings);
+                let k = compare(&cons, &truth);
+                prop_assert_eq!(k.excess, 0, "conservative mode outside the ground truth");
+                // A triangle needing more than MAX_SUBDIVISION segments on an edge (longer than 2^20 cells) is
+                // skipped and counted as oversize; every other one is found whole, except one that reaches into
+                // the grid by less than 1e-6 cells past a face (lying in the face, or outside it and touching):
+                // whether it touches the closed boundary cells beside that face is a float tie, which the clip
+                // against the grid (exact at 1e-30) and the exact overlap test (rounded at the scale of a cell)
+                // may call differently.
+                let dims = grid.dims.as_vec3();
+                let in_face = |v: [Vec3; 3]| {
+                    (0..3).any(|k| v.iter().all(|p| p[k] < 1e-6) || v.iter().all(|p| p[k] > dims[k] - 1e-6))
+                };
+                let any_in_face = (0..mesh.triangle_count()).any(|t| mesh.triangle(t).is_some_and(in_face));
+                if stats.oversize == 0 && !any_in_face {
+                    prop_assert_eq!(k.missing, 0, "conservative mode missed voxels of the ground truth");
+                }
+                Ok(())
+            },
+        )
         .unwrap();
 }
 

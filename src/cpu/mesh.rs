@@ -17,8 +17,8 @@ pub struct TriangleMesh {
 pub struct MeshStats {
     /// Number of triangles.
     pub triangles: u64,
-    /// Mean edge length over all triangles (each edge counted once per triangle), the paper's `l_avg`.
-    pub average_edge_length: f64,
+    /// Triangle sizes for the point-count estimate (the mean edge length is the paper's `l_avg`).
+    pub sizes: super::tessellation::TriangleSizes,
     /// Axis-aligned bounds of the referenced vertices (`None` for an empty mesh).
     pub bounds: Option<(Vec3, Vec3)>,
 }
@@ -58,17 +58,11 @@ impl TriangleMesh {
 
     /// Triangle count, mean edge length and bounds.
     pub fn stats(&self) -> MeshStats {
-        let mut sum = 0.0f64;
-        let mut edges = 0u64;
-        for t in 0..self.triangles.len() {
-            if let Some([a, b, c]) = self.triangle(t).filter(|v| v.iter().all(|p| p.is_finite())) {
-                sum += (a.distance(b) + b.distance(c) + c.distance(a)) as f64;
-                edges += 3;
-            }
-        }
+        let valid =
+            (0..self.triangles.len()).filter_map(|t| self.triangle(t)).filter(|v| v.iter().all(|p| p.is_finite()));
         MeshStats {
             triangles: self.triangles.len() as u64,
-            average_edge_length: if edges > 0 { sum / edges as f64 } else { 0.0 },
+            sizes: super::tessellation::TriangleSizes::of(self.triangles.len() as u64, valid),
             bounds: self.bounds(),
         }
     }

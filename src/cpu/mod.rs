@@ -59,7 +59,8 @@ pub use metrics::{Comparison, GrazeSplit, WatertightReport, compare, enclosed_vo
 pub use overlap::{OverlapKind, OverlapTriangle, triangle_box_overlap};
 pub use skinning::{VertexSkin, morph_position, morphed_mesh, skin_matrix, skin_position, skinned_mesh};
 pub use tessellation::{
-    LatticeRange, SubTriangle, TessellationFactors, expected_point_count, sub_triangle, sub_triangle_centroid,
+    LatticeRange, SubTriangle, Subdivision, SubdivisionPattern, TessellationFactors, TriangleSizes,
+    expected_point_count, rotate_to_apex, sub_triangle, sub_triangle_centroid, sub_triangle_corners, subdivision,
     subdivision_count, tessellation_factors,
 };
 pub use voxelize::{

@@ -59,7 +59,7 @@ fn truth_of(mesh: &TriangleMesh, g: &VoxelGrid) -> VoxelOccupancy {
 }
 
 fn run(mesh: &TriangleMesh, g: &VoxelGrid, mode: InjectionMode, gamma: f32) -> (VoxelOccupancy, VoxelizeStats) {
-    voxelize(mesh, g, &VoxelizeSettings { gamma, mode })
+    voxelize(mesh, g, &VoxelizeSettings { gamma, mode, ..Default::default() })
 }
 
 #[test]

@@ -71,11 +71,13 @@ pub struct VoxelizeSettings {
     pub gamma: f32,
     /// Centroid or conservative injection.
     pub mode: InjectionMode,
+    /// How triangles are cut into sub-triangles.
+    pub pattern: SubdivisionPattern,
 }
 
 impl Default for VoxelizeSettings {
     fn default() -> Self {
-        Self { gamma: 1.0, mode: InjectionMode::Centroid }
+        Self { gamma: 1.0, mode: InjectionMode::Centroid, pattern: SubdivisionPattern::Strips }
     }
 }
 
@@ -235,17 +237,18 @@ pub fn voxelize_triangle_in_region(
         stats.outside = 1;
         return stats;
     }
-    let factors = tessellation_factors(v0, v1, v2, settings.effective_gamma());
-    let n = subdivision_count(&factors);
+    let sub = subdivision(v, settings.effective_gamma(), settings.pattern);
+    let n = sub.n;
+    if n > MAX_SUBDIVISION {
+        stats.oversize = 1;
+        return stats;
+    }
+    let [v0, v1, v2] = rotate_to_apex(v, sub.apex);
     let (e1, e2) = (v1 - v0, v2 - v0);
     let range = match placement {
-        GridPlacement::Inside if n <= MAX_SUBDIVISION => LatticeRange::full(n),
-        _ if n > MAX_SUBDIVISION => {
-            stats.oversize = 1;
-            return stats;
-        }
+        GridPlacement::Inside => LatticeRange::whole(&sub),
         _ => match clipped_lattice_range(v0, e1, e2, n, box_min, box_max) {
-            Some(r) => r,
+            Some(r) => LatticeRange { strips: sub.strips, diagonal: sub.diagonal, ..r },
             None => {
                 stats.outside = 1;
                 return stats;
@@ -262,11 +265,11 @@ pub fn voxelize_triangle_in_region(
     }
     match settings.mode {
         InjectionMode::Centroid => {
-            let inv_3n = 1.0 / (3.0 * n as f32);
+            let inv_3n = 1.0 / (3.0 * range.fine() as f32);
             for s in 0..count as u32 {
                 let Some(sub) = sub_triangle(&range, s) else { continue };
                 stats.sub_triangles += 1;
-                let p = sub_triangle_centroid(v0, e1, e2, inv_3n, sub);
+                let p = sub_triangle_centroid(v0, e1, e2, inv_3n, &range, sub);
                 if let Some(cell) = lattice_cell(p, region) {
                     out.inject_voxel(storage_index(cell, region, dims));
                     stats.injected += 1;
@@ -274,12 +277,13 @@ pub fn voxelize_triangle_in_region(
             }
         }
         InjectionMode::Conservative => {
-            let parent = OverlapTriangle::new(v0, v1, v2);
-            let inv_n = 1.0 / n as f32;
+            // The parent in its own vertex order, so that the test is the ground truth's to the last bit.
+            let parent = OverlapTriangle::new(v[0], v[1], v[2]);
+            let inv_n = 1.0 / range.fine() as f32;
             for s in 0..count as u32 {
                 let Some(sub) = sub_triangle(&range, s) else { continue };
                 stats.sub_triangles += 1;
-                let [a, b, c] = sub_triangle_vertices(v0, e1, e2, inv_n, sub);
+                let [a, b, c] = sub_triangle_vertices(v0, e1, e2, inv_n, &range, sub);
                 let (lo, hi) = conservative_candidate_cells(a, b, c, region);
                 for z in lo.z..=hi.z {
                     for y in lo.y..=hi.y {

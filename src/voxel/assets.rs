@@ -139,9 +139,9 @@ pub struct VoxelizationStatsData {
     pub dynamic_counters: VoxelizeCounters,
     /// Readbacks of the counters received so far.
     pub counter_readbacks: u64,
-    /// Equation 5's estimate of the static occluders' points (see [`super::budget`]).
+    /// The estimate of the static occluders' points (equation 5 or its strip counterpart; see [`super::budget`]).
     pub estimated_static_points: u64,
-    /// Equation 5's estimate of the dynamic occluders' points per frame.
+    /// The estimate of the dynamic occluders' points per frame.
     pub estimated_dynamic_points: u64,
 }
 

@@ -1,20 +1,21 @@
-//! Main world: equation 5's estimate of the points each frame needs, against the point budget.
+//! Main world: the estimate of the points each frame needs, against the point budget.
 //!
-//! `N_e = 3 N_tri l_avg^2 / (2 l_cell^2)` (times `gamma^2`, and at least one point per triangle), per occluder
-//! from its mesh's triangle count and mean edge length (computed once per mesh, from the main world's copy
-//! of the mesh; meshes kept only in the render world are not estimated) scaled by its transform. The budget
+//! [`crate::cpu::expected_point_count`] (equation 5 for the uniform pattern, its strip-pattern counterpart by
+//! default; at least one point per triangle), per occluder from its mesh's triangle sizes (computed once per
+//! mesh, from the main world's copy of the mesh; meshes kept only in the render world are not estimated)
+//! scaled by its transform. The budget
 //! itself is enforced exactly on the GPU (the scan pass); this estimate warns before it is hit, and the
 //! inspector shows it.
 
 use super::assets::{VoxelGridAssets, VoxelizationStats, occluder_is_dynamic};
 use crate::components::*;
-use crate::cpu::expected_point_count;
+use crate::cpu::{TriangleSizes, expected_point_count};
 use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-/// `(triangles, mean edge length)` of a mesh in its local space, if its data is in the main world.
-fn mesh_edge_stats(mesh: &Mesh) -> Option<(u64, f64)> {
+/// The triangle sizes of a mesh in its local space, if its data is in the main world.
+fn mesh_triangle_sizes(mesh: &Mesh) -> Option<TriangleSizes> {
     // A mesh kept only in the render world has no data here (the `try_` accessors say so; the others panic).
     let Ok(Some(VertexAttributeValues::Float32x3(positions))) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION)
     else {
@@ -25,24 +26,23 @@ fn mesh_edge_stats(mesh: &Mesh) -> Option<(u64, f64)> {
         Some(Indices::U32(i)) => i.iter().map(|&i| i as usize).collect(),
         None => (0..positions.len()).collect(),
     };
-    let (mut sum, mut edges) = (0.0f64, 0u64);
-    for t in index.chunks_exact(3) {
+    let valid = index.chunks_exact(3).filter_map(|t| {
         let p = [t[0], t[1], t[2]].map(|i| positions.get(i).map(|p| Vec3::from(*p)));
-        if let [Some(a), Some(b), Some(c)] = p {
-            sum += (a.distance(b) + b.distance(c) + c.distance(a)) as f64;
-            edges += 3;
+        match p {
+            [Some(a), Some(b), Some(c)] if a.is_finite() && b.is_finite() && c.is_finite() => Some([a, b, c]),
+            _ => None,
         }
-    }
-    Some(((index.len() / 3) as u64, if edges > 0 { sum / edges as f64 } else { 0.0 }))
+    });
+    Some(TriangleSizes::of((index.len() / 3) as u64, valid))
 }
 
-/// Estimates the static and per-frame dynamic point counts with equation 5 and warns (once per episode)
+/// Estimates the static and per-frame dynamic point counts and warns (once per episode)
 /// when the dynamic estimate exceeds `VoxelVolume::point_budget`.
 #[allow(clippy::type_complexity)]
 pub(crate) fn estimate_point_budget(
     meshes: Res<Assets<Mesh>>,
     mut events: MessageReader<AssetEvent<Mesh>>,
-    mut cache: Local<HashMap<AssetId<Mesh>, Option<(u64, f64)>>>,
+    mut cache: Local<HashMap<AssetId<Mesh>, Option<TriangleSizes>>>,
     occluders: Query<
         (
             &Mesh3d,
@@ -72,15 +72,13 @@ pub(crate) fn estimate_point_budget(
             continue;
         }
         let id = mesh.id();
-        let entry = *cache.entry(id).or_insert_with(|| meshes.get(id).and_then(mesh_edge_stats));
-        let Some((triangles, edge)) = entry else { continue };
-        let scale = transform.compute_transform().scale.abs().max_element() as f64;
+        let entry = *cache.entry(id).or_insert_with(|| meshes.get(id).and_then(mesh_triangle_sizes));
+        let Some(sizes) = entry else { continue };
+        let sizes = sizes.scaled(transform.compute_transform().scale.abs().max_element() as f64);
+        let pattern = assets.settings.pattern;
         // Every level a mesh overlaps voxelizes it (at most all of them, each with twice the cell size).
-        let points: f64 = (0..assets.levels)
-            .map(|l| {
-                expected_point_count(triangles, edge * scale, cell * (1u64 << l) as f64, gamma).max(triangles as f64)
-            })
-            .sum();
+        let points: f64 =
+            (0..assets.levels).map(|l| expected_point_count(&sizes, cell * (1u64 << l) as f64, gamma, pattern)).sum();
         if occluder_is_dynamic(s, d, p) {
             dynamic_points += points;
         } else {
@@ -90,7 +88,7 @@ pub(crate) fn estimate_point_budget(
     let budget = assets.point_budget as f64;
     if dynamic_points > budget && !*warned {
         warn!(
-            "bevy_hao: equation 5 estimates {dynamic_points:.0} points per frame for the dynamic occluders, over \
+            "bevy_hao: an estimated {dynamic_points:.0} points per frame for the dynamic occluders, over \
              VoxelVolume::point_budget ({budget}); dynamic voxels will be missing. Raise the budget, lower the \
              resolution or gamma, or mark fewer meshes dynamic"
         );

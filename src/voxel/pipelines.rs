@@ -90,6 +90,9 @@ pub(crate) struct GpuVoxelizeParams {
     pub counter_base: u32,
     pub dims: [u32; 3],
     pub voxel_base: u32,
+    /// 0: the uniform subdivision pattern, 1: strips.
+    pub pattern: u32,
+    pub _pad: [u32; 3],
 }
 
 /// A box of one level to resolve into the texture, at one mip (WGSL `LevelRegion`).

@@ -7,7 +7,7 @@ use super::assets::{CascadeLevelStats, VoxelGridAssets, VoxelizationStats};
 use super::extract::{ExtractedOccluder, ExtractedOccluders, ExtractedVoxelGrid};
 use super::pipelines::*;
 use super::stats::{STATIC_REGION_SLOTS, counter_base};
-use crate::cpu::{self, InjectionMode, VoxelGrid};
+use crate::cpu::{self, InjectionMode, SubdivisionPattern, VoxelGrid};
 use bevy::math::{Affine3A, IVec3};
 use bevy::mesh::VertexFormat;
 use bevy::pbr::SkinUniforms;
@@ -966,6 +966,8 @@ pub fn prepare_voxelize(
             counter_base: p.counter_base,
             dims: level.dims.to_array(),
             voxel_base: level.voxel_base,
+            pattern: (settings.pattern == SubdivisionPattern::Strips) as u32,
+            _pad: [0; 3],
         };
         let params = settings_buffer(&device, "hao_voxelize_params", &params);
         let (occ, cnt) = if is_static {

@@ -1,12 +1,12 @@
 // Voxelization, pass 1 of 3: one invocation per triangle. Reads the triangle where Bevy keeps it (the mesh
 // allocator's vertex and index slabs), skins it if its mesh is skinned (Bevy's joint matrices), moves it to
-// grid space, computes equation 1's subdivision count and,
-// for the common small triangle wholly inside the grid (n <= 4), injects it at once. Larger or boundary-
+// grid space, picks its subdivision (equation 1's factors and the pattern: `subdivision`) and, for the
+// common small triangle wholly inside the grid (at most 16 sub-triangles), injects it at once. Larger or boundary-
 // crossing triangles are queued for the expand pass, which spreads their sub-triangles over many
 // invocations. CPU twin: `bevy_hao::cpu::voxelize::voxelize_triangle`.
 #import bevy_hao::voxelize_common::{
     BigTriangle, LatticeRange, SubTriangle, sub_triangle, grid_space_position, is_finite3,
-    triangle_is_degenerate, subdivision_count, grid_placement, clipped_lattice_range, sub_triangle_count,
+    triangle_is_degenerate, subdivision, rotate_to_apex, pack_strips, grid_placement, clipped_lattice_range, sub_triangle_count,
     PLACEMENT_INSIDE, PLACEMENT_OUTSIDE, MAX_SUBDIVISION, MAX_SUB_TRIANGLES_PER_TRIANGLE, INLINE_SUB_TRIANGLES,
     COUNTER_TRIANGLES, COUNTER_INVALID, COUNTER_DEGENERATE, COUNTER_OUTSIDE, COUNTER_OVERSIZE,
     COUNTER_SMALL, COUNTER_BIG_TRIANGLES, COUNTER_POINTS_REQUESTED, COUNTER_POINTS_DISPATCHED,
@@ -175,6 +175,7 @@ struct InlineJob {
     v0: vec3<f32>,
     v1: vec3<f32>,
     v2: vec3<f32>,
+    apex: u32,
     range: LatticeRange,
     count: u32,
 }
@@ -196,7 +197,7 @@ fn classify(
     }
     workgroupBarrier();
     let t = gid.x + gid.y * groups.x * 64u;
-    var job = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), LatticeRange(1u, 0u, 0u, 0u, 0u, false), 0u);
+    var job = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
     if t < slab_group.triangle_count {
         job = classify_triangle(t);
     }
@@ -218,7 +219,7 @@ fn classify(
         if start <= params.point_budget && job.count <= params.point_budget - start {
             atomicAdd(&inline_accepted, job.count);
             for (var s = 0u; s < job.count; s++) {
-                inject_sub_triangle(job.v0, job.v1, job.v2, job.range, sub_triangle(job.range, s));
+                inject_sub_triangle(job.v0, job.v1, job.v2, job.apex, job.range, sub_triangle(job.range, s));
             }
         } else {
             atomicStore(&counters[params.counter_base + COUNTER_BUDGET_EXCEEDED], 1u);
@@ -232,7 +233,7 @@ fn classify(
 }
 
 fn classify_triangle(t: u32) -> InlineJob {
-    var none = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), LatticeRange(1u, 0u, 0u, 0u, 0u, false), 0u);
+    var none = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
     add_counter(COUNTER_TRIANGLES, 1u);
     let inst = instances[find_instance(t)];
     let local = t - inst.first_triangle;
@@ -271,18 +272,25 @@ fn classify_triangle(t: u32) -> InlineJob {
         add_counter(COUNTER_OUTSIDE, 1u);
         return none;
     }
-    let n = subdivision_count(v0, v1, v2, params.gamma);
+    let sub = subdivision(v0, v1, v2, params.gamma, params.pattern);
+    let n = sub.n;
     if n > MAX_SUBDIVISION {
         add_counter(COUNTER_OVERSIZE, 1u);
         return none;
     }
-    var range = LatticeRange(n, 0u, 0u, 0u, 0u, true);
+    var r0 = v0;
+    var r1 = v1;
+    var r2 = v2;
+    rotate_to_apex(&r0, &r1, &r2, sub.apex);
+    var range = LatticeRange(n, sub.strips, sub.diagonal, 0u, 0u, 0u, 0u, true);
     if placement != PLACEMENT_INSIDE {
-        range = clipped_lattice_range(v0, v1 - v0, v2 - v0, n, box_min, box_max);
+        range = clipped_lattice_range(r0, r1 - r0, r2 - r0, n, box_min, box_max);
         if !range.valid {
             add_counter(COUNTER_OUTSIDE, 1u);
             return none;
         }
+        range.strips = sub.strips;
+        range.diagonal = sub.diagonal;
     }
     let count = sub_triangle_count(range);
     if count > MAX_SUB_TRIANGLES_PER_TRIANGLE {
@@ -292,11 +300,11 @@ fn classify_triangle(t: u32) -> InlineJob {
     if placement == PLACEMENT_INSIDE && count <= INLINE_SUB_TRIANGLES {
         // The common case: a triangle near a voxel in size (n <= 4); inject its few sub-triangles here.
         add_counter(COUNTER_SMALL, 1u);
-        return InlineJob(v0, v1, v2, range, count);
+        return InlineJob(v0, v1, v2, sub.apex, range, count);
     }
     let slot = atomicAdd(&counters[params.counter_base + COUNTER_BIG_TRIANGLES], 1u);
     if slot < arrayLength(&big_triangles) {
-        big_triangles[slot] = BigTriangle(v0, n, v1, range.u_start, v2, range.v_start, range.width, range.height, count, 0u);
+        big_triangles[slot] = BigTriangle(v0, n, v1, range.u_start, v2, range.v_start, range.width, range.height, count, pack_strips(sub));
     }
     return none;
 }

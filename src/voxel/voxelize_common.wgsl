@@ -13,6 +13,12 @@ const INLINE_SUB_TRIANGLES: u32 = 16u;
 const CONSERVATIVE_PAD: f32 = 0.00390625;
 // tessellation.rs: CLIP_MAX_VERTICES
 const CLIP_MAX_VERTICES: u32 = 9u;
+// tessellation.rs: STRIPS_MAX_COARSE
+const STRIPS_MAX_COARSE: u32 = 1024u;
+
+// tessellation.rs: SubdivisionPattern (VoxelizeParams::pattern)
+const PATTERN_UNIFORM: u32 = 0u;
+const PATTERN_STRIPS: u32 = 1u;
 
 const PLACEMENT_INSIDE: u32 = 0u;
 const PLACEMENT_OUTSIDE: u32 = 1u;
@@ -57,6 +63,10 @@ struct VoxelizeParams {
     counter_base: u32,
     dims: vec3<u32>,
     voxel_base: u32,
+    pattern: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 }
 
 // src/voxel/pipelines.rs: `GpuLevelRegion`. A box of one level's lattice at one mip of the texture, how
@@ -79,7 +89,8 @@ struct LevelRegion {
 }
 
 // A triangle that needs more than one point or crosses the grid boundary, queued by the classify pass for
-// the expand pass (src/voxel/pipelines.rs: `BigTriangle`).
+// the expand pass (src/voxel/pipelines.rs: `BIG_TRIANGLE_BYTES`): its vertices in their own order, its
+// coarse lattice range, and `strips` packed with the diagonal (bit 29) and the apex (bits 30-31).
 struct BigTriangle {
     a: vec3<f32>,
     n: u32,
@@ -90,7 +101,11 @@ struct BigTriangle {
     width: u32,
     height: u32,
     sub_triangle_count: u32,
-    _pad: u32,
+    strips: u32,
+}
+
+fn pack_strips(sub: Subdivision) -> u32 {
+    return sub.strips | (sub.diagonal << 29u) | (sub.apex << 30u);
 }
 
 // voxelize.rs: grid_space_position
@@ -129,6 +144,157 @@ fn subdivision_count(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, gamma: f32) ->
     return u32(t);
 }
 
+// tessellation.rs: Subdivision
+struct Subdivision {
+    n: u32,
+    strips: u32,
+    diagonal: u32,
+    apex: u32,
+}
+
+// tessellation.rs: rotate_to_apex, in place
+fn rotate_to_apex(v0: ptr<function, vec3<f32>>, v1: ptr<function, vec3<f32>>, v2: ptr<function, vec3<f32>>, apex: u32) {
+    let a = *v0;
+    let b = *v1;
+    let c = *v2;
+    if apex == 1u {
+        *v0 = b;
+        *v1 = c;
+        *v2 = a;
+    } else if apex == 2u {
+        *v0 = c;
+        *v1 = a;
+        *v2 = b;
+    }
+}
+
+fn l_inf(v: vec3<f32>) -> f32 {
+    return max3(abs(v));
+}
+
+// tessellation.rs: strips_fit
+fn strips_fit(e1: vec3<f32>, e2: vec3<f32>, s: vec3<f32>, nc: u32, q: u32, diagonal: u32) -> bool {
+    let d = f32(nc * q);
+    if !(max(l_inf(e1), l_inf(e2)) <= d && l_inf(s) <= f32(nc)) {
+        return false;
+    }
+    let far = f32(q - 1u);
+    if diagonal == 0u {
+        return l_inf(e2 + s) <= d && l_inf(e2 + s * far) <= d;
+    }
+    return l_inf(e1 - s) <= d && l_inf(e1 - s * far) <= d;
+}
+
+// tessellation.rs: strip_count (0 for None)
+fn strip_count(e1: vec3<f32>, e2: vec3<f32>, s: vec3<f32>, nc: u32, diagonal: u32) -> u32 {
+    let ncf = f32(nc);
+    var w = e1;
+    var t = s;
+    var near = e2 + s;
+    if diagonal != 0u {
+        w = e2;
+        t = -s;
+        near = e1 - s;
+    }
+    var estimate = max(max(l_inf(e1), l_inf(e2)), l_inf(near)) / ncf;
+    for (var axis = 0u; axis < 3u; axis++) {
+        if w[axis] > 0.0 {
+            let den = ncf - t[axis];
+            if !(den > 0.0) {
+                return 0u;
+            }
+            estimate = max(estimate, w[axis] / den);
+        } else if w[axis] < 0.0 {
+            let den = ncf + t[axis];
+            if !(den > 0.0) {
+                return 0u;
+            }
+            estimate = max(estimate, -w[axis] / den);
+        }
+    }
+    let most = MAX_SUBDIVISION / nc;
+    if !(estimate <= f32(most)) {
+        return 0u;
+    }
+    var q = clamp(u32(ceil(estimate)), 2u, max(most, 2u));
+    for (var k = 0u; k < 4u; k++) {
+        if q > 2u && strips_fit(e1, e2, s, nc, q - 1u, diagonal) {
+            q -= 1u;
+        }
+    }
+    for (var k = 0u; k < 4u; k++) {
+        if nc * q > MAX_SUBDIVISION {
+            return 0u;
+        }
+        if strips_fit(e1, e2, s, nc, q, diagonal) {
+            return q;
+        }
+        q += 1u;
+    }
+    return 0u;
+}
+
+// tessellation.rs: subdivision. Sub-triangle counts saturate at 0xffffffff here (u64 on the CPU); every strip
+// count is below 2^31, so the choices are the same.
+fn subdivision(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, gamma: f32, pattern: u32) -> Subdivision {
+    let n = subdivision_count(v0, v1, v2, gamma);
+    var best = Subdivision(n, 1u, 0u, 0u);
+    if pattern == PATTERN_UNIFORM || n <= 1u || n > MAX_SUBDIVISION {
+        return best;
+    }
+    let t1 = gamma * max3(abs(v0 - v1));
+    let t2 = gamma * max3(abs(v1 - v2));
+    let t3 = gamma * max3(abs(v0 - v2));
+    var apex = 2u;
+    if t2 <= t1 && t2 <= t3 {
+        apex = 0u;
+    } else if t3 <= t1 {
+        apex = 1u;
+    }
+    var a = v0;
+    var b = v1;
+    var c = v2;
+    rotate_to_apex(&a, &b, &c, apex);
+    let e1 = (b - a) * gamma;
+    let e2 = (c - a) * gamma;
+    let s = (c - b) * gamma;
+    let short = u32(max(ceil(l_inf(s)), 1.0));
+    var best_count = 0xffffffffu;
+    if n <= 65535u {
+        best_count = n * n;
+    }
+    for (var k = 0u; k < 3u; k++) {
+        var nc = short;
+        if k == 1u {
+            nc = short + 1u;
+        } else if k == 2u {
+            nc = 2u * short;
+        }
+        if nc > STRIPS_MAX_COARSE {
+            continue;
+        }
+        // tessellation.rs: the lower bound that skips a candidate which cannot win. Where nc^2 (2 least - 1)
+        // would overflow u32 it is skipped here and searched in vain on the CPU (no strip count reaches 2^31).
+        let least = max(u32(floor(max(l_inf(e1), l_inf(e2)) / f32(nc))), 2u);
+        let k = 0xffffffffu / (nc * nc);
+        if least > k / 2u + (k & 1u) || nc * nc * (2u * least - 1u) >= best_count {
+            continue;
+        }
+        for (var diagonal = 0u; diagonal < 2u; diagonal++) {
+            let q = strip_count(e1, e2, s, nc, diagonal);
+            if q == 0u {
+                continue;
+            }
+            let count = nc * nc * (2u * q - 1u);
+            if count < best_count {
+                best_count = count;
+                best = Subdivision(nc, q, diagonal, apex);
+            }
+        }
+    }
+    return best;
+}
+
 // tessellation.rs: grid_placement, against the closed box [box_min, box_max]
 fn grid_placement(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, box_min: vec3<f32>, box_max: vec3<f32>) -> u32 {
     let lo = min(min(v0, v1), v2);
@@ -146,6 +312,8 @@ fn grid_placement(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, box_min: vec3<f32
 // nothing (the Rust function returns None)
 struct LatticeRange {
     n: u32,
+    strips: u32,
+    diagonal: u32,
     u_start: u32,
     v_start: u32,
     width: u32,
@@ -155,7 +323,7 @@ struct LatticeRange {
 
 // tessellation.rs: clipped_lattice_range
 fn clipped_lattice_range(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, n: u32, box_min: vec3<f32>, box_max: vec3<f32>) -> LatticeRange {
-    var range = LatticeRange(n, 0u, 0u, 0u, 0u, false);
+    var range = LatticeRange(n, 1u, 0u, 0u, 0u, 0u, 0u, false);
     let nf = f32(n);
     let inv_n = 1.0 / nf;
     var poly: array<vec2<f32>, 10>;
@@ -227,39 +395,50 @@ fn clipped_lattice_range(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, n: u32, bo
 // tessellation.rs: LatticeRange::sub_triangle_count, saturated at 0xffffffff (the caller rejects counts
 // above MAX_SUB_TRIANGLES_PER_TRIANGLE).
 fn sub_triangle_count(range: LatticeRange) -> u32 {
+    var coarse: u32;
     if range.width == 0u {
         if range.n > 65535u {
             return 0xffffffffu;
         }
-        return range.n * range.n;
+        coarse = range.n * range.n;
+    } else {
+        if range.width > 65535u || range.height > 32767u {
+            return 0xffffffffu;
+        }
+        let wh = range.width * range.height;
+        if wh > 0x7fffffffu {
+            return 0xffffffffu;
+        }
+        coarse = 2u * wh;
     }
-    if range.width > 65535u || range.height > 32767u {
+    let pieces = 2u * range.strips - 1u;
+    if coarse > 0xffffffffu / pieces {
         return 0xffffffffu;
     }
-    let wh = range.width * range.height;
-    if wh > 0x7fffffffu {
-        return 0xffffffffu;
-    }
-    return 2u * wh;
+    return coarse * pieces;
 }
 
 struct SubTriangle {
     i: u32,
     j: u32,
     up: bool,
+    piece: u32,
     valid: bool,
 }
 
 // tessellation.rs: sub_triangle
-fn sub_triangle(range: LatticeRange, s: u32) -> SubTriangle {
+fn sub_triangle(range: LatticeRange, s_in: u32) -> SubTriangle {
     let n = range.n;
+    let pieces = 2u * range.strips - 1u;
+    let piece = s_in % pieces;
+    let s = s_in / pieces;
     if range.width == 0u {
         let a = s / n;
         let b = s % n;
         if a + b < n {
-            return SubTriangle(b, a, true, true);
+            return SubTriangle(b, a, true, piece, true);
         }
-        return SubTriangle(n - 1u - b, n - 1u - a, false, true);
+        return SubTriangle(n - 1u - b, n - 1u - a, false, piece, true);
     }
     let cell = s >> 1u;
     let up = (s & 1u) == 0u;
@@ -271,17 +450,55 @@ fn sub_triangle(range: LatticeRange, s: u32) -> SubTriangle {
     } else {
         inside = i + j + 1u < n;
     }
-    return SubTriangle(i, j, up, inside);
+    return SubTriangle(i, j, up, piece, inside);
 }
 
-// tessellation.rs: sub_triangle_centroid (equation 2)
-fn sub_triangle_centroid(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, inv_3n: f32, sub: SubTriangle) -> vec3<f32> {
-    var c = 1u;
-    if !sub.up {
-        c = 2u;
+// The fine-lattice point k steps from a coarse triangle's apex along e1 (L) or e2 (R).
+fn strip_l(apex: vec2<u32>, up: bool, k: u32) -> vec2<u32> {
+    if up {
+        return vec2<u32>(apex.x + k, apex.y);
     }
-    let a = f32(3u * sub.i + c) * inv_3n;
-    let b = f32(3u * sub.j + c) * inv_3n;
+    return vec2<u32>(apex.x - k, apex.y);
+}
+
+fn strip_r(apex: vec2<u32>, up: bool, k: u32) -> vec2<u32> {
+    if up {
+        return vec2<u32>(apex.x, apex.y + k);
+    }
+    return vec2<u32>(apex.x, apex.y - k);
+}
+
+// tessellation.rs: sub_triangle_corners
+fn sub_triangle_corners(range: LatticeRange, sub: SubTriangle) -> array<vec2<u32>, 3> {
+    let q = range.strips;
+    var apex = vec2<u32>((sub.i + 1u) * q, (sub.j + 1u) * q);
+    if sub.up {
+        apex = vec2<u32>(sub.i * q, sub.j * q);
+    }
+    let up = sub.up;
+    if sub.piece == 0u {
+        return array<vec2<u32>, 3>(apex, strip_l(apex, up, 1u), strip_r(apex, up, 1u));
+    }
+    let k = (sub.piece + 1u) / 2u;
+    let odd = (sub.piece & 1u) == 1u;
+    if range.diagonal == 0u {
+        if odd {
+            return array<vec2<u32>, 3>(strip_l(apex, up, k), strip_r(apex, up, k), strip_r(apex, up, k + 1u));
+        }
+        return array<vec2<u32>, 3>(strip_l(apex, up, k), strip_r(apex, up, k + 1u), strip_l(apex, up, k + 1u));
+    }
+    if odd {
+        return array<vec2<u32>, 3>(strip_l(apex, up, k), strip_r(apex, up, k), strip_l(apex, up, k + 1u));
+    }
+    return array<vec2<u32>, 3>(strip_r(apex, up, k), strip_r(apex, up, k + 1u), strip_l(apex, up, k + 1u));
+}
+
+// tessellation.rs: sub_triangle_centroid (equation 2); inv_3n = 1 / (3 n q)
+fn sub_triangle_centroid(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, inv_3n: f32, range: LatticeRange, sub: SubTriangle) -> vec3<f32> {
+    let c = sub_triangle_corners(range, sub);
+    let sum = c[0] + c[1] + c[2];
+    let a = f32(sum.x) * inv_3n;
+    let b = f32(sum.y) * inv_3n;
     return v0 + e1 * a + e2 * b;
 }
 

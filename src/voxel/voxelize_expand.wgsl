@@ -49,10 +49,14 @@ fn expand(
         let start = workgroup_first;
         let lo = find_triangle(g, start, min(start + local_index + 1u, queued));
         let t = big_triangles[lo];
-        let range = LatticeRange(t.n, t.u_start, t.v_start, t.width, t.height, true);
+        // voxelize_common.wgsl: pack_strips
+        let strips = t.strips & 0x1fffffffu;
+        let diagonal = (t.strips >> 29u) & 1u;
+        let apex = t.strips >> 30u;
+        let range = LatticeRange(t.n, strips, diagonal, t.u_start, t.v_start, t.width, t.height, true);
         let sub = sub_triangle(range, g - offsets[lo]);
         if sub.valid {
-            inject_sub_triangle(t.a, t.b, t.c, range, sub);
+            inject_sub_triangle(t.a, t.b, t.c, apex, range, sub);
         }
     }
     workgroupBarrier();

@@ -5,7 +5,8 @@
 #define_import_path bevy_hao::voxelize_pass
 
 #import bevy_hao::voxelize_common::{
-    VoxelizeParams, BigTriangle, LatticeRange, SubTriangle, sub_triangle_centroid, lattice_point,
+    VoxelizeParams, BigTriangle, LatticeRange, SubTriangle, sub_triangle_centroid, sub_triangle_corners,
+    lattice_point, rotate_to_apex,
     lattice_cell, storage_index, triangle_box_overlap, MODE_CENTROID, CONSERVATIVE_PAD,
     COUNTER_SUB_TRIANGLES, COUNTER_INJECTED, COUNTER_OVERLAP_TESTS, COUNTER_COUNT,
 }
@@ -54,14 +55,20 @@ fn inject_voxel(index: u32) {
     }
 }
 
-// One sub-triangle of the grid-space triangle v0 v1 v2 subdivided n times (range.n).
-fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, range: LatticeRange, sub: SubTriangle) {
+// One sub-triangle of the grid-space triangle v0 v1 v2 (in its own vertex order), subdivided as `range` says
+// after rotating vertex `apex` first.
+fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, apex: u32, range: LatticeRange, sub: SubTriangle) {
     add_counter(COUNTER_SUB_TRIANGLES, 1u);
-    let e1 = v1 - v0;
-    let e2 = v2 - v0;
+    var r0 = v0;
+    var r1 = v1;
+    var r2 = v2;
+    rotate_to_apex(&r0, &r1, &r2, apex);
+    let e1 = r1 - r0;
+    let e2 = r2 - r0;
+    let fine = f32(range.n * range.strips);
     if params.mode == MODE_CENTROID {
-        let inv_3n = 1.0 / (3.0 * f32(range.n));
-        let p = sub_triangle_centroid(v0, e1, e2, inv_3n, sub);
+        let inv_3n = 1.0 / (3.0 * fine);
+        let p = sub_triangle_centroid(r0, e1, e2, inv_3n, range, sub);
         var cell: vec3<i32>;
         if lattice_cell(p, params.region_min, params.region_max, params.closed_max, &cell) {
             inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
@@ -69,20 +76,13 @@ fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, range: Latti
         }
         return;
     }
-    // Conservative: the cells of the sub-triangle's padded bounds, each tested against the parent.
-    let inv_n = 1.0 / f32(range.n);
-    var a: vec3<f32>;
-    var b: vec3<f32>;
-    var c: vec3<f32>;
-    if sub.up {
-        a = lattice_point(v0, e1, e2, inv_n, sub.i, sub.j);
-        b = lattice_point(v0, e1, e2, inv_n, sub.i + 1u, sub.j);
-        c = lattice_point(v0, e1, e2, inv_n, sub.i, sub.j + 1u);
-    } else {
-        a = lattice_point(v0, e1, e2, inv_n, sub.i + 1u, sub.j);
-        b = lattice_point(v0, e1, e2, inv_n, sub.i, sub.j + 1u);
-        c = lattice_point(v0, e1, e2, inv_n, sub.i + 1u, sub.j + 1u);
-    }
+    // Conservative: the cells of the sub-triangle's padded bounds, each tested against the parent (in its own
+    // vertex order, as the ground truth tests it).
+    let inv_n = 1.0 / fine;
+    let corners = sub_triangle_corners(range, sub);
+    let a = lattice_point(r0, e1, e2, inv_n, corners[0].x, corners[0].y);
+    let b = lattice_point(r0, e1, e2, inv_n, corners[1].x, corners[1].y);
+    let c = lattice_point(r0, e1, e2, inv_n, corners[2].x, corners[2].y);
     // voxelize.rs: conservative_candidate_cells
     let lo = max(vec3<i32>(floor(min(min(a, b), c) - vec3<f32>(CONSERVATIVE_PAD))), params.region_min);
     let hi = min(vec3<i32>(floor(max(max(a, b), c) + vec3<f32>(CONSERVATIVE_PAD))), params.region_max - vec3<i32>(1));
