@@ -4,8 +4,13 @@
 //! cargo run --release --example ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
 //!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
 //!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--cascades 4,128,0.125] [--world]
-//!     [--pattern strips|uniform] [--out ao_compare.png]
+//!     [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--out ao_compare.png]
 //! ```
+//!
+//! HAO accumulates its AO over frames (`--accumulation`, `HybridAmbientOcclusion::accumulation_frames`, 16
+//! by default; 1 for none): the images are read after the scene has settled and then four times that many
+//! frames more, when the history has converged (the frames are printed). `--hao-rays` traces that many rays a
+//! frame instead of the quality's.
 //!
 //! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 192^3 following the
 //! camera) or `fit` (one grid fitted to the static scene, `--res` cells on its longest axis). `--world`
@@ -44,12 +49,14 @@ struct Args {
     cascades: Option<(u32, u32, f32)>,
     world: bool,
     subdivision: VoxelSubdivision,
+    accumulation: u32,
+    hao_rays: Option<u32>,
     out: String,
 }
 
 const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
 [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] \
-[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--pattern strips|uniform] [--out ao_compare.png]";
+[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--out ao_compare.png]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -66,6 +73,8 @@ fn parse_args() -> Result<Args, String> {
         cascades: None,
         world: false,
         subdivision: VoxelSubdivision::Strips,
+        accumulation: HybridAmbientOcclusion::default().accumulation_frames,
+        hao_rays: None,
         out: "ao_compare.png".into(),
     };
     let (mut eye, mut look) = (None, None);
@@ -122,6 +131,12 @@ fn parse_args() -> Result<Args, String> {
                     p => return Err(format!("unknown pattern {p} (strips or uniform)")),
                 }
             }
+            "--accumulation" => {
+                a.accumulation = value("--accumulation")?.parse().map_err(|e| format!("bad --accumulation: {e}"))?
+            }
+            "--hao-rays" => {
+                a.hao_rays = Some(value("--hao-rays")?.parse().map_err(|e| format!("bad --hao-rays: {e}"))?)
+            }
             "--out" => a.out = value("--out")?,
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
@@ -177,13 +192,22 @@ fn main() {
         camera.forward().as_vec3()
     );
     support::set_asset_root(source.asset_root());
+    let quality = match args.hao_rays {
+        Some(rays) => {
+            let (_, steps, half_resolution) = args.quality.parameters();
+            HaoQuality::Custom { rays, steps, half_resolution }
+        }
+        None => args.quality,
+    };
     let hao = HybridAmbientOcclusion {
-        quality: args.quality,
+        quality,
         max_distance: args.max_distance,
         start_offset: args.start_offset,
         near_field: false,
+        accumulation_frames: args.accumulation,
         ..default()
     };
+    let accumulation = hao.sanitized().0.accumulation_frames as usize;
     let (size, res) = (args.size, args.res);
     let setup_source = source.clone();
     let setup_hao = hao.clone();
@@ -266,7 +290,10 @@ fn main() {
         }
         last = key;
     }
-    support::run(&mut app, 4);
+    // Then until the temporal history has converged: four times its length (the frames before weigh
+    // (1 - 1/n)^(4n), under 2 %).
+    let settled = 4 + 4 * accumulation;
+    support::run(&mut app, settled);
     let errors = support::take_render_errors();
     if !errors.is_empty() {
         eprintln!("error: wgpu errors: {errors:?}");
@@ -369,8 +396,9 @@ fn main() {
     };
     let world = if args.world { ", inside a generated 1 km level" } else { "" };
     println!(
-        "HAO: {:?}, max distance {}, voxel volume: {volume}{world}; reference: {} rays per pixel\n",
-        args.quality, args.max_distance, args.rays
+        "HAO: {:?}, max distance {}, accumulation over {accumulation} frames (measured {settled} frames after the \
+         scene settled), voxel volume: {volume}{world}; reference: {} rays per pixel\n",
+        hao.quality, args.max_distance, args.rays
     );
     println!("| AO | mean abs. error, all pixels | mean abs. error, off-screen/hidden occluders | mean AO |");
     println!("|---|---:|---:|---:|");

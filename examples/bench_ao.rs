@@ -11,8 +11,9 @@
 //!
 //! 1. Bevy's SSAO alone, at its default quality (High), on a camera without HAO: the `ssao` span;
 //! 2. for each HAO quality preset, the camera with `HybridAmbientOcclusion` at its defaults (near field
-//!    off): the spans `hao/trace`, `hao/denoise`, `hao/apply`, and `ssao` if Bevy's SSAO passes ran (the
-//!    plugin skips them when HAO overwrites their result; "not run" then).
+//!    off, 16 frames accumulated), then without accumulation (`accumulation_frames: 1`, the presets' rays
+//!    before it): the spans `hao/trace`, `hao/temporal`, `hao/denoise`, `hao/apply`, and `ssao` if Bevy's
+//!    SSAO passes ran (the plugin skips them when HAO overwrites their result; "not run" then).
 //!
 //! It prints their medians, the whole AO cost of a HAO frame (the HAO passes plus any SSAO pass that ran),
 //! and its ratio to Bevy's SSAO alone. Voxelization is not counted here (see `bench_voxelize`). On a software
@@ -124,11 +125,14 @@ fn main() {
         .entity_mut(cam)
         .remove::<bevy::pbr::ScreenSpaceAmbientOcclusion>()
         .insert(HybridAmbientOcclusion::default());
-    let spans = ["hao/trace", "hao/denoise", "hao/apply", "ssao"];
+    let spans = ["hao/trace", "hao/temporal", "hao/denoise", "hao/apply", "ssao"];
     let mut rows = Vec::new();
-    for quality in [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra] {
-        app.world_mut().get_mut::<HybridAmbientOcclusion>(cam).unwrap().quality = quality;
-        rows.push((quality, measure(&mut app, &spans)));
+    for accumulation_frames in [HybridAmbientOcclusion::default().accumulation_frames, 1] {
+        for quality in [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra] {
+            let settings = HybridAmbientOcclusion { quality, accumulation_frames, ..default() };
+            app.world_mut().entity_mut(cam).insert(settings.clone());
+            rows.push((settings, measure(&mut app, &spans)));
+        }
     }
     let errors = support::take_render_errors();
     if !errors.is_empty() {
@@ -141,32 +145,35 @@ fn main() {
         size.x, size.y, grid.x, grid.y, grid.z
     );
     println!(
-        "| HAO quality | rays x steps | trace ms | denoise ms | apply ms | HAO passes ms | Bevy SSAO passes in the HAO frame ms \
-         | whole AO ms | Bevy SSAO (High) alone ms | whole / SSAO |"
+        "| HAO quality | frames accumulated | rays x steps a frame | trace ms | temporal ms | denoise ms | apply ms \
+         | HAO passes ms | Bevy SSAO passes in the HAO frame ms | whole AO ms | Bevy SSAO (High) alone ms | whole / SSAO |"
     );
-    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
-    for (quality, m) in rows {
-        let (rays, steps, half) = quality.parameters();
-        let passes = match (m[0], m[1], m[2]) {
-            (Some(a), Some(b), Some(c)) => Some(a + b + c),
+    for (settings, m) in rows {
+        let (rays, steps, half) = settings.trace_parameters();
+        let passes = match (m[0], m[1], m[2], m[3]) {
+            (Some(a), Some(b), Some(c), Some(d)) => Some(a + b + c + d),
             _ => None,
         };
         // No `ssao` span: the plugin skipped Bevy's SSAO passes (near field off), and they cost nothing.
-        let kept = m[3].unwrap_or(0.0);
+        let kept = m[4].unwrap_or(0.0);
         let whole = passes.map(|p| p + kept);
         let ratio = match (whole, ssao_alone) {
             (Some(t), Some(s)) if s > 0.0 => format!("{:.2}", t / s),
             _ => "-".into(),
         };
         println!(
-            "| {quality:?} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
+            "| {:?} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
+            settings.quality,
+            settings.accumulation_frames,
             if half { ", half res" } else { "" },
             f(m[0]),
             f(m[1]),
             f(m[2]),
+            f(m[3]),
             f(passes),
-            m[3].map_or("not run".to_string(), |v| format!("{v:.3}")),
+            m[4].map_or("not run".to_string(), |v| format!("{v:.3}")),
             f(whole),
             f(ssao_alone)
         );

@@ -181,7 +181,7 @@ fn inspector_window(
         if let Some(hao) = hao.as_deref_mut() {
             ui.separator();
             ui.heading("HAO");
-            let (rays, steps, half) = hao.quality.parameters();
+            let (rays, steps, half) = hao.trace_parameters();
             egui::ComboBox::from_label("quality")
                 .selected_text(format!(
                     "{:?} ({rays} rays x {steps} steps{})",

@@ -44,6 +44,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
         ("src/voxel/voxel_mip.wgsl", texture_variants),
         ("src/ao/hao_trace.wgsl", vec![vec![]]),
+        ("src/ao/hao_temporal.wgsl", vec![vec![]]),
         ("src/ao/hao_denoise.wgsl", vec![vec![]]),
         ("src/ao/hao_upsample.wgsl", vec![vec![]]),
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),

@@ -408,22 +408,49 @@ fn ao_dims_indirect_light_only_and_removing_it_restores_bevys_behaviour() {
     assert!(take_render_errors().is_empty());
 }
 
-/// Holds the GPU's noisy AO (no denoise) against the CPU twin traced through `levels`, pixel by pixel.
-/// Returns the levels the pixels' first rays start in.
-fn assert_trace_matches_cpu(
-    app: &mut App,
-    settings: &HybridAmbientOcclusion,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
-) -> std::collections::BTreeMap<usize, usize> {
-    use bevy_hao::cpu::ao::{TraceSettings, interleaved_gradient_noise, ray_start_level, voxel_ambient_occlusion};
+/// The view's pixels as the trace sees them: world position and normal from the debug images (`None` for
+/// the background).
+fn view_samples(app: &mut App) -> (u32, u32, Vec<Option<(Vec3, Vec3)>>) {
     let targets = app.world().resource::<Targets>().clone();
-    let (w, h, gpu_ao) = read_image_f32(app, targets.debug.ao.clone(), 2);
-    let (_, _, depth) = read_image_f32(app, targets.debug.depth.clone(), 0);
+    let (w, h, depth) = read_image_f32(app, targets.debug.depth.clone(), 0);
     let (_, _, _, normal_bytes) = read_image(app, targets.debug.normal.clone(), 0);
     let mut q = app.world_mut().query_filtered::<(&Camera, &GlobalTransform), With<TheCamera>>();
     let (cam, transform) = q.single(app.world()).unwrap();
     let world_from_clip = transform.to_matrix() * cam.clip_from_view().inverse();
-    let (rays, steps, _) = settings.quality.parameters();
+    let mut samples = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            if depth[i] <= 0.0 {
+                samples.push(None);
+                continue;
+            }
+            let ndc =
+                Vec3::new((x as f32 + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / h as f32 * 2.0, depth[i]);
+            let n = &normal_bytes[i * 8..i * 8 + 6];
+            let normal = Vec3::new(
+                support::f16_to_f32(u16::from_le_bytes([n[0], n[1]])),
+                support::f16_to_f32(u16::from_le_bytes([n[2], n[3]])),
+                support::f16_to_f32(u16::from_le_bytes([n[4], n[5]])),
+            )
+            .normalize();
+            samples.push(Some((world_from_clip.project_point3(ndc), normal)));
+        }
+    }
+    (w, h, samples)
+}
+
+/// The CPU twin's noisy AO of every pixel with the noise of `frame` (NaN for the background), and the level
+/// each pixel's first ray starts in.
+fn cpu_trace(
+    samples: &[Option<(Vec3, Vec3)>],
+    w: u32,
+    settings: &HybridAmbientOcclusion,
+    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    frame: u32,
+) -> (Vec<f32>, Vec<usize>) {
+    use bevy_hao::cpu::ao::{TraceSettings, interleaved_gradient_noise, ray_start_level, voxel_ambient_occlusion};
+    let (rays, steps, _) = settings.trace_parameters();
     let trace = TraceSettings {
         rays,
         steps,
@@ -432,38 +459,45 @@ fn assert_trace_matches_cpu(
         intensity: settings.intensity,
         start_offset: settings.start_offset,
     };
+    let mut ao = vec![f32::NAN; samples.len()];
+    let mut start = vec![0; samples.len()];
+    for (i, s) in samples.iter().enumerate() {
+        let Some((world, normal)) = *s else { continue };
+        let pf = Vec2::new((i as u32 % w) as f32, (i as u32 / w) as f32);
+        let rotation = Vec2::new(
+            interleaved_gradient_noise(pf, frame),
+            interleaved_gradient_noise(Vec2::new(pf.y, pf.x) + Vec2::new(17.0, 59.0), frame),
+        );
+        start[i] = ray_start_level(levels, world, 0, rotation);
+        ao[i] = voxel_ambient_occlusion(levels, world, normal, rotation, &trace);
+    }
+    (ao, start)
+}
+
+/// Holds the GPU's noisy AO (no denoise, no accumulation) against the CPU twin traced through `levels`, pixel
+/// by pixel. Returns the levels the pixels' first rays start in.
+fn assert_trace_matches_cpu(
+    app: &mut App,
+    settings: &HybridAmbientOcclusion,
+    levels: &[bevy_hao::cpu::ao::TraceLevel],
+) -> std::collections::BTreeMap<usize, usize> {
+    let targets = app.world().resource::<Targets>().clone();
+    let (_, _, gpu_ao) = read_image_f32(app, targets.debug.ao.clone(), 2);
+    let (w, _, samples) = view_samples(app);
+    let (cpu_ao, start) = cpu_trace(&samples, w, settings, levels, 0);
     let (mut sum, mut count, mut far) = (0.0, 0, 0);
     let mut used = std::collections::BTreeMap::new();
-    for y in 0..h {
-        for x in 0..w {
-            let i = (y * w + x) as usize;
-            if depth[i] <= 0.0 {
-                continue;
-            }
-            let ndc =
-                Vec3::new((x as f32 + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / h as f32 * 2.0, depth[i]);
-            let world = world_from_clip.project_point3(ndc);
-            let n = &normal_bytes[i * 8..i * 8 + 6];
-            let normal = Vec3::new(
-                support::f16_to_f32(u16::from_le_bytes([n[0], n[1]])),
-                support::f16_to_f32(u16::from_le_bytes([n[2], n[3]])),
-                support::f16_to_f32(u16::from_le_bytes([n[4], n[5]])),
-            )
-            .normalize();
-            let pf = Vec2::new(x as f32, y as f32);
-            let rotation = Vec2::new(
-                interleaved_gradient_noise(pf, 0),
-                interleaved_gradient_noise(Vec2::new(pf.y, pf.x) + Vec2::new(17.0, 59.0), 0),
-            );
-            *used.entry(ray_start_level(levels, world, 0, rotation)).or_insert(0) += 1;
-            let cpu = voxel_ambient_occlusion(levels, world, normal, rotation, &trace);
-            let d = (cpu - gpu_ao[i]).abs();
-            sum += d;
-            count += 1;
-            // A ray grazing a voxel edge may go either way: one ray of eight is 0.125 at most.
-            if d > 0.13 {
-                far += 1;
-            }
+    for i in 0..samples.len() {
+        if cpu_ao[i].is_nan() {
+            continue;
+        }
+        *used.entry(start[i]).or_insert(0) += 1;
+        let d = (cpu_ao[i] - gpu_ao[i]).abs();
+        sum += d;
+        count += 1;
+        // A ray grazing a voxel edge may go either way: one ray of eight is 0.125 at most.
+        if d > 0.13 {
+            far += 1;
         }
     }
     let mean = sum / count as f32;
@@ -474,18 +508,76 @@ fn assert_trace_matches_cpu(
     used
 }
 
-#[test]
-fn the_gpu_trace_matches_its_cpu_twin() {
-    use bevy_hao::cpu::ao::{TraceLevel, VoxelMips};
-    let _gpu = gpu_lock();
-    let settings = HybridAmbientOcclusion { denoise_radius: 0, ..hao_settings() };
+/// The walls seen from above with `settings`, after `frames` frames, and the GPU's voxels with their mips
+/// (for a [`bevy_hao::cpu::ao::TraceLevel`]).
+fn walls_app_and_voxels(
+    settings: &HybridAmbientOcclusion,
+    frames: usize,
+) -> (App, bevy_hao::cpu::ao::VoxelMips, bevy_hao::cpu::VoxelGrid) {
     let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
     let mut app = scene_app(camera, Ao::Hao(settings.clone()), walls);
-    run(&mut app, 8);
+    run(&mut app, frames);
     let occupancy = read_occupancy(&mut app);
     let assets = grid_assets(&app).unwrap();
-    let mips = VoxelMips::new(&occupancy, assets.mip_levels);
-    let grid = assets.grid;
+    (app, bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels), assets.grid)
+}
+
+#[test]
+fn temporal_accumulation_matches_its_cpu_twin() {
+    use bevy_hao::cpu::ao::TraceLevel;
+    use bevy_hao::cpu::temporal::accumulate_still;
+    let _gpu = gpu_lock();
+    let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 8, ..hao_settings() };
+    // Long enough for the first frames, traced while the grid was still being built, to have left the
+    // history (their weight is (7/8)^50 by the end).
+    let (mut app, mips, grid) = walls_app_and_voxels(&settings, 60);
+    let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
+    let targets = app.world().resource::<Targets>().clone();
+    let (_, _, gpu) = read_image_f32(&mut app, targets.debug.ao.clone(), 2);
+    let rendered = app.world().resource::<bevy::diagnostic::FrameCount>().0 as usize;
+    let (w, h, samples) = view_samples(&mut app);
+    // The noise turns every frame with the render frame's number: the twin's frames, as the GPU stores them
+    // (f16), for the frames this run may have read back.
+    let frames: Vec<Vec<f32>> = (0..rendered + 2)
+        .map(|f| {
+            let (ao, _) = cpu_trace(&samples, w, &settings, &levels, f as u32);
+            ao.iter().map(|&a| half::f16::from_f32(a).to_f32()).collect()
+        })
+        .collect();
+    let error = |cpu: &[f32]| {
+        let (mut sum, mut n) = (0.0f64, 0);
+        for (c, g) in cpu.iter().zip(&gpu) {
+            if !c.is_nan() {
+                sum += (c - g).abs() as f64;
+                n += 1;
+            }
+        }
+        sum / n as f64
+    };
+    // The GPU's image is the twin's accumulation of the frames first..=last for some last frame near the
+    // end (the readback's latency is not known) and any first frame 24 or more before it.
+    let (mut best, mut best_run, mut single) = (f64::MAX, (0, 0), f64::MAX);
+    for last in frames.len().saturating_sub(12)..frames.len() {
+        single = single.min(error(&frames[last]));
+        for first in [last.saturating_sub(24), last.saturating_sub(32)] {
+            let e = error(&accumulate_still(&frames[first..=last], w as usize, h as usize, 8.0));
+            if e < best {
+                (best, best_run) = (e, (first, last));
+            }
+        }
+    }
+    println!("accumulated frames {best_run:?}: mean |twin - GPU| = {best:.5}; the closest single frame: {single:.5}");
+    assert!(best < 0.0005, "{best}");
+    assert!(single > 5.0 * best, "{single} against {best}: the GPU did not accumulate");
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn the_gpu_trace_matches_its_cpu_twin() {
+    use bevy_hao::cpu::ao::TraceLevel;
+    let _gpu = gpu_lock();
+    let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, ..hao_settings() };
+    let (mut app, mips, grid) = walls_app_and_voxels(&settings, 8);
     let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
     assert_trace_matches_cpu(&mut app, &settings, &levels);
     assert!(take_render_errors().is_empty());
@@ -524,7 +616,7 @@ fn walls_and_pillars(commands: &mut Commands, meshes: &mut Assets<Mesh>, materia
 fn the_gpu_trace_matches_its_cpu_twin_across_cascades() {
     use bevy_hao::cpu::ao::{TraceLevel, VoxelMips};
     let _gpu = gpu_lock();
-    let settings = HybridAmbientOcclusion { denoise_radius: 0, ..hao_settings() };
+    let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, ..hao_settings() };
     // Low over the floor, looking down the row of pillars: the view reaches from the finest cascade to the
     // coarsest.
     let camera = Transform::from_xyz(0.5, 2.0, 4.0).looking_at(Vec3::new(0.0, 0.0, -20.0), Vec3::Y);
@@ -730,4 +822,109 @@ fn debug_views_and_hao_work_under_an_orthographic_projection() {
     let colored = cascades.iter().filter(|p| p.iter().max().unwrap() - p.iter().min().unwrap() > 40).count();
     assert!(colored * 2 > cascades.len(), "the cascade view tints voxels ({colored} of {})", cascades.len());
     assert!(take_render_errors().is_empty());
+}
+
+/// Mean absolute difference over the pixels both images show geometry in (AO below 1 somewhere near).
+fn mean_difference(a: &[f32], b: &[f32]) -> f32 {
+    let d: Vec<f32> = a.iter().zip(b).map(|(x, y)| (x - y).abs()).collect();
+    d.iter().sum::<f32>() / d.len() as f32
+}
+
+/// The AO of `camera`'s view of the walls after `frames` frames, with `rays` rays a frame.
+fn walls_ao(camera: Transform, rays: u32, accumulation_frames: u32, frames: usize) -> Vec<f32> {
+    let settings = HybridAmbientOcclusion {
+        quality: HaoQuality::Custom { rays, steps: 48, half_resolution: false },
+        denoise_radius: 0,
+        accumulation_frames,
+        ..hao_settings()
+    };
+    let mut app = scene_app(camera, Ao::Hao(settings), walls);
+    run(&mut app, frames);
+    let ao = ao_image(&mut app).2;
+    assert!(take_render_errors().is_empty());
+    ao
+}
+
+#[test]
+fn two_rays_a_frame_accumulated_converge_towards_many_rays() {
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
+    let reference = walls_ao(camera, 64, 1, 10);
+    let single = walls_ao(camera, 2, 1, 10);
+    let accumulated = walls_ao(camera, 2, 16, 40);
+    let (e1, e16) = (mean_difference(&single, &reference), mean_difference(&accumulated, &reference));
+    println!("two rays against 64: one frame {e1:.4}, accumulated over 16 frames {e16:.4}");
+    // 16 frames of 2 rays are 32 rays: the noise falls by about sqrt(16) = 4.
+    assert!(e16 < 0.4 * e1, "{e16} against {e1}");
+}
+
+#[test]
+fn an_occluder_that_leaves_leaves_no_trail() {
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(0.0, 8.0, 4.0).looking_at(Vec3::ZERO, Vec3::Y);
+    let settings = HybridAmbientOcclusion {
+        quality: HaoQuality::Custom { rays: 2, steps: 48, half_resolution: false },
+        accumulation_frames: 16,
+        ..hao_settings()
+    };
+    let mut app = scene_app(camera, Ao::Hao(settings), |c, m, mat| {
+        c.spawn((
+            box_at(m, Vec3::new(1.0, 1.0, 1.0)),
+            MeshMaterial3d(mat),
+            Transform::from_xyz(-2.0, 0.5, 0.0),
+            DynamicOccluder,
+            Mover,
+        ));
+    });
+    run(&mut app, 30);
+    let beside = Vec3::new(-2.0, 0.0, 0.65);
+    let ao = ao_image(&mut app);
+    let with_box = ao_at(&mut app, &ao, beside, 1);
+    // The box jumps away: four frames later the floor beside its old place is as open as it will be.
+    let mut q = app.world_mut().query_filtered::<&mut Transform, With<Mover>>();
+    q.single_mut(app.world_mut()).unwrap().translation.x = 5.0;
+    run(&mut app, 4);
+    let ao = ao_image(&mut app);
+    let soon = ao_at(&mut app, &ao, beside, 1);
+    run(&mut app, 40);
+    let ao = ao_image(&mut app);
+    let settled = ao_at(&mut app, &ao, beside, 1);
+    println!("beside the box {with_box:.3}; 4 frames after it left {soon:.3}; settled {settled:.3}");
+    assert!(settled > with_box + 0.1, "the box occluded");
+    assert!((settled - soon).abs() < 0.03, "a trail: {soon} against {settled}");
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn a_moving_camera_keeps_its_history_without_trails() {
+    let _gpu = gpu_lock();
+    // The camera slides 5 cm a frame for 30 frames; its last view is compared with 64 rays traced there.
+    let start = Transform::from_xyz(0.0, 9.0, 5.5).looking_at(Vec3::new(-0.5, 0.0, 0.5), Vec3::Y);
+    let end = Transform { translation: start.translation + Vec3::new(1.5, 0.0, 0.0), ..start };
+    let settings = HybridAmbientOcclusion {
+        quality: HaoQuality::Custom { rays: 2, steps: 48, half_resolution: false },
+        denoise_radius: 0,
+        accumulation_frames: 16,
+        ..hao_settings()
+    };
+    let mut app = scene_app(start, Ao::Hao(settings), walls);
+    run(&mut app, 10);
+    for k in 1..=30 {
+        let mut q = app.world_mut().query_filtered::<&mut Transform, With<TheCamera>>();
+        q.single_mut(app.world_mut()).unwrap().translation = start.translation + Vec3::new(0.05 * k as f32, 0.0, 0.0);
+        run(&mut app, 1);
+    }
+    let moving = ao_image(&mut app).2;
+    assert!(take_render_errors().is_empty());
+    let reference = walls_ao(end, 64, 1, 10);
+    let single = walls_ao(end, 2, 1, 10);
+    let (e1, em) = (mean_difference(&single, &reference), mean_difference(&moving, &reference));
+    let mut errors: Vec<f32> = moving.iter().zip(&reference).map(|(a, b)| (a - b).abs()).collect();
+    errors.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    let p99 = errors[errors.len() * 99 / 100];
+    println!(
+        "two rays against 64 after 30 moving frames: one frame {e1:.4}, accumulated {em:.4} (99th percentile {p99:.3})"
+    );
+    assert!(em < 0.6 * e1, "{em} against {e1}");
+    assert!(p99 < 0.15, "{p99}");
 }

@@ -15,6 +15,9 @@ struct HaoSettings {
     near_field: u32,
     half_resolution: u32,
     denoise_radius: u32,
+    // Most frames of history a pixel keeps (1: none).
+    accumulation_frames: u32,
+    pad_a: u32,
 }
 
 const PI: f32 = 3.141592653589793;
@@ -82,4 +85,58 @@ fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, cen
     let c4 = c2 * c2;
     let c8 = c4 * c4;
     return spatial * depth_w * c8 * c8;
+}
+
+// Packs an octahedral normal into one float exactly (11 bits per coordinate: an integer below 2^22), for the
+// temporal history.
+fn pack_normal(e: vec2<f32>) -> f32 {
+    let q = vec2<u32>(round(clamp(e * 0.5 + 0.5, vec2<f32>(0.0), vec2<f32>(1.0)) * 2047.0));
+    return f32(q.x * 2048u + q.y);
+}
+
+fn unpack_octahedral(p: f32) -> vec2<f32> {
+    let v = u32(p);
+    return vec2<f32>(f32(v / 2048u), f32(v % 2048u)) / 2047.0 * 2.0 - 1.0;
+}
+
+fn unpack_normal(p: f32) -> vec3<f32> {
+    return octahedral_decode(unpack_octahedral(p));
+}
+
+// cpu/temporal.rs: DEPTH_TOLERANCE, NORMAL_TOLERANCE, CLAMP_MARGIN, CLAMPED_COUNT, CHANGED_COUNT
+const DEPTH_TOLERANCE: f32 = 0.02;
+const NORMAL_TOLERANCE: f32 = 0.9;
+const CLAMP_MARGIN: f32 = 0.1;
+const CLAMPED_COUNT: f32 = 2.0;
+const CHANGED_COUNT: f32 = 2.0;
+
+// cpu/temporal.rs: history_accepts
+fn history_accepts(expected_depth: f32, history_depth: f32, normal_cosine: f32) -> bool {
+    return history_depth > 0.0 && abs(history_depth - expected_depth) <= DEPTH_TOLERANCE * expected_depth + 0.01
+        && normal_cosine >= NORMAL_TOLERANCE;
+}
+
+// cpu/temporal.rs: neighborhood_window
+fn neighborhood_window(sum: f32, sum_squares: f32, count: f32) -> vec2<f32> {
+    let mean = sum / count;
+    let sigma = sqrt(max(sum_squares / count - mean * mean, 0.0));
+    return vec2<f32>(mean - 2.0 * sigma - CLAMP_MARGIN, mean + 2.0 * sigma + CLAMP_MARGIN);
+}
+
+// cpu/temporal.rs: temporal_blend; returns (ao, frames of weight)
+fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: f32, max_count: f32, near_change: bool) -> vec2<f32> {
+    var h = history;
+    var c = history_count;
+    if near_change {
+        c = min(c, CHANGED_COUNT);
+    }
+    if h < window.x || h > window.y {
+        h = clamp(h, window.x, window.y);
+        c = min(c, CLAMPED_COUNT);
+    }
+    let count = min(c + 1.0, max(max_count, 1.0));
+    if count <= 1.0 {
+        return vec2<f32>(current, count);
+    }
+    return vec2<f32>(h + (current - h) / count, count);
 }

@@ -41,6 +41,7 @@ impl Plugin for HybridAmbientOcclusionPlugin {
     fn build(&self, app: &mut App) {
         load_shader_library!(app, "hao_common.wgsl");
         embedded_asset!(app, "hao_trace.wgsl");
+        embedded_asset!(app, "hao_temporal.wgsl");
         embedded_asset!(app, "hao_denoise.wgsl");
         embedded_asset!(app, "hao_upsample.wgsl");
         embedded_asset!(app, "hao_apply.wgsl");
@@ -99,9 +100,15 @@ fn skip_unused_ssao(
     cache: Res<PipelineCache>,
 ) {
     let ready = voxel_grid.is_some()
-        && [pipelines.trace, pipelines.denoise_horizontal, pipelines.denoise_vertical, pipelines.apply]
-            .iter()
-            .all(|id| cache.get_compute_pipeline(*id).is_some());
+        && [
+            pipelines.trace,
+            pipelines.temporal,
+            pipelines.denoise_horizontal,
+            pipelines.denoise_vertical,
+            pipelines.apply,
+        ]
+        .iter()
+        .all(|id| cache.get_compute_pipeline(*id).is_some());
     if !ready {
         return;
     }

@@ -4,6 +4,7 @@
 use super::pipelines::HaoPipelines;
 use super::prepare::{HaoBindGroups, HaoDebugBindGroup, HaoViewResources};
 use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings};
+use bevy::core_pipeline::prepass::PreviousViewUniformOffset;
 use bevy::prelude::*;
 use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_resource::*;
@@ -14,18 +15,19 @@ fn groups(size: UVec2) -> (u32, u32) {
     (size.x.div_ceil(8), size.y.div_ceil(8))
 }
 
-/// Trace, denoise, apply.
+/// Trace, accumulate, denoise, apply.
 pub fn hao(
-    view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset)>,
+    view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset, &PreviousViewUniformOffset)>,
     pipelines: Res<HaoPipelines>,
     voxel_grid: Option<Res<VoxelGridBindings>>,
     cache: Res<PipelineCache>,
     mut ctx: RenderContext,
 ) {
-    let (res, bind_groups, view_offset) = view.into_inner();
+    let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let (Some(trace), Some(horizontal), Some(vertical), Some(apply)) = (
+    let (Some(trace), Some(temporal), Some(horizontal), Some(vertical), Some(apply)) = (
         cache.get_compute_pipeline(pipelines.trace),
+        cache.get_compute_pipeline(pipelines.temporal),
         cache.get_compute_pipeline(pipelines.denoise_horizontal),
         cache.get_compute_pipeline(pipelines.denoise_vertical),
         cache.get_compute_pipeline(pipelines.apply),
@@ -43,6 +45,18 @@ pub fn hao(
         pass.set_pipeline(trace);
         pass.set_bind_group(0, &bind_groups.trace, &[]);
         pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
+        pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
+        let (x, y) = groups(res.trace_size);
+        pass.dispatch_workgroups(x, y, 1);
+        span.end(&mut pass);
+    }
+    {
+        let mut pass =
+            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_temporal"), timestamp_writes: None });
+        let span = diagnostics.pass_span(&mut pass, "hao/temporal");
+        pass.set_pipeline(temporal);
+        pass.set_bind_group(0, &bind_groups.temporal, &[]);
+        pass.set_bind_group(1, &bind_groups.temporal_view, &[view_offset.offset, previous_view_offset.offset]);
         pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
         let (x, y) = groups(res.trace_size);
         pass.dispatch_workgroups(x, y, 1);

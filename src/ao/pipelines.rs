@@ -3,6 +3,7 @@
 use crate::voxel::pipelines::queue_compute;
 use crate::voxel::voxel_grid_layout;
 use bevy::asset::load_embedded_asset;
+use bevy::core_pipeline::prepass::PreviousViewData;
 use bevy::prelude::*;
 use bevy::render::render_resource::binding_types::{
     texture_2d, texture_depth_2d, texture_storage_2d, uniform_buffer, uniform_buffer_sized,
@@ -18,6 +19,10 @@ pub struct HaoPipelines {
     pub view_layout: BindGroupLayoutDescriptor,
     /// Group 0 of trace.
     pub trace_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the temporal pass.
+    pub temporal_layout: BindGroupLayoutDescriptor,
+    /// Group 1 of the temporal pass: the view and the previous view.
+    pub temporal_view_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the horizontal denoise.
     pub denoise_horizontal_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the vertical denoise and upsample.
@@ -28,6 +33,8 @@ pub struct HaoPipelines {
     pub debug_layout: BindGroupLayoutDescriptor,
     /// Rays through the voxels.
     pub trace: CachedComputePipelineId,
+    /// Temporal accumulation.
+    pub temporal: CachedComputePipelineId,
     /// Bilateral filter, horizontal half.
     pub denoise_horizontal: CachedComputePipelineId,
     /// Bilateral filter, vertical half, upsampling and near field.
@@ -68,6 +75,26 @@ impl FromWorld for HaoPipelines {
                     uniform_buffer_sized(false, None),
                     texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
                 ),
+            ),
+        );
+        let temporal_layout = BindGroupLayoutDescriptor::new(
+            "hao_temporal_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    texture_2d(unfilterable),
+                    texture_2d(unfilterable),
+                    texture_depth_2d(),
+                    uniform_buffer_sized(false, None),
+                    texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let temporal_view_layout = BindGroupLayoutDescriptor::new(
+            "hao_temporal_view_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (uniform_buffer::<ViewUniform>(true), uniform_buffer::<PreviousViewData>(true)),
             ),
         );
         let denoise_horizontal_layout = BindGroupLayoutDescriptor::new(
@@ -126,6 +153,13 @@ impl FromWorld for HaoPipelines {
             "trace",
             vec![],
         );
+        let temporal = queue_pipeline(
+            "hao_temporal",
+            vec![temporal_layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()],
+            load_embedded_asset!(world, "hao_temporal.wgsl"),
+            "temporal",
+            vec![],
+        );
         let denoise_horizontal = queue_pipeline(
             "hao_denoise_horizontal",
             vec![denoise_horizontal_layout.clone()],
@@ -158,11 +192,14 @@ impl FromWorld for HaoPipelines {
         Self {
             view_layout,
             trace_layout,
+            temporal_layout,
+            temporal_view_layout,
             denoise_horizontal_layout,
             denoise_vertical_layout,
             apply_layout,
             debug_layout,
             trace,
+            temporal,
             denoise_horizontal,
             denoise_vertical,
             apply,

@@ -2,7 +2,7 @@
 
 use super::pipelines::HaoPipelines;
 use super::settings::{HaoDebugImages, HybridAmbientOcclusion};
-use bevy::core_pipeline::prepass::ViewPrepassTextures;
+use bevy::core_pipeline::prepass::{PreviousViewUniforms, ViewPrepassTextures};
 use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
@@ -37,6 +37,10 @@ pub struct GpuHaoSettings {
     pub half_resolution: u32,
     /// Bilateral filter radius.
     pub denoise_radius: u32,
+    /// Most frames of temporal history (1: none).
+    pub accumulation_frames: u32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
 }
 
 /// A view's HAO textures and settings.
@@ -44,7 +48,11 @@ pub struct GpuHaoSettings {
 pub struct HaoViewResources {
     /// The traced AO with view depth and normal (half or full resolution).
     pub noisy: CachedTexture,
-    /// The horizontally filtered AO, same layout.
+    /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames.
+    pub history: CachedTexture,
+    /// The temporal history this frame writes, same layout.
+    pub history_out: CachedTexture,
+    /// The horizontally filtered AO (ao, view depth, octahedral normal).
     pub filtered: CachedTexture,
     /// The denoised (and near-field combined) AO, full resolution.
     pub result: CachedTexture,
@@ -63,6 +71,10 @@ pub struct HaoBindGroups {
     pub view: BindGroup,
     /// Trace.
     pub trace: BindGroup,
+    /// The view and the previous view, for the temporal pass.
+    pub temporal_view: BindGroup,
+    /// Temporal accumulation.
+    pub temporal: BindGroup,
     /// Horizontal denoise.
     pub denoise_horizontal: BindGroup,
     /// Vertical denoise.
@@ -89,7 +101,7 @@ pub fn prepare_hao_textures(
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
         let (hao, _) = hao.sanitized();
         let hao = &hao;
-        let (rays, steps, half) = hao.quality.parameters();
+        let (rays, steps, half) = hao.trace_parameters();
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
         let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
             cache.get(
@@ -108,6 +120,11 @@ pub fn prepare_hao_textures(
         };
         let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
         let filtered = texture(&mut texture_cache, "hao_filtered_texture", trace_size, TextureFormat::Rgba16Float);
+        // Two histories, read and written in turn (the texture cache hands each label's texture back while
+        // it is used every frame; a new one is zeroed, which reads as no history).
+        let a = texture(&mut texture_cache, "hao_history_a_texture", trace_size, TextureFormat::Rgba32Float);
+        let b = texture(&mut texture_cache, "hao_history_b_texture", trace_size, TextureFormat::Rgba32Float);
+        let (history, history_out) = if *frame % 2 == 0 { (a, b) } else { (b, a) };
         let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
         let settings = GpuHaoSettings {
             rays,
@@ -116,17 +133,29 @@ pub fn prepare_hao_textures(
             falloff: hao.falloff,
             intensity: hao.intensity,
             start_offset: hao.start_offset,
-            frame: if jitter { *frame } else { 0 },
+            // The noise turns every frame when frames are accumulated (or TAA averages them).
+            frame: if jitter || hao.accumulation_frames > 1 { *frame } else { 0 },
             near_field: hao.near_field as u32,
             half_resolution: half as u32,
             denoise_radius: hao.denoise_radius,
+            accumulation_frames: hao.accumulation_frames,
+            pad: 0,
         };
         let settings = device.create_buffer_with_data(&BufferInitDescriptor {
             label: Some("hao_settings"),
             contents: bytemuck::bytes_of(&settings),
             usage: BufferUsages::UNIFORM,
         });
-        commands.entity(entity).insert(HaoViewResources { noisy, filtered, result, settings, trace_size, view_size });
+        commands.entity(entity).insert(HaoViewResources {
+            noisy,
+            history,
+            history_out,
+            filtered,
+            result,
+            settings,
+            trace_size,
+            view_size,
+        });
     }
 }
 
@@ -138,11 +167,13 @@ pub fn prepare_hao_bind_groups(
     pipelines: Res<HaoPipelines>,
     cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
+    previous_view_uniforms: Res<PreviousViewUniforms>,
     images: Res<RenderAssets<GpuImage>>,
     views: Query<(Entity, &HaoViewResources, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
     debug_views: Query<(Entity, &HaoDebugImages, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
 ) {
     let Some(view_binding) = view_uniforms.uniforms.binding() else { return };
+    let Some(previous_view_binding) = previous_view_uniforms.uniforms.binding() else { return };
     for (entity, res, prepass, ssao) in &views {
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
         let ssao_view = &ssao.screen_space_ambient_occlusion_texture.default_view;
@@ -156,11 +187,27 @@ pub fn prepare_hao_bind_groups(
             &cache.get_bind_group_layout(&pipelines.trace_layout),
             &BindGroupEntries::sequential((depth, normal, res.settings.as_entire_binding(), &res.noisy.default_view)),
         );
+        let temporal_view = device.create_bind_group(
+            "hao_temporal_view_bind_group",
+            &cache.get_bind_group_layout(&pipelines.temporal_view_layout),
+            &BindGroupEntries::sequential((view_binding.clone(), previous_view_binding.clone())),
+        );
+        let temporal = device.create_bind_group(
+            "hao_temporal_bind_group",
+            &cache.get_bind_group_layout(&pipelines.temporal_layout),
+            &BindGroupEntries::sequential((
+                &res.noisy.default_view,
+                &res.history.default_view,
+                depth,
+                res.settings.as_entire_binding(),
+                &res.history_out.default_view,
+            )),
+        );
         let denoise_horizontal = device.create_bind_group(
             "hao_denoise_horizontal_bind_group",
             &cache.get_bind_group_layout(&pipelines.denoise_horizontal_layout),
             &BindGroupEntries::sequential((
-                &res.noisy.default_view,
+                &res.history_out.default_view,
                 res.settings.as_entire_binding(),
                 &res.filtered.default_view,
             )),
@@ -182,7 +229,15 @@ pub fn prepare_hao_bind_groups(
             &cache.get_bind_group_layout(&pipelines.apply_layout),
             &BindGroupEntries::sequential((&res.result.default_view, ssao_view)),
         );
-        commands.entity(entity).insert(HaoBindGroups { view, trace, denoise_horizontal, denoise_vertical, apply });
+        commands.entity(entity).insert(HaoBindGroups {
+            view,
+            trace,
+            temporal_view,
+            temporal,
+            denoise_horizontal,
+            denoise_vertical,
+            apply,
+        });
     }
     for (entity, debug, prepass, ssao) in &debug_views {
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };

@@ -3,7 +3,7 @@
 //!
 //! * [`grid`]: the voxel grid ([`VoxelGrid`]: world bounds to cubic cells, per-axis dimensions, world/grid
 //!   transforms) and its bit-packed occupancy with per-voxel point counts ([`VoxelOccupancy`]).
-//! * [`tessellation`]: equation 1 ([`tessellation_factors`]), the subdivision pattern and its indexing
+//! * [`tessellation`]: equation 1 ([`tessellation_factors`]), the subdivision patterns ([`subdivision`]) and their indexing
 //!   ([`sub_triangle`]), the centroids of equation 2 ([`sub_triangle_centroid`]), equation 5
 //!   ([`expected_point_count`]) and the clipping of triangles that cross the grid boundary.
 //! * [`mod@voxelize`]: the voxelizer itself, in [`InjectionMode::Centroid`] (the paper's) and
@@ -16,7 +16,7 @@
 //! * [`skinning`]: morph targets and linear blend skinning as Bevy renders them, applied before voxelizing.
 //! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
-//!   through the voxel grid with empty-space skipping).
+//!   through the voxel grid with empty-space skipping); [`temporal`]: of its temporal accumulation.
 //!
 //! The GPU passes (`src/render/*.wgsl`) implement the same algorithm with the same function names; the
 //! render tests hold the GPU's grids against these.
@@ -46,6 +46,7 @@ pub mod mesh;
 pub mod metrics;
 pub mod overlap;
 pub mod skinning;
+pub mod temporal;
 pub mod tessellation;
 pub mod voxelize;
 

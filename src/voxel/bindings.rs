@@ -42,6 +42,18 @@ pub struct GpuVoxelLevel {
     pub _pad2: u32,
 }
 
+/// Most boxes of changed voxels the uniform lists (WGSL `MAX_CHANGED_BOXES`); more are merged into one.
+pub const MAX_CHANGED_BOXES: usize = 8;
+
+/// A world-space box (WGSL `WorldBox`).
+#[derive(ShaderType, Clone, Copy, Default, Debug)]
+pub struct GpuWorldBox {
+    /// Min corner.
+    pub min: Vec3,
+    /// Max corner.
+    pub max: Vec3,
+}
+
 /// The levels (WGSL `VoxelGrid`).
 #[derive(ShaderType, Clone, Copy, Default, Debug)]
 pub struct GpuVoxelGrid {
@@ -51,15 +63,34 @@ pub struct GpuVoxelGrid {
     pub level_count: u32,
     /// Mip levels of the texture.
     pub mip_levels: u32,
-    #[doc(hidden)]
-    pub _pad0: u32,
+    /// How many of `changed` are valid.
+    pub changed_count: u32,
     #[doc(hidden)]
     pub _pad1: u32,
+    /// Where the voxels may have changed since last frame (dynamic occluders now and last frame): temporal
+    /// passes keep less history near them.
+    pub changed: [GpuWorldBox; MAX_CHANGED_BOXES],
 }
 
 impl GpuVoxelGrid {
-    pub(crate) fn new(levels: &[LevelLayout], mip_levels: u32) -> Self {
+    pub(crate) fn new(
+        levels: &[LevelLayout],
+        mip_levels: u32,
+        changed: impl Iterator<Item = Option<(Vec3, Vec3)>>,
+    ) -> Self {
         let mut g = GpuVoxelGrid { level_count: levels.len() as u32, mip_levels, ..default() };
+        // A box without bounds is everywhere; past the slots, everything is merged into one box.
+        let everywhere = (Vec3::splat(-f32::MAX), Vec3::splat(f32::MAX));
+        let boxes: Vec<(Vec3, Vec3)> = changed.map(|b| b.unwrap_or(everywhere)).collect();
+        let boxes = if boxes.len() > MAX_CHANGED_BOXES {
+            vec![boxes.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), (a, b)| (lo.min(*a), hi.max(*b)))]
+        } else {
+            boxes
+        };
+        g.changed_count = boxes.len() as u32;
+        for (dst, (lo, hi)) in g.changed.iter_mut().zip(boxes) {
+            *dst = GpuWorldBox { min: lo, max: hi };
+        }
         for (dst, l) in g.levels.iter_mut().zip(levels) {
             *dst = GpuVoxelLevel {
                 origin: l.origin,
@@ -144,7 +175,7 @@ pub fn prepare_voxel_grid_bindings(
     let texture = extracted.assets.as_ref().and_then(|a| images.get(&a.texture).map(|i| (a, i)));
     let (grid, view) = match texture {
         Some((assets, image)) if !state.levels().is_empty() => {
-            (GpuVoxelGrid::new(state.levels(), assets.mip_levels), &image.texture_view)
+            (GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.changed_world_boxes()), &image.texture_view)
         }
         _ => (GpuVoxelGrid::default(), &layout.empty_texture),
     };

@@ -172,6 +172,10 @@ pub struct VoxelizeState {
     statics: HashMap<Entity, StaticEntry>,
     prev_dynamic: Vec<Option<CellBox>>,
     had_dynamic: bool,
+    /// World boxes of the dynamic occluders this frame (`None`: one without bounds, anywhere).
+    dynamic_world: Vec<Option<(Vec3, Vec3)>>,
+    /// The same last frame.
+    prev_dynamic_world: Vec<Option<(Vec3, Vec3)>>,
     warned_meshes: HashSet<AssetId<Mesh>>,
     warned_moved: HashSet<Entity>,
     static_transforms: HashMap<Entity, Affine3A>,
@@ -184,6 +188,12 @@ impl VoxelizeState {
     /// The levels as voxelized this frame (for the bindings consumers read).
     pub(crate) fn levels(&self) -> &[LevelLayout] {
         &self.levels
+    }
+
+    /// Where the voxels may have changed since last frame: the world boxes of the dynamic occluders now and
+    /// last frame (`None` for one without bounds: anywhere). Temporal passes keep less history there.
+    pub(crate) fn changed_world_boxes(&self) -> impl Iterator<Item = Option<(Vec3, Vec3)>> + '_ {
+        self.dynamic_world.iter().chain(&self.prev_dynamic_world).copied()
     }
 }
 
@@ -658,6 +668,8 @@ pub fn prepare_voxelize(
         state.levels.clear();
         state.statics.clear();
         state.prev_dynamic.clear();
+        state.dynamic_world.clear();
+        state.prev_dynamic_world.clear();
     };
     let Some(assets) = grid_assets.assets.as_ref() else {
         invalidate(&mut state);
@@ -804,6 +816,8 @@ pub fn prepare_voxelize(
         }
     }
 
+    state.prev_dynamic_world = std::mem::take(&mut state.dynamic_world);
+    state.dynamic_world = dynamics.iter().map(|(o, _)| o.world_bounds).collect();
     // Per level: where dynamic geometry is now and where it was last frame.
     let mut dynamic_boxes: Vec<Option<CellBox>> = Vec::with_capacity(levels.len());
     for level in &levels {

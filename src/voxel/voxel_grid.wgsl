@@ -24,14 +24,25 @@ struct VoxelLevel {
     pad_c: u32,
 }
 
+// src/voxel/bindings.rs: `GpuWorldBox`.
+struct WorldBox {
+    min: vec3<f32>,
+    max: vec3<f32>,
+}
+
+// src/voxel/bindings.rs: `MAX_CHANGED_BOXES`
+const MAX_CHANGED_BOXES: u32 = 8u;
+
 // src/voxel/bindings.rs: `GpuVoxelGrid`.
 struct VoxelGrid {
     levels: array<VoxelLevel, MAX_VOXEL_LEVELS>,
     // 0 while there is no grid.
     level_count: u32,
     mip_levels: u32,
-    pad_a: u32,
+    // Where the voxels may have changed since last frame (dynamic occluders now and last frame).
+    changed_count: u32,
     pad_b: u32,
+    changed: array<WorldBox, MAX_CHANGED_BOXES>,
 }
 
 @group(2) @binding(0) var voxel_texture: texture_3d<f32>;
@@ -177,4 +188,15 @@ fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t
         level += 1u;
     }
     return vec2<f32>(-1.0, 0.0);
+}
+
+// Whether the voxels within `reach` of `p` may have changed since last frame (see `VoxelGrid::changed`).
+fn near_changed_voxels(p: vec3<f32>, reach: f32) -> bool {
+    for (var i = 0u; i < min(voxel_grid.changed_count, MAX_CHANGED_BOXES); i++) {
+        let b = voxel_grid.changed[i];
+        if all(p >= b.min - vec3<f32>(reach)) && all(p <= b.max + vec3<f32>(reach)) {
+            return true;
+        }
+    }
+    return false;
 }

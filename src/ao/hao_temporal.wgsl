@@ -1,0 +1,113 @@
+// Hybrid ambient occlusion, pass 1b: temporal accumulation. Each traced pixel's surface is reprojected
+// into the previous frame with the camera's previous matrices, the history is read there (bilinear, each
+// texel kept only if it saw the same surface), clamped to the current frame's 3x3 neighbourhood, and
+// blended with this frame's noisy AO. Writes the new history (ao, view depth, packed normal, frames of
+// weight), which the denoiser reads and the next frame reprojects. Near voxels that may have changed
+// (moving occluders) the history is kept short. CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is
+// bound at group 2.
+#import bevy_render::view::View
+#import bevy_hao::hao_common::{
+    HaoSettings, octahedral_decode, pack_normal, unpack_normal, history_accepts, neighborhood_window,
+    temporal_blend,
+}
+#import bevy_hao::voxel_grid::near_changed_voxels
+
+// bevy_core_pipeline::prepass::PreviousViewData
+struct PreviousViewData {
+    view_from_world: mat4x4<f32>,
+    clip_from_world: mat4x4<f32>,
+    clip_from_view: mat4x4<f32>,
+    world_from_clip: mat4x4<f32>,
+    view_from_clip: mat4x4<f32>,
+}
+
+@group(0) @binding(0) var noisy: texture_2d<f32>;
+@group(0) @binding(1) var history: texture_2d<f32>;
+@group(0) @binding(2) var depth_texture: texture_depth_2d;
+@group(0) @binding(3) var<uniform> settings: HaoSettings;
+@group(0) @binding(4) var history_out: texture_storage_2d<rgba32float, write>;
+@group(1) @binding(0) var<uniform> view: View;
+@group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
+
+@compute @workgroup_size(8, 8, 1)
+fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = textureDimensions(noisy);
+    if any(gid.xy >= size) {
+        return;
+    }
+    let center = textureLoad(noisy, gid.xy, 0);
+    if center.y <= 0.0 {
+        // Background: no history.
+        textureStore(history_out, gid.xy, vec4<f32>(center.x, 0.0, 0.0, 0.0));
+        return;
+    }
+    let normal = octahedral_decode(center.zw);
+    // The neighbourhood of the current frame.
+    var sum = 0.0;
+    var squares = 0.0;
+    var n = 0.0;
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let p = vec2<i32>(gid.xy) + vec2<i32>(dx, dy);
+            if any(p < vec2<i32>(0)) || any(p >= vec2<i32>(size)) {
+                continue;
+            }
+            let v = textureLoad(noisy, p, 0);
+            if v.y > 0.0 {
+                sum += v.x;
+                squares += v.x * v.x;
+                n += 1.0;
+            }
+        }
+    }
+    let window = neighborhood_window(sum, squares, n);
+
+    // Where this surface was: the traced pixel's world position in the previous view.
+    let scale = select(1u, 2u, settings.half_resolution != 0u);
+    let pixel = min(gid.xy * scale, textureDimensions(depth_texture) - vec2<u32>(1u));
+    let depth = textureLoad(depth_texture, pixel, 0);
+    let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
+    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    let w = view.world_from_clip * vec4<f32>(ndc, depth, 1.0);
+    let world = w.xyz / w.w;
+    let clip = previous_view.clip_from_world * vec4<f32>(world, 1.0);
+    let expected_depth = -(previous_view.view_from_world * vec4<f32>(world, 1.0)).z;
+    var history_ao = 0.0;
+    var history_count = 0.0;
+    if clip.w > 0.0 {
+        let prev_ndc = clip.xy / clip.w;
+        let prev_uv = vec2<f32>(prev_ndc.x * 0.5 + 0.5, 0.5 - prev_ndc.y * 0.5);
+        // The history's texel coordinates (texel t holds the traced full-resolution pixel t * scale), bilinear.
+        let hp = (prev_uv * view.viewport.zw - 0.5) / f32(scale);
+        let base = vec2<i32>(floor(hp));
+        let f = hp - floor(hp);
+        var weight = 0.0;
+        var ao = 0.0;
+        var count = 0.0;
+        for (var k = 0; k < 4; k++) {
+            let o = vec2<i32>(k & 1, k >> 1);
+            let t = base + o;
+            if any(t < vec2<i32>(0)) || any(t >= vec2<i32>(size)) {
+                continue;
+            }
+            let h = textureLoad(history, t, 0);
+            if h.w <= 0.0 || !history_accepts(expected_depth, h.y, dot(unpack_normal(h.z), normal)) {
+                continue;
+            }
+            let bw = select(1.0 - f.x, f.x, o.x == 1) * select(1.0 - f.y, f.y, o.y == 1);
+            weight += bw;
+            ao += bw * h.x;
+            count += bw * h.w;
+        }
+        if weight > 0.01 {
+            history_ao = ao / weight;
+            history_count = count / weight;
+        }
+    }
+    var blended = vec2<f32>(center.x, 1.0);
+    if history_count > 0.0 {
+        let near_change = near_changed_voxels(world, settings.max_distance);
+        blended = temporal_blend(history_ao, history_count, window, center.x, f32(settings.accumulation_frames), near_change);
+    }
+    textureStore(history_out, gid.xy, vec4<f32>(blended.x, center.y, pack_normal(center.zw), blended.y));
+}
