@@ -449,7 +449,7 @@ fn cpu_trace(
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
 ) -> (Vec<f32>, Vec<usize>) {
-    use bevy_hao::cpu::ao::{TraceSettings, interleaved_gradient_noise, ray_start_level, voxel_ambient_occlusion};
+    use bevy_hao::cpu::ao::{TraceSettings, ray_rotation, ray_start_level, voxel_ambient_occlusion};
     let (rays, steps, _) = settings.trace_parameters();
     let trace = TraceSettings {
         rays,
@@ -464,10 +464,7 @@ fn cpu_trace(
     for (i, s) in samples.iter().enumerate() {
         let Some((world, normal)) = *s else { continue };
         let pf = Vec2::new((i as u32 % w) as f32, (i as u32 / w) as f32);
-        let rotation = Vec2::new(
-            interleaved_gradient_noise(pf, frame),
-            interleaved_gradient_noise(Vec2::new(pf.y, pf.x) + Vec2::new(17.0, 59.0), frame),
-        );
+        let rotation = ray_rotation(pf, frame);
         start[i] = ray_start_level(levels, world, 0, rotation);
         ao[i] = voxel_ambient_occlusion(levels, world, normal, rotation, &trace);
     }

@@ -29,6 +29,19 @@ fn interleaved_gradient_noise(pixel: vec2<f32>, frame: u32) -> f32 {
     return fract(52.9829189 * fract(0.06711056 * p.x + 0.00583715 * p.y));
 }
 
+// cpu/ao.rs: ray_rotation. The rotation of a pixel's rays: screen-space noise, shifted each frame along the
+// R2 sequence so that accumulated frames cover the hemisphere evenly.
+fn ray_rotation(pixel: vec2<f32>, frame: u32) -> vec2<f32> {
+    let spatial = vec2<f32>(
+        interleaved_gradient_noise(pixel, 0u),
+        interleaved_gradient_noise(pixel.yx + vec2<f32>(17.0, 59.0), 0u),
+    );
+    let f = f32(frame % 4096u);
+    let shift = vec2<f32>(fract(f * 0.7548777), fract(f * 0.5698403));
+    let r = spatial + shift;
+    return r - floor(r);
+}
+
 // cpu/ao.rs: orthonormal_basis (Duff et al. 2017): two tangents completing `n`.
 fn orthonormal_basis(n: vec3<f32>) -> mat3x3<f32> {
     let s = select(-1.0, 1.0, n.z >= 0.0);

@@ -5,7 +5,7 @@
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`. The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, interleaved_gradient_noise, hemisphere_direction, orthonormal_basis, ao_falloff,
+    HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff,
     octahedral_encode,
 }
 #import bevy_hao::voxel_grid::{voxel_grid, ray_start_level, march_cascades}
@@ -46,7 +46,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pf = vec2<f32>(pixel);
-    let rotation = vec2<f32>(interleaved_gradient_noise(pf, settings.frame), interleaved_gradient_noise(pf.yx + vec2<f32>(17.0, 59.0), settings.frame));
+    let rotation = ray_rotation(pf, settings.frame);
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {

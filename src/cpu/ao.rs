@@ -15,6 +15,21 @@ pub fn interleaved_gradient_noise(pixel: Vec2, frame: u32) -> f32 {
     (52.982_918 * (0.067_110_56 * p.x + 0.005_837_15 * p.y).fract()).fract()
 }
 
+/// The rotation of a pixel's set of rays in frame `frame` (WGSL: `ray_rotation`): interleaved gradient noise
+/// over the screen, a different pattern per coordinate, shifted each frame along the R2 sequence (Roberts
+/// 2018), so that accumulated frames cover the two coordinates evenly (IGN's own frame offset moves both
+/// together). Frame 0 is the noise of a single frame.
+pub fn ray_rotation(pixel: Vec2, frame: u32) -> Vec2 {
+    let spatial = Vec2::new(
+        interleaved_gradient_noise(pixel, 0),
+        interleaved_gradient_noise(Vec2::new(pixel.y, pixel.x) + Vec2::new(17.0, 59.0), 0),
+    );
+    let f = (frame % 4096) as f32;
+    let shift = Vec2::new((f * 0.754_877_7).fract(), (f * 0.569_840_3).fract());
+    let r = spatial + shift;
+    r - r.floor()
+}
+
 /// Two tangents completing the unit vector `n` to an orthonormal basis (Duff et al. 2017); columns
 /// (tangent, bitangent, n).
 pub fn orthonormal_basis(n: Vec3) -> Mat3 {

@@ -79,14 +79,7 @@ impl GpuVoxelGrid {
         changed: impl Iterator<Item = Option<(Vec3, Vec3)>>,
     ) -> Self {
         let mut g = GpuVoxelGrid { level_count: levels.len() as u32, mip_levels, ..default() };
-        // A box without bounds is everywhere; past the slots, everything is merged into one box.
-        let everywhere = (Vec3::splat(-f32::MAX), Vec3::splat(f32::MAX));
-        let boxes: Vec<(Vec3, Vec3)> = changed.map(|b| b.unwrap_or(everywhere)).collect();
-        let boxes = if boxes.len() > MAX_CHANGED_BOXES {
-            vec![boxes.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), (a, b)| (lo.min(*a), hi.max(*b)))]
-        } else {
-            boxes
-        };
+        let boxes = merge_changed_boxes(changed.collect());
         g.changed_count = boxes.len() as u32;
         for (dst, (lo, hi)) in g.changed.iter_mut().zip(boxes) {
             *dst = GpuWorldBox { min: lo, max: hi };
@@ -105,6 +98,40 @@ impl GpuVoxelGrid {
         }
         g
     }
+}
+
+/// At most [`MAX_CHANGED_BOXES`] boxes covering `boxes` (`None`: everywhere). Past the slots, the boxes are
+/// sorted along the axis their centres spread most on and merged in runs cut at the widest gaps, so that
+/// groups of occluders far apart stay apart.
+fn merge_changed_boxes(boxes: Vec<Option<(Vec3, Vec3)>>) -> Vec<(Vec3, Vec3)> {
+    let everywhere = (Vec3::splat(-f32::MAX), Vec3::splat(f32::MAX));
+    if boxes.iter().any(Option::is_none) {
+        return vec![everywhere];
+    }
+    let mut boxes: Vec<(Vec3, Vec3)> = boxes.into_iter().flatten().collect();
+    if boxes.len() <= MAX_CHANGED_BOXES {
+        return boxes;
+    }
+    let centers = boxes.iter().map(|(lo, hi)| (*lo + *hi) * 0.5);
+    let (lo, hi) = centers.fold((Vec3::MAX, Vec3::MIN), |(a, b), c| (a.min(c), b.max(c)));
+    let axis = (hi - lo).max_position();
+    let center = |b: &(Vec3, Vec3)| b.0[axis] + b.1[axis];
+    boxes.sort_by(|a, b| center(a).total_cmp(&center(b)));
+    // Cut at the widest gaps between neighbours.
+    let mut gaps: Vec<usize> = (1..boxes.len()).collect();
+    gaps.sort_by(|&i, &j| {
+        (center(&boxes[j]) - center(&boxes[j - 1])).total_cmp(&(center(&boxes[i]) - center(&boxes[i - 1])))
+    });
+    let mut cuts: Vec<usize> = gaps.into_iter().take(MAX_CHANGED_BOXES - 1).collect();
+    cuts.sort_unstable();
+    let mut merged = Vec::with_capacity(MAX_CHANGED_BOXES);
+    let mut start = 0;
+    for end in cuts.into_iter().chain([boxes.len()]) {
+        let run = &boxes[start..end];
+        merged.push(run.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), (a, b)| (lo.min(*a), hi.max(*b))));
+        start = end;
+    }
+    merged
 }
 
 /// The layout of the voxel grid's bind group, for the pipelines that bind it at [`VOXEL_GRID_GROUP`].
@@ -189,4 +216,26 @@ pub fn prepare_voxel_grid_bindings(
         &BindGroupEntries::sequential((view, binding)),
     );
     commands.insert_resource(VoxelGridBindings { bind_group, grid });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn changed_boxes_past_the_slots_are_merged_with_their_neighbours() {
+        // 20 occluders in two rows far apart along x: merged into at most 8 boxes, none spanning the gap.
+        let b = |x: f32, z: f32| Some((Vec3::new(x, 0.0, z), Vec3::new(x + 1.0, 1.0, z + 1.0)));
+        let boxes: Vec<_> =
+            (0..10).map(|k| b(k as f32 * 2.0, 0.0)).chain((0..10).map(|k| b(500.0 + k as f32 * 2.0, 0.0))).collect();
+        let merged = merge_changed_boxes(boxes.clone());
+        assert!(merged.len() <= MAX_CHANGED_BOXES);
+        assert!(merged.iter().all(|(lo, hi)| hi.x - lo.x < 100.0), "{merged:?}");
+        for (lo, hi) in boxes.into_iter().flatten() {
+            assert!(merged.iter().any(|(a, b)| a.cmple(lo).all() && b.cmpge(hi).all()));
+        }
+        // Few boxes stay as they are; one without bounds is everywhere.
+        assert_eq!(merge_changed_boxes(vec![b(0.0, 0.0)]).len(), 1);
+        assert_eq!(merge_changed_boxes(vec![b(0.0, 0.0), None])[0].1, Vec3::splat(f32::MAX));
+    }
 }

@@ -276,8 +276,8 @@ fn subdivision(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, gamma: f32, pattern:
         // tessellation.rs: the lower bound that skips a candidate which cannot win. Where nc^2 (2 least - 1)
         // would overflow u32 it is skipped here and searched in vain on the CPU (no strip count reaches 2^31).
         let least = max(u32(floor(max(l_inf(e1), l_inf(e2)) / f32(nc))), 2u);
-        let k = 0xffffffffu / (nc * nc);
-        if least > k / 2u + (k & 1u) || nc * nc * (2u * least - 1u) >= best_count {
+        let room = 0xffffffffu / (nc * nc);
+        if least > room / 2u + (room & 1u) || nc * nc * (2u * least - 1u) >= best_count {
             continue;
         }
         for (var diagonal = 0u; diagonal < 2u; diagonal++) {
