@@ -124,13 +124,7 @@ fn parse_args() -> Result<Args, String> {
                     v => return Err(format!("unknown volume {v} (cascades or fit)")),
                 }
             }
-            "--pattern" => {
-                a.subdivision = match value("--pattern")?.as_str() {
-                    "strips" => VoxelSubdivision::Strips,
-                    "uniform" => VoxelSubdivision::Uniform,
-                    p => return Err(format!("unknown pattern {p} (strips or uniform)")),
-                }
-            }
+            "--pattern" => a.subdivision = value("--pattern")?.parse::<bevy_hao::cpu::SubdivisionPattern>()?.into(),
             "--accumulation" => {
                 a.accumulation = value("--accumulation")?.parse().map_err(|e| format!("bad --accumulation: {e}"))?
             }

@@ -83,11 +83,7 @@ fn parse_args() -> Result<Args, String> {
             "--pattern" => {
                 a.patterns = value("--pattern")?
                     .split(',')
-                    .map(|p| match p {
-                        "strips" => Ok(VoxelSubdivision::Strips),
-                        "uniform" => Ok(VoxelSubdivision::Uniform),
-                        p => Err(format!("unknown pattern {p} (expected strips or uniform)")),
-                    })
+                    .map(|p| p.parse::<bevy_hao::cpu::SubdivisionPattern>().map(VoxelSubdivision::from))
                     .collect::<Result<_, _>>()?
             }
             "--cascades" => a.cascades = true,

@@ -260,10 +260,7 @@ fn gpu_volume(bounds: (Vec3, Vec3), res: u32, settings: &VoxelizeSettings) -> Vo
             InjectionMode::Centroid => VoxelInjection::Centroid,
             InjectionMode::Conservative => VoxelInjection::Conservative,
         },
-        subdivision: match settings.pattern {
-            SubdivisionPattern::Strips => VoxelSubdivision::Strips,
-            SubdivisionPattern::Uniform => VoxelSubdivision::Uniform,
-        },
+        subdivision: settings.pattern.into(),
         point_budget: u32::MAX,
         point_counts: false,
     }

@@ -135,6 +135,15 @@ pub enum VoxelSubdivision {
     Uniform,
 }
 
+impl From<cpu::SubdivisionPattern> for VoxelSubdivision {
+    fn from(p: cpu::SubdivisionPattern) -> Self {
+        match p {
+            cpu::SubdivisionPattern::Strips => VoxelSubdivision::Strips,
+            cpu::SubdivisionPattern::Uniform => VoxelSubdivision::Uniform,
+        }
+    }
+}
+
 impl From<VoxelSubdivision> for cpu::SubdivisionPattern {
     fn from(p: VoxelSubdivision) -> Self {
         match p {

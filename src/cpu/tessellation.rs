@@ -168,7 +168,7 @@ impl Subdivision {
 
     /// Sub-triangles of the whole triangle (`n^2 (2q - 1)`).
     pub fn sub_triangle_count(&self) -> u64 {
-        self.n as u64 * self.n as u64 * (2 * self.strips as u64 - 1)
+        LatticeRange::whole(self).sub_triangle_count()
     }
 }
 
