@@ -4,13 +4,15 @@
 //! cargo run --release --example ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
 //!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
 //!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--cascades 4,128,0.125] [--world]
-//!     [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--out ao_compare.png]
+//!     [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--hao-steps N]
+//!     [--hao-resolution full|half] [--denoise RADIUS] [--out ao_compare.png]
 //! ```
 //!
 //! HAO accumulates its AO over frames (`--accumulation`, `HybridAmbientOcclusion::accumulation_frames`, 16
 //! by default; 1 for none): the images are read after the scene has settled and then four times that many
-//! frames more, when the history has converged (the frames are printed). `--hao-rays` traces that many rays a
-//! frame instead of the quality's.
+//! frames more, when the history has converged (the frames are printed). `--hao-rays`, `--hao-steps` and
+//! `--hao-resolution` trace that many rays and steps a frame, at that resolution, instead of the quality's; `--denoise` sets
+//! the denoiser's radius (`HybridAmbientOcclusion::denoise_radius`).
 //!
 //! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 192^3 following the
 //! camera) or `fit` (one grid fitted to the static scene, `--res` cells on its longest axis). `--world`
@@ -51,12 +53,15 @@ struct Args {
     subdivision: VoxelSubdivision,
     accumulation: u32,
     hao_rays: Option<u32>,
+    hao_steps: Option<u32>,
+    hao_half: Option<bool>,
+    denoise: Option<u32>,
     out: String,
 }
 
 const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
 [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] \
-[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--out ao_compare.png]";
+[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--hao-steps N] [--hao-resolution full|half] [--denoise RADIUS] [--out ao_compare.png]";
 
 fn parse_args() -> Result<Args, String> {
     let mut a = Args {
@@ -75,6 +80,9 @@ fn parse_args() -> Result<Args, String> {
         subdivision: VoxelSubdivision::Strips,
         accumulation: HybridAmbientOcclusion::default().accumulation_frames,
         hao_rays: None,
+        hao_steps: None,
+        hao_half: None,
+        denoise: None,
         out: "ao_compare.png".into(),
     };
     let (mut eye, mut look) = (None, None);
@@ -131,6 +139,17 @@ fn parse_args() -> Result<Args, String> {
             "--hao-rays" => {
                 a.hao_rays = Some(value("--hao-rays")?.parse().map_err(|e| format!("bad --hao-rays: {e}"))?)
             }
+            "--hao-steps" => {
+                a.hao_steps = Some(value("--hao-steps")?.parse().map_err(|e| format!("bad --hao-steps: {e}"))?)
+            }
+            "--hao-resolution" => {
+                a.hao_half = Some(match value("--hao-resolution")?.as_str() {
+                    "full" => false,
+                    "half" => true,
+                    r => return Err(format!("bad --hao-resolution {r} (expected full or half)")),
+                })
+            }
+            "--denoise" => a.denoise = Some(value("--denoise")?.parse().map_err(|e| format!("bad --denoise: {e}"))?),
             "--out" => a.out = value("--out")?,
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
@@ -186,12 +205,15 @@ fn main() {
         camera.forward().as_vec3()
     );
     support::set_asset_root(source.asset_root());
-    let quality = match args.hao_rays {
-        Some(rays) => {
-            let (_, steps, half_resolution) = args.quality.parameters();
-            HaoQuality::Custom { rays, steps, half_resolution }
+    let quality = if args.hao_rays.is_some() || args.hao_steps.is_some() || args.hao_half.is_some() {
+        let (rays, steps, half) = args.quality.parameters_accumulated(args.accumulation);
+        HaoQuality::Custom {
+            rays: args.hao_rays.unwrap_or(rays),
+            steps: args.hao_steps.unwrap_or(steps),
+            half_resolution: args.hao_half.unwrap_or(half),
         }
-        None => args.quality,
+    } else {
+        args.quality
     };
     let hao = HybridAmbientOcclusion {
         quality,
@@ -199,6 +221,7 @@ fn main() {
         start_offset: args.start_offset,
         near_field: false,
         accumulation_frames: args.accumulation,
+        denoise_radius: args.denoise.unwrap_or(HybridAmbientOcclusion::default().denoise_radius),
         ..default()
     };
     let accumulation = hao.sanitized().0.accumulation_frames as usize;

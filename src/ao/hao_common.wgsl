@@ -42,6 +42,12 @@ fn ray_rotation(pixel: vec2<f32>, frame: u32) -> vec2<f32> {
     return r - floor(r);
 }
 
+// cpu/ao.rs: half_resolution_offset. The pixel of its 2x2 block a half-resolution trace samples in `frame`.
+fn half_resolution_offset(frame: u32) -> vec2<u32> {
+    let k = frame % 4u;
+    return vec2<u32>(select(0u, 1u, k == 1u || k == 2u), select(0u, 1u, k == 1u || k == 3u));
+}
+
 // cpu/ao.rs: orthonormal_basis (Duff et al. 2017): two tangents completing `n`.
 fn orthonormal_basis(n: vec3<f32>) -> mat3x3<f32> {
     let s = select(-1.0, 1.0, n.z >= 0.0);
@@ -88,7 +94,7 @@ fn octahedral_decode(e: vec2<f32>) -> vec3<f32> {
     return normalize(n);
 }
 
-// The denoiser's weight of a tap `offset` texels away with view depth `depth` and normal `normal`, against
+// cpu/denoise.rs: bilateral_weight. The denoiser's weight of a tap `offset` texels away with view depth `depth` and normal `normal`, against
 // the center's: a Gaussian in distance, falling with the relative depth difference and the normals' angle.
 fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, center_normal: vec3<f32>, normal: vec3<f32>) -> f32 {
     let spatial = exp(-offset * offset / (2.0 * max(radius * radius, 1.0)));
@@ -100,6 +106,33 @@ fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, cen
     return spatial * depth_w * c8 * c8;
 }
 
+// One half of the separable bilateral filter (`hao_denoise.wgsl`, and `hao_upsample.wgsl` at full
+// resolution): the texel `pixel` of `input` (ao, view depth, packed normal, frames of history) with its AO
+// filtered along `direction`. The more frames the history holds, the narrower: `radius` up to 4 frames,
+// half of it at 16.
+fn bilateral_line(input: texture_2d<f32>, pixel: vec2<u32>, direction: vec2<i32>, radius: u32) -> vec4<f32> {
+    let size = vec2<i32>(textureDimensions(input));
+    let center = textureLoad(input, pixel, 0);
+    if center.y <= 0.0 {
+        return center;
+    }
+    let n0 = unpack_normal(center.z);
+    let r = i32(ceil(f32(radius) * min(1.0, 2.0 / sqrt(max(center.w, 1.0)))));
+    var sum = 0.0;
+    var weights = 0.0;
+    for (var d = -r; d <= r; d++) {
+        let p = clamp(vec2<i32>(pixel) + direction * d, vec2<i32>(0), size - 1);
+        let tap = textureLoad(input, p, 0);
+        if tap.y <= 0.0 {
+            continue;
+        }
+        let w = bilateral_weight(f32(d), f32(r), center.y, tap.y, n0, unpack_normal(tap.z));
+        sum += w * tap.x;
+        weights += w;
+    }
+    return vec4<f32>(select(center.x, sum / weights, weights > 1.0e-6), center.yzw);
+}
+
 // Packs an octahedral normal into one float exactly (11 bits per coordinate: an integer below 2^22), for the
 // temporal history.
 fn pack_normal(e: vec2<f32>) -> f32 {
@@ -108,8 +141,10 @@ fn pack_normal(e: vec2<f32>) -> f32 {
 }
 
 fn unpack_octahedral(p: f32) -> vec2<f32> {
-    let v = u32(p);
-    return vec2<f32>(f32(v / 2048u), f32(v % 2048u)) / 2047.0 * 2.0 - 1.0;
+    // In floats: exact for integers below 2^24, and cheaper than an integer division where that is
+    // emulated per lane (CPU rasterizers).
+    let x = floor(p / 2048.0);
+    return vec2<f32>(x, p - x * 2048.0) / 2047.0 * 2.0 - 1.0;
 }
 
 fn unpack_normal(p: f32) -> vec3<f32> {

@@ -5,15 +5,20 @@
 //!
 //! 1. **trace** (`hao_trace.wgsl`, GPU span `hao/trace`): from each pixel's world position and normal (the
 //!    depth and normal prepasses), cosine-weighted hemisphere rays, rotated per pixel (and per frame when
-//!    TAA jitters the view), start about a voxel off the surface and march the voxel texture up to
-//!    `max_distance`, skipping empty space on its mips; each hit weighs `(1 - d/max)^falloff`;
-//! 2. **denoise** (`hao_denoise.wgsl` then `hao_upsample.wgsl`, `hao/denoise`): a separable depth- and
-//!    normal-aware bilateral filter, whose vertical half runs at full resolution and so also upsamples a
-//!    half-resolution trace, and the minimum with Bevy's SSAO when the near field is on;
-//! 3. **apply** (`hao_apply.wgsl`, `hao/apply`): the result into the texture Bevy's PBR reads AO from, so
+//!    frames are accumulated or TAA jitters the view), start about a voxel off the surface and march the
+//!    voxel texture up to `max_distance`, skipping empty space on its mips; each hit weighs
+//!    `(1 - d/max)^falloff`. At half resolution each 2x2 block traces from one of its pixels, a different
+//!    one each frame;
+//! 2. **temporal** (`hao_temporal.wgsl`, `hao/temporal`): the history reprojected, checked, clamped and
+//!    blended with the frame's AO;
+//! 3. **denoise** (`hao_denoise.wgsl` then `hao_upsample.wgsl`, `hao/denoise`): a separable depth- and
+//!    normal-aware bilateral filter at the traced resolution, then the result at full resolution (a
+//!    half-resolution trace upsampled by depth and normal) and the minimum with Bevy's SSAO when the near
+//!    field is on;
+//! 4. **apply** (`hao_apply.wgsl`, `hao/apply`): the result into the texture Bevy's PBR reads AO from, so
 //!    it dims indirect light only.
 //!
-//! The CPU twin of the trace is [`crate::cpu::ao`].
+//! The CPU twins: [`crate::cpu::ao`] (trace), [`crate::cpu::temporal`], [`crate::cpu::denoise`].
 
 pub mod node;
 pub mod pipelines;
@@ -105,6 +110,7 @@ fn skip_unused_ssao(
             pipelines.temporal,
             pipelines.denoise_horizontal,
             pipelines.denoise_vertical,
+            pipelines.upsample,
             pipelines.apply,
         ]
         .iter()

@@ -25,11 +25,12 @@ pub fn hao(
 ) {
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let (Some(trace), Some(temporal), Some(horizontal), Some(vertical), Some(apply)) = (
+    let (Some(trace), Some(temporal), Some(horizontal), Some(vertical), Some(upsample), Some(apply)) = (
         cache.get_compute_pipeline(pipelines.trace),
         cache.get_compute_pipeline(pipelines.temporal),
         cache.get_compute_pipeline(pipelines.denoise_horizontal),
         cache.get_compute_pipeline(pipelines.denoise_vertical),
+        cache.get_compute_pipeline(pipelines.upsample),
         cache.get_compute_pipeline(pipelines.apply),
     ) else {
         return;
@@ -70,8 +71,13 @@ pub fn hao(
         pass.set_bind_group(0, &bind_groups.denoise_horizontal, &[]);
         let (x, y) = groups(res.trace_size);
         pass.dispatch_workgroups(x, y, 1);
-        pass.set_pipeline(vertical);
-        pass.set_bind_group(0, &bind_groups.denoise_vertical, &[]);
+        if let Some(denoise_vertical) = &bind_groups.denoise_vertical {
+            pass.set_pipeline(vertical);
+            pass.set_bind_group(0, denoise_vertical, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        pass.set_pipeline(upsample);
+        pass.set_bind_group(0, &bind_groups.upsample, &[]);
         pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
         let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);

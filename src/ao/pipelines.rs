@@ -15,7 +15,7 @@ use bevy::render::view::ViewUniform;
 /// The HAO pipelines and layouts.
 #[derive(Resource)]
 pub struct HaoPipelines {
-    /// Group 1 of trace and denoise: the view uniform.
+    /// Group 1 of trace and upsample: the view uniform.
     pub view_layout: BindGroupLayoutDescriptor,
     /// Group 0 of trace.
     pub trace_layout: BindGroupLayoutDescriptor,
@@ -23,10 +23,10 @@ pub struct HaoPipelines {
     pub temporal_layout: BindGroupLayoutDescriptor,
     /// Group 1 of the temporal pass: the view and the previous view.
     pub temporal_view_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the horizontal denoise.
-    pub denoise_horizontal_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the vertical denoise and upsample.
-    pub denoise_vertical_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of both halves of the denoiser.
+    pub denoise_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the upsample.
+    pub upsample_layout: BindGroupLayoutDescriptor,
     /// Group 0 of apply.
     pub apply_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the debug copy.
@@ -37,8 +37,10 @@ pub struct HaoPipelines {
     pub temporal: CachedComputePipelineId,
     /// Bilateral filter, horizontal half.
     pub denoise_horizontal: CachedComputePipelineId,
-    /// Bilateral filter, vertical half, upsampling and near field.
+    /// Bilateral filter, vertical half.
     pub denoise_vertical: CachedComputePipelineId,
+    /// To full resolution, and the near field.
+    pub upsample: CachedComputePipelineId,
     /// Into the texture PBR reads.
     pub apply: CachedComputePipelineId,
     /// Into the debug images.
@@ -97,19 +99,19 @@ impl FromWorld for HaoPipelines {
                 (uniform_buffer::<ViewUniform>(true), uniform_buffer::<PreviousViewData>(true)),
             ),
         );
-        let denoise_horizontal_layout = BindGroupLayoutDescriptor::new(
-            "hao_denoise_horizontal_layout",
+        let denoise_layout = BindGroupLayoutDescriptor::new(
+            "hao_denoise_layout",
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
                     texture_2d(unfilterable),
                     uniform_buffer_sized(false, None),
-                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                    texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
                 ),
             ),
         );
-        let denoise_vertical_layout = BindGroupLayoutDescriptor::new(
-            "hao_denoise_vertical_layout",
+        let upsample_layout = BindGroupLayoutDescriptor::new(
+            "hao_upsample_layout",
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
@@ -162,16 +164,23 @@ impl FromWorld for HaoPipelines {
         );
         let denoise_horizontal = queue_pipeline(
             "hao_denoise_horizontal",
-            vec![denoise_horizontal_layout.clone()],
+            vec![denoise_layout.clone()],
             load_embedded_asset!(world, "hao_denoise.wgsl"),
             "denoise_horizontal",
             vec![],
         );
         let denoise_vertical = queue_pipeline(
             "hao_denoise_vertical",
-            vec![denoise_vertical_layout.clone(), view_layout.clone()],
-            load_embedded_asset!(world, "hao_upsample.wgsl"),
+            vec![denoise_layout.clone()],
+            load_embedded_asset!(world, "hao_denoise.wgsl"),
             "denoise_vertical",
+            vec![],
+        );
+        let upsample = queue_pipeline(
+            "hao_upsample",
+            vec![upsample_layout.clone(), view_layout.clone()],
+            load_embedded_asset!(world, "hao_upsample.wgsl"),
+            "upsample",
             vec![],
         );
         let apply_defs = if ssao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
@@ -194,14 +203,15 @@ impl FromWorld for HaoPipelines {
             trace_layout,
             temporal_layout,
             temporal_view_layout,
-            denoise_horizontal_layout,
-            denoise_vertical_layout,
+            denoise_layout,
+            upsample_layout,
             apply_layout,
             debug_layout,
             trace,
             temporal,
             denoise_horizontal,
             denoise_vertical,
+            upsample,
             apply,
             debug_copy,
             ssao_format,

@@ -49,12 +49,15 @@ pub struct HaoViewResources {
     /// The traced AO with view depth and normal (half or full resolution).
     pub noisy: CachedTexture,
     /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames.
+    /// Once the temporal pass has read it, the horizontal half of the denoiser writes into it (the next
+    /// frame's temporal pass overwrites it whole).
     pub history: CachedTexture,
     /// The temporal history this frame writes, same layout.
     pub history_out: CachedTexture,
-    /// The horizontally filtered AO (ao, view depth, octahedral normal).
-    pub filtered: CachedTexture,
-    /// The denoised (and near-field combined) AO, full resolution.
+    /// At half resolution, the denoised AO at the traced resolution, in the history's layout (at full
+    /// resolution the upsample pass filters vertically itself, and there is none).
+    pub filtered: Option<CachedTexture>,
+    /// The denoised AO at full resolution (and near-field combined).
     pub result: CachedTexture,
     /// The settings uniform.
     pub settings: Buffer,
@@ -77,8 +80,10 @@ pub struct HaoBindGroups {
     pub temporal: BindGroup,
     /// Horizontal denoise.
     pub denoise_horizontal: BindGroup,
-    /// Vertical denoise.
-    pub denoise_vertical: BindGroup,
+    /// Vertical denoise, at half resolution (at full resolution the upsample pass does it).
+    pub denoise_vertical: Option<BindGroup>,
+    /// Upsample and near field.
+    pub upsample: BindGroup,
     /// Apply.
     pub apply: BindGroup,
 }
@@ -119,7 +124,8 @@ pub fn prepare_hao_textures(
             )
         };
         let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
-        let filtered = texture(&mut texture_cache, "hao_filtered_texture", trace_size, TextureFormat::Rgba16Float);
+        let filtered =
+            half.then(|| texture(&mut texture_cache, "hao_filtered_texture", trace_size, TextureFormat::Rgba32Float));
         // Two histories, read and written in turn (the texture cache hands each label's texture back while
         // it is used every frame; a new one is zeroed, which reads as no history).
         let a = texture(&mut texture_cache, "hao_history_a_texture", trace_size, TextureFormat::Rgba32Float);
@@ -203,20 +209,27 @@ pub fn prepare_hao_bind_groups(
                 &res.history_out.default_view,
             )),
         );
-        let denoise_horizontal = device.create_bind_group(
-            "hao_denoise_horizontal_bind_group",
-            &cache.get_bind_group_layout(&pipelines.denoise_horizontal_layout),
+        let denoise = |label, input: &CachedTexture, output: &CachedTexture| {
+            device.create_bind_group(
+                label,
+                &cache.get_bind_group_layout(&pipelines.denoise_layout),
+                &BindGroupEntries::sequential((
+                    &input.default_view,
+                    res.settings.as_entire_binding(),
+                    &output.default_view,
+                )),
+            )
+        };
+        let denoise_horizontal = denoise("hao_denoise_horizontal_bind_group", &res.history_out, &res.history);
+        let denoise_vertical =
+            res.filtered.as_ref().map(|f| denoise("hao_denoise_vertical_bind_group", &res.history, f));
+        // At full resolution the upsample pass filters the horizontal half's output itself.
+        let upsample_input = res.filtered.as_ref().unwrap_or(&res.history);
+        let upsample = device.create_bind_group(
+            "hao_upsample_bind_group",
+            &cache.get_bind_group_layout(&pipelines.upsample_layout),
             &BindGroupEntries::sequential((
-                &res.history_out.default_view,
-                res.settings.as_entire_binding(),
-                &res.filtered.default_view,
-            )),
-        );
-        let denoise_vertical = device.create_bind_group(
-            "hao_denoise_vertical_bind_group",
-            &cache.get_bind_group_layout(&pipelines.denoise_vertical_layout),
-            &BindGroupEntries::sequential((
-                &res.filtered.default_view,
+                &upsample_input.default_view,
                 depth,
                 normal,
                 ssao_view,
@@ -236,6 +249,7 @@ pub fn prepare_hao_bind_groups(
             temporal,
             denoise_horizontal,
             denoise_vertical,
+            upsample,
             apply,
         });
     }

@@ -149,6 +149,7 @@ impl Default for HybridAmbientOcclusion {
 #[reflect(Default, Debug, PartialEq, Hash, Clone)]
 pub enum HaoQuality {
     /// 24 steps, traced at half resolution and upsampled with depth: 2 rays a frame accumulated, 4 without.
+    /// Each 2x2 block traces from a different pixel each frame, so accumulated frames average the block.
     Low,
     /// 32 steps, 2 rays a frame accumulated (6 without): the default. Accumulated, its error against the
     /// ray-traced reference is below that of 6 rays a frame without accumulation on the scenes measured.
@@ -164,7 +165,8 @@ pub enum HaoQuality {
         rays: u32,
         /// Texel visits per ray (empty space is skipped at up to 16 voxels a step).
         steps: u32,
-        /// Trace at half resolution.
+        /// Trace at half resolution (one pixel of each 2x2 block, a different one each frame when
+        /// accumulating), upsampled by depth and normal.
         half_resolution: bool,
     },
 }

@@ -30,6 +30,23 @@ pub fn ray_rotation(pixel: Vec2, frame: u32) -> Vec2 {
     r - r.floor()
 }
 
+/// The pixel of its 2x2 block that a half-resolution trace samples in `frame` (WGSL:
+/// `half_resolution_offset`), as an offset from the block's first pixel: the four in turn, diagonals first,
+/// so that accumulated frames average the AO over the whole block rather than one pixel of it. Frame 0 (a
+/// single frame, no accumulation) samples the first pixel.
+pub fn half_resolution_offset(frame: u32) -> glam::UVec2 {
+    const OFFSETS: [glam::UVec2; 4] =
+        [glam::UVec2::new(0, 0), glam::UVec2::new(1, 1), glam::UVec2::new(1, 0), glam::UVec2::new(0, 1)];
+    OFFSETS[(frame % 4) as usize]
+}
+
+/// Whether a half-resolution trace samples the offset pixel of a block (WGSL: in `trace`): only where it
+/// shows the surface of the block's first pixel, whose view depth and normal the block keeps (the test of
+/// [`super::temporal::history_accepts`]); across an edge it samples the first pixel.
+pub fn samples_offset_pixel(block_depth: f32, block_normal: Vec3, offset_depth: f32, offset_normal: Vec3) -> bool {
+    offset_depth > 0.0 && super::temporal::history_accepts(block_depth, offset_depth, block_normal.dot(offset_normal))
+}
+
 /// Two tangents completing the unit vector `n` to an orthonormal basis (Duff et al. 2017); columns
 /// (tangent, bitangent, n).
 pub fn orthonormal_basis(n: Vec3) -> Mat3 {

@@ -16,7 +16,8 @@
 //! * [`skinning`]: morph targets and linear blend skinning as Bevy renders them, applied before voxelizing.
 //! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
-//!   through the voxel grid with empty-space skipping); [`temporal`]: of its temporal accumulation.
+//!   through the voxel grid with empty-space skipping); [`temporal`]: of its temporal accumulation;
+//!   [`denoise`]: of its denoiser's weights and half-resolution upsampling.
 //!
 //! The GPU passes (`src/render/*.wgsl`) implement the same algorithm with the same function names; the
 //! render tests hold the GPU's grids against these.
@@ -40,6 +41,7 @@ pub mod ao;
 pub mod bias_model;
 pub mod binvox;
 pub mod cascade;
+pub mod denoise;
 pub mod grid;
 pub mod ground_truth;
 pub mod mesh;
