@@ -18,8 +18,6 @@
 //! In a window the inspector shows that the static grid is rebuilt once while the dynamic pass runs every
 //! frame. Time advances 1/30 s per frame, so headless runs are reproducible.
 
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::camera::visibility::DynamicSkinnedMeshBounds;
 use bevy::light::GlobalAmbientLight;
@@ -28,7 +26,7 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hao::prelude::*;
-use support::scene::{SceneSource, spawn_scene, sun};
+use bevy_hao_tools::scene::{SceneSource, spawn_scene, sun};
 
 #[derive(Component)]
 struct Orbit {
@@ -322,7 +320,7 @@ fn main() {
             "--frames" => frames = it.next().and_then(|v| v.parse().ok()).expect("--frames N"),
             "--screenshot" => screenshot = it.next(),
             "--size" => {
-                size = support::args::size(&it.next().unwrap_or_default()).unwrap_or_else(|e| {
+                size = bevy_hao_tools::harness::args::size(&it.next().unwrap_or_default()).unwrap_or_else(|e| {
                     eprintln!("{e}");
                     std::process::exit(2)
                 })
@@ -341,7 +339,7 @@ fn main() {
         None => CharacterChoice::Builtin,
         Some(p) => {
             let found = std::fs::canonicalize(&p).map_err(|e| e.to_string()).and_then(|abs| {
-                let clips = bevy_hao::meshes::gltf_file::gltf_animations(&abs)?;
+                let clips = bevy_hao_tools::meshes::gltf_file::gltf_animations(&abs)?;
                 let index = clips
                     .iter()
                     .find(|c| c.name.as_deref() == Some(clip.as_str()) || c.index.to_string() == clip)
@@ -365,7 +363,7 @@ fn main() {
         CharacterChoice::Gltf { dir, .. } => Some(dir.clone()),
         CharacterChoice::Builtin => None,
     };
-    support::set_asset_root(asset_dir.clone());
+    bevy_hao_tools::harness::set_asset_root(asset_dir.clone());
     let configure = move |app: &mut App| {
         app.insert_resource(GlobalAmbientLight {
             color: Color::srgb(0.95, 0.93, 0.88),
@@ -384,18 +382,19 @@ fn main() {
             eprintln!("--headless needs --screenshot OUT.png");
             std::process::exit(2);
         };
-        let mut app = support::headless_app(|app| {
-            let target = support::target_image(&mut app.world_mut().resource_mut::<Assets<Image>>(), size);
+        let mut app = bevy_hao_tools::harness::headless_app(|app| {
+            let target =
+                bevy_hao_tools::harness::target_image(&mut app.world_mut().resource_mut::<Assets<Image>>(), size);
             app.insert_resource(ScreenshotTarget(target));
             configure(app);
         });
-        support::run(&mut app, frames);
+        bevy_hao_tools::harness::run(&mut app, frames);
         let target = app.world().resource::<ScreenshotTarget>().0.clone();
-        if let Err(e) = support::save_screenshot(&mut app, target, &out) {
+        if let Err(e) = bevy_hao_tools::harness::save_screenshot(&mut app, target, &out) {
             eprintln!("error: no screenshot ({e})");
             std::process::exit(1);
         }
-        let s = support::stats(&app);
+        let s = bevy_hao_tools::harness::stats(&app);
         println!(
             "wrote {out}: static grid built {} times in {frames} frames; {} dynamic instances ({} triangles) this frame",
             s.static_rebuilds, s.dynamic_instances, s.dynamic_triangles

@@ -16,15 +16,13 @@
 //! The light is a sun through the windows plus an ambient "sky": ambient light is what ambient occlusion
 //! dims (direct sunlight is not), so an interior lit mostly by bounce light is where AO matters.
 
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
 use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_hao::prelude::*;
-use support::scene::{SceneSource, default_camera, spawn_scene, sun};
+use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene, sun};
 
 const USAGE: &str = "usage: sibenik [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--ao hao|ssao|both|off] \
 [--view final|ao|voxels|counts|static-dynamic|cascades] [--res N] [--camera X,Y,Z --look X,Y,Z] \
@@ -78,12 +76,12 @@ fn parse_args() -> Result<Args, String> {
                 }
             }
             "--res" => a.res = Some(value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?),
-            "--camera" => eye = Some(support::args::vec3(&value("--camera")?)?),
-            "--look" => look = Some(support::args::vec3(&value("--look")?)?),
+            "--camera" => eye = Some(bevy_hao_tools::harness::args::vec3(&value("--camera")?)?),
+            "--look" => look = Some(bevy_hao_tools::harness::args::vec3(&value("--look")?)?),
             "--headless" => a.headless = true,
             "--frames" => a.frames = value("--frames")?.parse().map_err(|e| format!("bad --frames: {e}"))?,
             "--screenshot" => a.screenshot = Some(value("--screenshot")?),
-            "--size" => a.size = support::args::size(&value("--size")?)?,
+            "--size" => a.size = bevy_hao_tools::harness::args::size(&value("--size")?)?,
             "-h" | "--help" => return Err(USAGE.into()),
             s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
             s => a.scene = s.into(),
@@ -141,7 +139,7 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                 // A low sun, so that it reaches in through the windows.
                 commands.spawn(sun());
                 let (yaw, pitch, _) = camera.rotation.to_euler(EulerRot::YXZ);
-                let image = target.map(|size| support::target_image(&mut images, size));
+                let image = target.map(|size| bevy_hao_tools::harness::target_image(&mut images, size));
                 if let Some(image) = &image {
                     commands.insert_resource(ScreenshotTarget(image.clone()));
                 }
@@ -227,16 +225,17 @@ fn main() {
 
     if args.headless {
         let out = args.screenshot.clone().expect("checked");
-        support::set_asset_root(source.asset_root());
+        bevy_hao_tools::harness::set_asset_root(source.asset_root());
         let setup_args = args.clone();
-        let mut app = support::headless_app(|app| setup_scene(app, &setup_args, source, camera, Some(args.size)));
-        support::run(&mut app, args.frames);
+        let mut app =
+            bevy_hao_tools::harness::headless_app(|app| setup_scene(app, &setup_args, source, camera, Some(args.size)));
+        bevy_hao_tools::harness::run(&mut app, args.frames);
         let target = app.world().resource::<ScreenshotTarget>().0.clone();
-        if let Err(e) = support::save_screenshot(&mut app, target, &out) {
+        if let Err(e) = bevy_hao_tools::harness::save_screenshot(&mut app, target, &out) {
             eprintln!("error: {e}");
             std::process::exit(1);
         }
-        let s = support::stats(&app);
+        let s = bevy_hao_tools::harness::stats(&app);
         println!(
             "wrote {out}: {} static triangles voxelized into {:?}, {} points",
             s.static_triangles,

@@ -1,21 +1,24 @@
 #![doc = include_str!("../README.md")]
 #![warn(missing_docs)]
 
-pub mod ao;
-pub mod components;
+mod ao;
+mod components;
 pub mod cpu;
-pub mod debug;
+mod debug;
 #[cfg(feature = "inspector")]
 pub mod inspector;
-pub mod meshes;
-pub mod voxel;
+mod voxel;
 
 #[cfg(test)]
 mod wgsl_tests;
 
-pub use ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
+pub use ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin};
 pub use components::*;
-pub use debug::HaoDebugView;
+pub use debug::{HaoDebugView, HaoDebugViewPlugin};
+pub use voxel::{
+    CascadeLevelStats, LevelBytes, RebuildStaticVoxels, VOXEL_GRID_GROUP, VoxelGridAssets, VoxelGridBindings,
+    VoxelizationPlugin, VoxelizationStats, VoxelizationStatsData, VoxelizeCounters, voxel_grid_layout,
+};
 
 use bevy::prelude::*;
 
@@ -32,7 +35,6 @@ impl Plugin for HaoPlugin {
 /// The components and plugin most apps need.
 pub mod prelude {
     pub use crate::HaoPlugin;
-    pub use crate::ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
     pub use crate::components::*;
-    pub use crate::debug::HaoDebugView;
+    pub use crate::{HaoDebugImages, HaoDebugView, HaoQuality, HybridAmbientOcclusion};
 }

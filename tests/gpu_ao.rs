@@ -1,14 +1,11 @@
 //! Hybrid ambient occlusion rendered headless (lavapipe here) and read back: what AO must do.
 
-#[path = "../examples/support/mod.rs"]
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
 use bevy_hao::prelude::*;
-use support::*;
+use bevy_hao_tools::harness::*;
 
 const SIZE: UVec2 = UVec2::new(96, 64);
 
@@ -429,9 +426,9 @@ fn view_samples(app: &mut App) -> (u32, u32, Vec<Option<(Vec3, Vec3)>>) {
                 Vec3::new((x as f32 + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / h as f32 * 2.0, depth[i]);
             let n = &normal_bytes[i * 8..i * 8 + 6];
             let normal = Vec3::new(
-                support::f16_to_f32(u16::from_le_bytes([n[0], n[1]])),
-                support::f16_to_f32(u16::from_le_bytes([n[2], n[3]])),
-                support::f16_to_f32(u16::from_le_bytes([n[4], n[5]])),
+                bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([n[0], n[1]])),
+                bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([n[2], n[3]])),
+                bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([n[4], n[5]])),
             )
             .normalize();
             samples.push(Some((world_from_clip.project_point3(ndc), normal)));
@@ -791,7 +788,7 @@ fn hao_dims_ambient_light_in_deferred_rendering_too() {
 
 /// A room 10 x 4 x 10 m with a doorway, a skylight and two pillars (world-space parts), on the test floor.
 fn room() -> Vec<bevy_hao::cpu::TriangleMesh> {
-    use bevy_hao::meshes::builtin::cuboid;
+    use bevy_hao_tools::meshes::builtin::cuboid;
     vec![
         cuboid(Vec3::new(-5.0, 0.0, -5.3), Vec3::new(5.0, 4.0, -5.0)),
         cuboid(Vec3::new(-5.3, 0.0, -5.3), Vec3::new(-5.0, 4.0, 5.3)),
@@ -812,8 +809,8 @@ fn room() -> Vec<bevy_hao::cpu::TriangleMesh> {
 /// HAO (denoised, as PBR reads it) against a ray-traced reference of `parts` plus the test floor, from a
 /// camera inside the room: the mean absolute error over the view.
 fn room_error(parts: Vec<bevy_hao::cpu::TriangleMesh>, volume: VoxelVolume) -> f32 {
-    use bevy_hao::meshes::builtin::cuboid;
-    use support::reference::{ReferenceScene, reference_ao};
+    use bevy_hao_tools::meshes::builtin::cuboid;
+    use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
     let hao = HybridAmbientOcclusion::default();
     let camera = Transform::from_xyz(3.5, 1.7, 3.5).looking_at(Vec3::new(-3.0, 0.6, -3.0), Vec3::Y);
     let spawn_parts = parts.clone();
@@ -849,7 +846,7 @@ fn room_error(parts: Vec<bevy_hao::cpu::TriangleMesh>, volume: VoxelVolume) -> f
         let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
         let ndc = Vec3::new((x + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y + 0.5) / h as f32 * 2.0, depth[i]);
         let c = &normal_bytes[i * 8..i * 8 + 6];
-        let f = |k: usize| support::f16_to_f32(u16::from_le_bytes([c[k], c[k + 1]]));
+        let f = |k: usize| bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([c[k], c[k + 1]]));
         let normal = Vec3::new(f(0), f(2), f(4)).normalize();
         let rotation = Vec2::new((i as f32 * 0.618_034).fract(), (i as f32 * 0.414_213_5).fract());
         let r = reference_ao(
@@ -876,7 +873,7 @@ fn a_building_in_a_one_kilometre_world_keeps_its_hao() {
     let _gpu = gpu_lock();
     let building = (Vec3::new(-8.0, -0.2, -8.0), Vec3::new(8.0, 4.3, 8.0));
     let mut world = room();
-    world.extend(support::scene::big_world(building, 1000.0));
+    world.extend(bevy_hao_tools::scene::big_world(building, 1000.0));
     let alone = room_error(room(), VoxelVolume::default());
     let in_world = room_error(world.clone(), VoxelVolume::default());
     // What the cascades replace: one grid fitted to the whole static scene, whose cells are now 8 m wide.

@@ -1,15 +1,12 @@
 //! Camera-following cascades on a headless Bevy app (lavapipe here): what scrolls, what is rebuilt, and
 //! every cascade level held voxel for voxel against a fresh CPU voxelization of its window.
 
-#[path = "../examples/support/mod.rs"]
-mod support;
-
 use bevy::math::Affine3A;
 use bevy::prelude::*;
 use bevy_hao::cpu::{self, TriangleMesh, VoxelOccupancy, voxelize_mesh_in_region};
-use bevy_hao::meshes::builtin;
 use bevy_hao::prelude::*;
-use support::*;
+use bevy_hao_tools::harness::*;
+use bevy_hao_tools::meshes::builtin;
 
 const CELLS: u32 = 32;
 const FINEST: f32 = 0.25;

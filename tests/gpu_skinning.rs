@@ -2,9 +2,6 @@
 //! vertex with Bevy's morph weights and joint matrices before voxelizing, and the GPU's grid is held against
 //! the CPU twin (`cpu::skinning`).
 
-#[path = "../examples/support/mod.rs"]
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::mesh::VertexAttributeValues;
@@ -12,7 +9,7 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy_hao::cpu::{TriangleMesh, VertexSkin, VoxelOccupancy, skinned_mesh, voxelize_mesh};
 use bevy_hao::prelude::*;
-use support::*;
+use bevy_hao_tools::harness::*;
 
 /// A square bar along +y from 0 to 4, 0.6 wide, in rings every 0.25 (so that it can bend), with caps; and
 /// its skin: joint 0 below y = 1.5, joint 1 above y = 2.5, blended linearly between.

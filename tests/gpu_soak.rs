@@ -9,16 +9,13 @@
 //! (wgpu's allocator report) must end where they started, within `GPU_BOUND_MB`. A leak of the size this
 //! test was written against (2 MB per frame on Mesa lavapipe) grows resident memory by 600 MB here.
 
-#[path = "../examples/support/mod.rs"]
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
 use bevy::render::renderer::RenderDevice;
-use bevy_hao::meshes::builtin;
 use bevy_hao::prelude::*;
-use support::*;
+use bevy_hao_tools::harness::*;
+use bevy_hao_tools::meshes::builtin;
 
 const WARMUP: usize = 60;
 const FRAMES: usize = 300;

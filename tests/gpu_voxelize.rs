@@ -1,15 +1,12 @@
 //! GPU voxelization on a headless Bevy app (lavapipe here), read back and held against the CPU reference.
 
-#[path = "../examples/support/mod.rs"]
-mod support;
-
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::PrimitiveTopology;
 use bevy::prelude::*;
 use bevy_hao::cpu::{self, TriangleMesh, VoxelGrid, VoxelOccupancy, voxelize_mesh};
-use bevy_hao::meshes::builtin;
 use bevy_hao::prelude::*;
-use support::*;
+use bevy_hao_tools::harness::*;
+use bevy_hao_tools::meshes::builtin;
 
 /// A volume with fixed bounds `[-r, r]^3` and `cells` along each axis.
 fn volume(r: f32, cells: u32, injection: VoxelInjection) -> VoxelVolume {

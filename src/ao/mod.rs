@@ -20,12 +20,13 @@
 //!
 //! The CPU twins: [`crate::cpu::ao`] (trace), [`crate::cpu::temporal`], [`crate::cpu::denoise`].
 
-pub mod node;
-pub mod pipelines;
-pub mod prepare;
-pub mod settings;
+mod node;
+mod pipelines;
+pub(crate) mod prepare;
+mod settings;
 
-pub use settings::{HaoAddedSsao, HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
+pub(crate) use settings::HaoAddedSsao;
+pub use settings::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
 
 use bevy::asset::embedded_asset;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;

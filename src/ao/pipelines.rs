@@ -45,8 +45,6 @@ pub struct HaoPipelines {
     pub apply: CachedComputePipelineId,
     /// Into the debug images.
     pub debug_copy: CachedComputePipelineId,
-    /// The format of Bevy's SSAO texture on this adapter (as `bevy_pbr::ssao` chooses it).
-    pub ssao_format: TextureFormat,
 }
 
 impl FromWorld for HaoPipelines {
@@ -214,7 +212,6 @@ impl FromWorld for HaoPipelines {
             upsample,
             apply,
             debug_copy,
-            ssao_format,
         }
     }
 }

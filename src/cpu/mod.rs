@@ -1,26 +1,25 @@
-//! The GPU-free reference: point-tessellated voxelization (Fei et al. 2012, section 3) and what it is
-//! measured against, in plain Rust on [`glam`] with no Bevy types, usable and testable on its own.
+//! The GPU-free core: point-tessellated voxelization (Fei et al. 2012, section 3) and the CPU twins of the
+//! GPU passes, in plain Rust on [`glam`] with no Bevy types, usable and testable on its own.
 //!
 //! * [`grid`]: the voxel grid ([`VoxelGrid`]: world bounds to cubic cells, per-axis dimensions, world/grid
 //!   transforms) and its bit-packed occupancy with per-voxel point counts ([`VoxelOccupancy`]).
-//! * [`tessellation`]: equation 1 ([`tessellation_factors`]), the subdivision patterns ([`subdivision`]) and their indexing
-//!   ([`sub_triangle`]), the centroids of equation 2 ([`sub_triangle_centroid`]), equation 5
-//!   ([`expected_point_count`]) and the clipping of triangles that cross the grid boundary.
+//! * [`tessellation`]: equation 1 ([`tessellation_factors`]), the subdivision patterns ([`subdivision`])
+//!   and their indexing ([`sub_triangle`]), the centroids of equation 2 ([`sub_triangle_centroid`]),
+//!   equation 5 ([`expected_point_count`]) and the clipping of triangles that cross the grid boundary.
 //! * [`mod@voxelize`]: the voxelizer itself, in [`InjectionMode::Centroid`] (the paper's) and
 //!   [`InjectionMode::Conservative`] (every overlapped cell, by exact tests on at most 8 candidates per
-//!   sub-triangle).
-//! * [`overlap`] and [`ground_truth`]: the exact triangle/box test and the conservative voxelizer that is the
-//!   ground truth.
-//! * [`metrics`]: bias, excess voxels and the six-direction watertight ray test; [`bias_model`]: equation 3.
-//! * [`binvox`]: export and import of the widely used binvox format.
+//!   sub-triangle, with [`overlap`]'s exact triangle/box test).
+//! * [`bias_model`]: equation 3.
 //! * [`skinning`]: morph targets and linear blend skinning as Bevy renders them, applied before voxelizing.
 //! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
 //!   through the voxel grid with empty-space skipping); [`temporal`]: of its temporal accumulation;
 //!   [`denoise`]: of its denoiser's weights and half-resolution upsampling.
 //!
-//! The GPU passes (`src/render/*.wgsl`) implement the same algorithm with the same function names; the
-//! render tests hold the GPU's grids against these.
+//! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function
+//! names; the render tests hold the GPU against these. What the voxelizer is measured against (the exact
+//! conservative ground truth, bias and watertightness, binvox files, mesh readers) is in the
+//! `bevy_hao_tools` crate of this repository.
 //!
 //! ```
 //! use bevy_hao::cpu::*;
@@ -30,22 +29,15 @@
 //! let mesh = TriangleMesh::new(vec![Vec3::ZERO, Vec3::new(16.0, 0.0, 3.0), Vec3::new(2.0, 16.0, 9.0)], vec![[0, 1, 2]]);
 //! let grid = VoxelGrid::fit_to_bounds(Vec3::ZERO, Vec3::splat(16.0), 16).unwrap();
 //! let (voxels, stats) = voxelize(&mesh, &grid, &VoxelizeSettings::default());
-//! let truth = VoxelOccupancy::new(grid, false);
-//! ground_truth_mesh(&mesh, grid.grid_from_world(), &truth);
-//! let cmp = compare(&voxels, &truth);
-//! assert_eq!(cmp.excess, 0);
-//! assert!(cmp.bias() < 0.5 && stats.sub_triangles >= 256);
+//! assert!(voxels.set_voxel_count() >= 16 && stats.sub_triangles >= 256);
 //! ```
 
 pub mod ao;
 pub mod bias_model;
-pub mod binvox;
 pub mod cascade;
 pub mod denoise;
 pub mod grid;
-pub mod ground_truth;
 pub mod mesh;
-pub mod metrics;
 pub mod overlap;
 pub mod skinning;
 pub mod temporal;
@@ -53,12 +45,9 @@ pub mod tessellation;
 pub mod voxelize;
 
 pub use bias_model::BiasModel;
-pub use binvox::{Binvox, read_binvox, write_binvox};
 pub use cascade::{CascadeError, CascadeLevel, CascadeShape, cascade_window, entered_regions};
 pub use grid::{GridError, VoxelGrid, VoxelOccupancy, cell_of_point};
-pub use ground_truth::{GroundTruthStats, ground_truth_mesh, ground_truth_mesh_with_cuts, ground_truth_triangle};
 pub use mesh::{MeshStats, TriangleMesh};
-pub use metrics::{Comparison, GrazeSplit, WatertightReport, compare, enclosed_voxels, graze_split, watertight};
 pub use overlap::{OverlapKind, OverlapTriangle, triangle_box_overlap};
 pub use skinning::{VertexSkin, morph_position, morphed_mesh, skin_matrix, skin_position, skinned_mesh};
 pub use tessellation::{
@@ -67,10 +56,7 @@ pub use tessellation::{
     subdivision_count, tessellation_factors,
 };
 pub use voxelize::{
-    InjectionMode, InjectionRegion, VoxelizeSettings, VoxelizeStats, grid_space_position, lattice_cell,
-    triangle_is_degenerate, voxelize, voxelize_mesh, voxelize_mesh_in_region, voxelize_triangle,
+    InjectionMode, InjectionRegion, VoxelizeSettings, VoxelizeStats, for_each_grid_triangle, grid_space_position,
+    lattice_cell, triangle_is_degenerate, voxelize, voxelize_mesh, voxelize_mesh_in_region, voxelize_triangle,
     voxelize_triangle_in_region,
 };
-
-#[cfg(test)]
-mod tests;

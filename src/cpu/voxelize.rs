@@ -321,8 +321,9 @@ fn linear_index(c: UVec3, dims: UVec3) -> u32 {
 const CHUNK: usize = 512;
 
 /// Runs `per_triangle` over every triangle of `mesh` (transformed to grid space by `grid_from_local`) on all
-/// available cores, summing the stats. Shared by the voxelizer and the ground truth.
-pub(crate) fn for_each_grid_triangle<S: Default + AddAssign + Send>(
+/// available cores, summing the stats (`None` for a degenerate or non-finite triangle). Shared by the
+/// voxelizer and the ground truth of `bevy_hao_tools`.
+pub fn for_each_grid_triangle<S: Default + AddAssign + Send>(
     mesh: &TriangleMesh,
     grid_from_local: Affine3A,
     per_triangle: impl Fn(Option<[Vec3; 3]>) -> S + Sync,

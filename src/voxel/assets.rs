@@ -139,7 +139,7 @@ pub struct VoxelizationStatsData {
     pub dynamic_counters: VoxelizeCounters,
     /// Readbacks of the counters received so far.
     pub counter_readbacks: u64,
-    /// The estimate of the static occluders' points (equation 5 or its strip counterpart; see [`super::budget`]).
+    /// The estimate of the static occluders' points (equation 5 or its strip counterpart: [`crate::cpu::expected_point_count`]).
     pub estimated_static_points: u64,
     /// The estimate of the dynamic occluders' points per frame.
     pub estimated_dynamic_points: u64,

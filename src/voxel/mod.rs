@@ -23,19 +23,17 @@
 //! functions after it. GPU time spans: `hao/voxelize_static`, `hao/voxelize_dynamic`, `hao/resolve` (add
 //! Bevy's `RenderDiagnosticsPlugin` to see them).
 
-pub mod assets;
-pub mod bindings;
-pub mod budget;
-pub mod extract;
-pub mod pass;
-pub mod pipelines;
-pub mod prepare;
-pub mod stats;
+pub(crate) mod assets;
+pub(crate) mod bindings;
+mod budget;
+pub(crate) mod extract;
+mod pass;
+pub(crate) mod pipelines;
+mod prepare;
+mod stats;
 
-pub use assets::{
-    CascadeLevelStats, LevelBytes, VoxelGridAssets, VoxelVolumeFocus, VoxelizationStats, VoxelizationStatsData,
-};
-pub use bindings::{VOXEL_GRID_GROUP, VoxelGridBindings, VoxelGridLayout, voxel_grid_layout};
+pub use assets::{CascadeLevelStats, LevelBytes, VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
+pub use bindings::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
 pub use extract::RebuildStaticVoxels;
 pub use stats::VoxelizeCounters;
 

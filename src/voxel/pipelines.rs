@@ -119,7 +119,7 @@ pub const BIG_TRIANGLE_BYTES: u64 = 64;
 pub const VOXELIZE_WORKGROUP: u32 = 64;
 
 /// Storage buffers per shader stage the classify pass needs to read its settings from storage buffers rather
-/// than uniforms (see [`VoxelizePipelines::params_in_storage`]).
+/// than uniforms (WGSL `VOXELIZE_PARAMS_IN_STORAGE`).
 pub const PARAMS_IN_STORAGE_BUFFERS: u32 = 10;
 /// Storage buffers per shader stage the classify pass needs to skin meshes (its settings in storage, and
 /// Bevy's joint matrices); see [`VoxelizePipelines::skinning`].
@@ -155,11 +155,6 @@ pub struct VoxelizePipelines {
     pub resolve: CachedComputePipelineId,
     /// Texture mips.
     pub mip: CachedComputePipelineId,
-    /// The voxel texture's format.
-    pub texture_format: TextureFormat,
-    /// Whether the passes read `SlabGroup` and `VoxelizeParams` from storage buffers (WGSL
-    /// `VOXELIZE_PARAMS_IN_STORAGE`), not uniforms: wherever the device has [`PARAMS_IN_STORAGE_BUFFERS`].
-    pub params_in_storage: bool,
     /// Whether classify skins skinned meshes (WGSL `VOXELIZE_SKINNING`, group 0 binding 4: Bevy's joint
     /// matrices): wherever the device has [`SKINNING_STORAGE_BUFFERS`]. Elsewhere skinned meshes are skipped
     /// with a warning.
@@ -346,8 +341,6 @@ impl FromWorld for VoxelizePipelines {
             clear,
             resolve,
             mip,
-            texture_format,
-            params_in_storage,
             skinning,
             morph,
             dummy,

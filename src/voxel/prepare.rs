@@ -218,8 +218,6 @@ pub struct VoxelizePass {
     pub slabs: Vec<SlabDispatch>,
     /// Group 1.
     pub bind_group: BindGroup,
-    /// First word of the pass's counter block.
-    pub counter_base: u32,
 }
 
 /// How a static region is cleared before it is voxelized again.
@@ -1001,7 +999,7 @@ pub fn prepare_voxelize(
                 big.offsets.as_entire_binding(),
             )),
         );
-        let pass = VoxelizePass { slabs, bind_group, counter_base: p.counter_base };
+        let pass = VoxelizePass { slabs, bind_group };
         match p.clear {
             Some(clear) => static_passes.push(StaticPass { clear, pass }),
             None => dynamic_passes.push(pass),

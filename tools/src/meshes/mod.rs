@@ -8,7 +8,7 @@ pub mod obj;
 
 pub use builtin::{BUILTIN_NAMES, CLOSED_BUILTINS, builtin, cathedral, cathedral_parts};
 
-use crate::cpu::TriangleMesh;
+use bevy_hao::cpu::TriangleMesh;
 use std::path::Path;
 
 /// A mesh loaded by [`load_mesh`], with a short name for reports.

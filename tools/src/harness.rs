@@ -1,11 +1,6 @@
 //! Headless Bevy apps for the examples and the GPU tests: an app on Vulkan (Mesa's lavapipe on a machine
 //! without a GPU) with no window, run frame by frame, with buffers read back and GPU timings collected.
-//! Shared by `examples/*.rs` (`mod support;`) and `tests/*.rs` (`#[path = "../examples/support/mod.rs"]`).
-
-#![allow(dead_code)]
-
-pub mod reference;
-pub mod scene;
+//! Shared by the tools (`src/bin`), the plugin's examples and its GPU tests.
 
 use bevy::app::PluginGroupBuilder;
 use bevy::asset::RenderAssetUsages;
@@ -18,7 +13,7 @@ use bevy::render::settings::{Backends, RenderCreation, WgpuSettings};
 use bevy::render::storage::ShaderBuffer;
 use bevy::window::ExitCondition;
 use bevy_hao::cpu::{TriangleMesh, VoxelGrid, VoxelOccupancy};
-use bevy_hao::voxel::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
+use bevy_hao::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
 use std::sync::{Arc, Mutex, MutexGuard};
 
 static GPU: Mutex<()> = Mutex::new(());
@@ -177,7 +172,7 @@ pub fn read_static_occupancy(app: &mut App) -> VoxelOccupancy {
 /// unwrapped from the level's toroidal storage into window order (cell `(0, 0, 0)` = the window's min).
 pub struct CascadeReadback {
     /// The level's window and counters.
-    pub level: bevy_hao::voxel::CascadeLevelStats,
+    pub level: bevy_hao::CascadeLevelStats,
     /// The window as a grid (origin at its min corner).
     pub grid: VoxelGrid,
     /// Its occupancy in window order.

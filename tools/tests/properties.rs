@@ -11,10 +11,11 @@ use std::time::{Duration, Instant};
 
 use bevy_hao::cpu::{
     InjectionMode, LatticeRange, SubdivisionPattern, TriangleMesh, VoxelGrid, VoxelOccupancy, VoxelizeSettings,
-    compare, ground_truth_mesh, read_binvox, rotate_to_apex, sub_triangle, sub_triangle_corners, subdivision, voxelize,
+    rotate_to_apex, sub_triangle, sub_triangle_corners, subdivision, voxelize,
 };
-use bevy_hao::meshes::gltf_file::read_gltf;
-use bevy_hao::meshes::obj::ObjModel;
+use bevy_hao_tools::meshes::gltf_file::read_gltf;
+use bevy_hao_tools::meshes::obj::ObjModel;
+use bevy_hao_tools::{compare, ground_truth_mesh, read_binvox};
 use glam::{Affine3A, UVec3, Vec3};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, TestRng, TestRunner};

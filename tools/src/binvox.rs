@@ -14,7 +14,7 @@
 //! A [`VoxelOccupancy`] with per-axis dimensions is written with `D` = its longest axis, padded with empty
 //! voxels, `translate` = the grid origin and `scale` = `D * cell_size`.
 
-use super::grid::{VoxelGrid, VoxelOccupancy};
+use bevy_hao::cpu::{VoxelGrid, VoxelOccupancy};
 use glam::{UVec3, Vec3};
 use std::io::{self, BufRead, Write};
 
@@ -47,7 +47,7 @@ impl Binvox {
     }
 
     /// The voxels as an occupancy grid on the cubic grid the file describes.
-    pub fn to_occupancy(&self) -> Result<VoxelOccupancy, crate::cpu::GridError> {
+    pub fn to_occupancy(&self) -> Result<VoxelOccupancy, bevy_hao::cpu::GridError> {
         let cell = self.scale / self.dim.max_element() as f32;
         let grid = VoxelGrid::new(self.translate, cell, self.dim)?;
         let occ = VoxelOccupancy::new(grid, false);

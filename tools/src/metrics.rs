@@ -1,6 +1,6 @@
 //! Quality figures against the ground truth: bias, excess voxels, and the six-direction watertight test.
 
-use super::grid::VoxelOccupancy;
+use bevy_hao::cpu::VoxelOccupancy;
 use glam::UVec3;
 
 /// A voxelization compared with the conservative ground truth.
@@ -23,7 +23,7 @@ impl Comparison {
     }
 }
 
-/// Missing voxels split by how the surface meets them ([`super::OverlapKind`]).
+/// Missing voxels split by how the surface meets them ([`bevy_hao::cpu::OverlapKind`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct GrazeSplit {
     /// Ground-truth voxels that the surface only grazes (touches, or enters less than 1/1000 cell deep),
@@ -35,7 +35,7 @@ pub struct GrazeSplit {
 }
 
 /// Splits the missing voxels into grazed and cut ones, given the ground truth's `cut` cells (from
-/// [`super::ground_truth::ground_truth_mesh_with_cuts`]).
+/// [`crate::ground_truth::ground_truth_mesh_with_cuts`]).
 pub fn graze_split(result: &VoxelOccupancy, truth: &VoxelOccupancy, cut: &VoxelOccupancy) -> GrazeSplit {
     let (r, t, c) = (result.words(), truth.words(), cut.words());
     let mut split = GrazeSplit { grazed_voxels: 0, missing_grazed: 0 };

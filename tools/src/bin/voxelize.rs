@@ -2,7 +2,7 @@
 //! the spirit of Figure 10 of Fei et al. 2012, and binvox export.
 //!
 //! ```text
-//! cargo run --release --example voxelize -- <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0]
+//! cargo run --release -p bevy_hao_tools --bin voxelize -- <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0]
 //!     [--mode centroid|conservative] [--pattern strips,uniform] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]
 //!     [--gpu] [--max-memory-mb 4096] [--point-budget 268435456]
 //!     [--animation NAME|INDEX --time SECONDS] [--list-animations]
@@ -39,13 +39,12 @@
 //! dynamic occluders, and the GPU time is the dynamic pass's (`hao/voxelize_dynamic`). Morph targets are applied on
 //! both sides (the clip's weight channels, or the mesh's own weights), before skinning.
 
-mod support;
-
 use bevy::prelude::*;
 use bevy_hao::cpu::*;
-use bevy_hao::meshes::load_mesh;
 use bevy_hao::prelude::*;
-use bevy_hao::voxel::{RebuildStaticVoxels, VoxelizeCounters};
+use bevy_hao::{RebuildStaticVoxels, VoxelizeCounters};
+use bevy_hao_tools::meshes::load_mesh;
+use bevy_hao_tools::{compare, graze_split, ground_truth_mesh, ground_truth_mesh_with_cuts, watertight, write_binvox};
 use std::time::Instant;
 
 struct Args {
@@ -93,7 +92,7 @@ fn parse_args() -> Result<Args, String> {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match arg.as_str() {
             "--res" => {
-                a.resolutions = support::args::resolutions(&value("--res")?)?;
+                a.resolutions = bevy_hao_tools::harness::args::resolutions(&value("--res")?)?;
                 if a.resolutions.iter().any(|&r| r == 0 || r > 2048) {
                     return Err("resolutions must be in 1..=2048".into());
                 }
@@ -212,7 +211,7 @@ fn gpu_voxelize(
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
     let volume = gpu_volume(bounds, res, settings);
-    let mut app = support::headless_app(move |app| {
+    let mut app = bevy_hao_tools::harness::headless_app(move |app| {
         app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
             let m =
                 Mesh::new(bevy::mesh::PrimitiveTopology::TriangleList, bevy::asset::RenderAssetUsages::RENDER_WORLD)
@@ -223,31 +222,33 @@ fn gpu_voxelize(
         });
     });
     let mut frames = 0;
-    while !(support::stats(&app).static_rebuilds >= 1 && support::stats(&app).counter_readbacks >= 3) {
+    while !(bevy_hao_tools::harness::stats(&app).static_rebuilds >= 1
+        && bevy_hao_tools::harness::stats(&app).counter_readbacks >= 3)
+    {
         app.update();
         frames += 1;
         if frames > 120 {
             return Err("the GPU voxelization did not complete within 120 frames".into());
         }
     }
-    let errors = support::take_render_errors();
+    let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
         return Err(format!("wgpu errors: {errors:?}"));
     }
-    let occupancy = support::read_occupancy(&mut app);
-    let counters = support::stats(&app).static_counters;
+    let occupancy = bevy_hao_tools::harness::read_occupancy(&mut app);
+    let counters = bevy_hao_tools::harness::stats(&app).static_counters;
     // Each forced rebuild records one `hao/voxelize_static` span; read them from the diagnostic's history
     // once the last has had time to arrive.
-    let before = support::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu").len();
+    let before = bevy_hao_tools::harness::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu").len();
     for _ in 0..runs {
         app.world_mut().write_message(RebuildStaticVoxels);
         app.update();
     }
-    support::run(&mut app, 4);
-    let history = support::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu");
+    bevy_hao_tools::harness::run(&mut app, 4);
+    let history = bevy_hao_tools::harness::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu");
     let times: Vec<f64> = history.iter().skip(before).copied().collect();
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
-    Ok((occupancy, counters, support::median(times), adapter))
+    Ok((occupancy, counters, bevy_hao_tools::harness::median(times), adapter))
 }
 
 /// The volume the GPU voxelizes into: the CPU's fitted grid.
@@ -282,13 +283,13 @@ fn gpu_voxelize_posed(
     let path = std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
     let file = path.file_name().ok_or("no file name")?.to_string_lossy().into_owned();
     let dir = path.parent().ok_or("no folder")?.to_string_lossy().into_owned();
-    support::set_asset_root(Some(dir));
+    bevy_hao_tools::harness::set_asset_root(Some(dir));
     // The scene the CPU side reads: the file's default, else the first.
-    let scene = bevy_hao::meshes::gltf_file::gltf_scene_index(&path)?.unwrap_or(0);
+    let scene = bevy_hao_tools::meshes::gltf_file::gltf_scene_index(&path)?.unwrap_or(0);
     let volume = gpu_volume(bounds, res, settings);
     let center = (bounds.0 + bounds.1) * 0.5;
     let extent = (bounds.1 - bounds.0).max_element().max(1e-3);
-    let mut app = support::headless_app(move |app| {
+    let mut app = bevy_hao_tools::harness::headless_app(move |app| {
         app.add_systems(Update, start_posed_clip.run_if(resource_exists::<PosedClip>));
         app.add_systems(
             Startup,
@@ -305,7 +306,9 @@ fn gpu_voxelize_posed(
                     .spawn(WorldAssetRoot(asset_server.load(GltfAssetLabel::Scene(scene).from_asset(file.clone()))));
                 commands.spawn((
                     Camera3d::default(),
-                    bevy::camera::RenderTarget::Image(support::target_image(&mut images, UVec2::new(64, 64)).into()),
+                    bevy::camera::RenderTarget::Image(
+                        bevy_hao_tools::harness::target_image(&mut images, UVec2::new(64, 64)).into(),
+                    ),
                     Msaa::Off,
                     Transform::from_translation(center + Vec3::new(0.0, 0.0, 2.5 * extent)).looking_at(center, Vec3::Y),
                 ));
@@ -317,7 +320,7 @@ fn gpu_voxelize_posed(
     let (mut held, mut rebuilds) = (0, 0);
     for _ in 0..600 {
         app.update();
-        let s = support::stats(&app);
+        let s = bevy_hao_tools::harness::stats(&app);
         let voxelized = (s.dynamic_instances > 0 || s.static_instances > 0) && s.counter_readbacks > 0;
         held = if voxelized && s.static_rebuilds == rebuilds { held + 1 } else { 0 };
         rebuilds = s.static_rebuilds;
@@ -325,36 +328,36 @@ fn gpu_voxelize_posed(
             break;
         }
     }
-    support::set_asset_root(None);
+    bevy_hao_tools::harness::set_asset_root(None);
     if held < 6 {
         return Err("the posed scene was not voxelized within 600 frames".into());
     }
-    let errors = support::take_render_errors();
+    let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
         return Err(format!("wgpu errors: {errors:?}"));
     }
-    let occupancy = support::read_occupancy(&mut app);
+    let occupancy = bevy_hao_tools::harness::read_occupancy(&mut app);
     // Skinned or morphed meshes make it a dynamic pass every frame; a clip of rigid nodes only, a static one
     // (timed over forced rebuilds, as for a plain mesh).
-    let stats = support::stats(&app);
+    let stats = bevy_hao_tools::harness::stats(&app);
     let dynamic = stats.dynamic_instances > 0;
     let (counters, span) = if dynamic {
         (stats.dynamic_counters, "render/hao/voxelize_dynamic/elapsed_gpu")
     } else {
         (stats.static_counters, "render/hao/voxelize_static/elapsed_gpu")
     };
-    let before = support::diagnostic_history(&app, span).len();
+    let before = bevy_hao_tools::harness::diagnostic_history(&app, span).len();
     for _ in 0..runs {
         if !dynamic {
             app.world_mut().write_message(RebuildStaticVoxels);
         }
         app.update();
     }
-    support::run(&mut app, 4);
-    let history = support::diagnostic_history(&app, span);
+    bevy_hao_tools::harness::run(&mut app, 4);
+    let history = bevy_hao_tools::harness::diagnostic_history(&app, span);
     let times: Vec<f64> = history.iter().skip(before).copied().collect();
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
-    Ok((occupancy, counters, support::median(times), adapter))
+    Ok((occupancy, counters, bevy_hao_tools::harness::median(times), adapter))
 }
 
 /// `--list-animations`: each file's clips.
@@ -362,7 +365,7 @@ fn list_animations(inputs: &[String]) -> Result<(), String> {
     println!("| file | index | name | duration s | channels |");
     println!("|---|---:|---|---:|---:|");
     for input in inputs {
-        for a in bevy_hao::meshes::gltf_file::gltf_animations(std::path::Path::new(input))? {
+        for a in bevy_hao_tools::meshes::gltf_file::gltf_animations(std::path::Path::new(input))? {
             println!("| {input} | {} | {} | {:.3} | {} |", a.index, a.name.unwrap_or_default(), a.duration, a.channels);
         }
     }
@@ -398,11 +401,11 @@ fn main() {
         let (loaded, clip) = match &args.animation {
             Some(anim) => {
                 let path = std::path::Path::new(input);
-                match bevy_hao::meshes::gltf_file::load_gltf_posed(path, anim, args.time) {
+                match bevy_hao_tools::meshes::gltf_file::load_gltf_posed(path, anim, args.time) {
                     Ok((mesh, clip, warnings)) => {
                         let stem = path.file_stem().map_or_else(|| input.clone(), |s| s.to_string_lossy().into_owned());
                         let name = format!("{stem} (clip {clip} at {}s)", args.time);
-                        (bevy_hao::meshes::LoadedMesh { name, mesh, warnings }, Some(clip))
+                        (bevy_hao_tools::meshes::LoadedMesh { name, mesh, warnings }, Some(clip))
                     }
                     Err(e) => {
                         eprintln!("error: {e}");

@@ -5,8 +5,8 @@
 //! the nodes' own ([`read_gltf`]), or an animation clip's at a time ([`read_gltf_posed`]).
 
 use super::gltf_animation;
-use crate::cpu::{TriangleMesh, VertexSkin, morphed_mesh, skinned_mesh};
 use base64::Engine;
+use bevy_hao::cpu::{TriangleMesh, VertexSkin, morphed_mesh, skinned_mesh};
 use glam::{Affine3A, Mat4, Quat, Vec3};
 use gltf::mesh::Mode;
 use std::collections::HashMap;
@@ -482,7 +482,7 @@ mod tests {
         for (v, p) in positions.iter().enumerate() {
             let j = UVec4::from_array(joints[v].map(u32::from));
             let expected =
-                crate::cpu::skin_position(Vec3::from(*p), j, Vec4::from_array(weights[v]), &matrices).unwrap();
+                bevy_hao::cpu::skin_position(Vec3::from(*p), j, Vec4::from_array(weights[v]), &matrices).unwrap();
             assert!(posed.positions[v].abs_diff_eq(expected, 1e-5), "vertex {v}: {} vs {expected}", posed.positions[v]);
         }
         // Half of a quarter turn about z at (0, 2, 0): the top vertex at (0, 4) goes to (-sqrt 2, 2 + sqrt 2).

@@ -1,7 +1,7 @@
 //! A Wavefront OBJ reader: positions, texture coordinates, normals, polygonal faces (fan-triangulated),
 //! negative indices, `usemtl` groups, and the `mtllib` materials' diffuse color and texture.
 
-use crate::cpu::TriangleMesh;
+use bevy_hao::cpu::TriangleMesh;
 use glam::{Vec2, Vec3};
 use std::path::{Path, PathBuf};
 

@@ -1,17 +1,18 @@
 //! Tests of the voxelizers against each other and against the ground truth.
 
-use super::*;
-use crate::meshes::{CLOSED_BUILTINS, builtin};
+use bevy_hao::cpu::*;
+use bevy_hao_tools::meshes::{CLOSED_BUILTINS, builtin};
+use bevy_hao_tools::*;
 use glam::{Affine3A, UVec3, Vec3};
 
 /// A small deterministic generator (splitmix64), so that failures reproduce.
-pub(crate) struct Rng(u64);
+struct Rng(u64);
 
 impl Rng {
-    pub(crate) fn new(seed: u64) -> Self {
+    fn new(seed: u64) -> Self {
         Self(seed)
     }
-    pub(crate) fn next_u64(&mut self) -> u64 {
+    fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -19,17 +20,17 @@ impl Rng {
         z ^ (z >> 31)
     }
     /// Uniform in `[lo, hi)`.
-    pub(crate) fn range(&mut self, lo: f32, hi: f32) -> f32 {
+    fn range(&mut self, lo: f32, hi: f32) -> f32 {
         lo + (hi - lo) * ((self.next_u64() >> 40) as f32 / (1u64 << 24) as f32)
     }
-    pub(crate) fn vec3(&mut self, lo: f32, hi: f32) -> Vec3 {
+    fn vec3(&mut self, lo: f32, hi: f32) -> Vec3 {
         Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
     }
 }
 
 /// Random triangles of every size class in and around a `dims` grid: sub-voxel, a few cells, grid-spanning
 /// and sticking out of the grid.
-pub(crate) fn random_triangles(rng: &mut Rng, count: usize, dims: f32) -> TriangleMesh {
+fn random_triangles(rng: &mut Rng, count: usize, dims: f32) -> TriangleMesh {
     let mut m = TriangleMesh::default();
     for k in 0..count {
         let size = match k % 4 {
@@ -198,7 +199,7 @@ fn the_watertight_test_catches_a_hole() {
 fn builtin_closed_meshes_are_closed_and_outward() {
     for name in CLOSED_BUILTINS.iter().chain(["cathedral"].iter()) {
         let parts: Vec<TriangleMesh> = if *name == "cathedral" {
-            crate::meshes::cathedral_parts().into_iter().map(|p| p.1).collect()
+            bevy_hao_tools::meshes::cathedral_parts().into_iter().map(|p| p.1).collect()
         } else {
             vec![builtin(name).unwrap()]
         };

@@ -2,7 +2,7 @@
 //! same frames.
 //!
 //! ```text
-//! cargo run --release --example bench_ao -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
+//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
 //!     [--size 1280x720] [--frames 20] [--res 128]
 //! ```
 //!
@@ -20,13 +20,11 @@
 //! rasterizer such as lavapipe the times are CPU times of the emulated GPU: compare ratios within one run,
 //! not absolute figures.
 
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
 use bevy_hao::prelude::*;
-use support::scene::{SceneSource, default_camera, spawn_scene};
+use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene};
 
 #[derive(Component)]
 struct BenchCamera;
@@ -38,7 +36,7 @@ fn main() {
     while let Some(a) = it.next() {
         match a.as_str() {
             "--size" => {
-                size = support::args::size(&it.next().unwrap_or_default()).unwrap_or_else(|e| {
+                size = bevy_hao_tools::harness::args::size(&it.next().unwrap_or_default()).unwrap_or_else(|e| {
                     eprintln!("{e}");
                     std::process::exit(2)
                 })
@@ -57,10 +55,10 @@ fn main() {
         std::process::exit(1)
     });
     let bounds = source.triangles().ok().and_then(|t| t.bounds()).expect("a scene with triangles");
-    support::set_asset_root(source.asset_root());
+    bevy_hao_tools::harness::set_asset_root(source.asset_root());
     let camera = default_camera(bounds, true);
     let setup_source = source.clone();
-    let mut app = support::headless_app(move |app| {
+    let mut app = bevy_hao_tools::harness::headless_app(move |app| {
         let source = setup_source.clone();
         app.add_systems(
             Startup,
@@ -71,7 +69,7 @@ fn main() {
                   server: Res<AssetServer>| {
                 spawn_scene(&source, &mut commands, &mut meshes, &mut materials, &server).expect("scene");
                 commands.spawn(VoxelVolume { resolution: VolumeResolution::Cells(res), ..default() });
-                let target = support::target_image(&mut images, size);
+                let target = bevy_hao_tools::harness::target_image(&mut images, size);
                 commands.spawn((
                     Camera3d::default(),
                     RenderTarget::Image(target.into()),
@@ -85,24 +83,26 @@ fn main() {
         );
     });
     let mut warm = 0;
-    while support::stats(&app).static_rebuilds == 0 && warm < 300 {
+    while bevy_hao_tools::harness::stats(&app).static_rebuilds == 0 && warm < 300 {
         app.update();
         warm += 1;
     }
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
     let measure = |app: &mut App, spans: &[&str]| -> Vec<Option<f64>> {
-        support::run(app, 8);
+        bevy_hao_tools::harness::run(app, 8);
         // Only spans recorded since the last frame count: a diagnostic keeps its last value when a pass
         // stops running.
         let mut samples = vec![Vec::new(); spans.len()];
         let mut last = vec![None; spans.len()];
         for (l, span) in last.iter_mut().zip(spans) {
-            *l = support::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu")).map(|m| m.0);
+            *l = bevy_hao_tools::harness::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu"))
+                .map(|m| m.0);
         }
         for _ in 0..frames {
             app.update();
             for ((s, l), span) in samples.iter_mut().zip(last.iter_mut()).zip(spans) {
-                if let Some((at, v)) = support::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu"))
+                if let Some((at, v)) =
+                    bevy_hao_tools::harness::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu"))
                     && Some(at) != *l
                 {
                     *l = Some(at);
@@ -110,15 +110,14 @@ fn main() {
                 }
             }
         }
-        samples.into_iter().map(support::median).collect()
+        samples.into_iter().map(bevy_hao_tools::harness::median).collect()
     };
     let cam = app.world_mut().query_filtered::<Entity, With<BenchCamera>>().single(app.world()).unwrap();
-    // Bevy's SSAO alone (High), no HAO on the camera.
-    // (The plugin's marker goes too: it would take the SSAO it added, and this one, away with HAO.)
-    app.world_mut()
-        .entity_mut(cam)
-        .remove::<(HybridAmbientOcclusion, bevy_hao::ao::HaoAddedSsao)>()
-        .insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
+    // Bevy's SSAO alone (High), no HAO on the camera: the plugin takes the SSAO it added away with HAO (in
+    // the next frame), then the camera gets its own.
+    app.world_mut().entity_mut(cam).remove::<HybridAmbientOcclusion>();
+    app.update();
+    app.world_mut().entity_mut(cam).insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
     let ssao_alone = measure(&mut app, &["ssao"])[0];
     // HAO at its defaults: the plugin adds its own (cheapest) SSAO again once the user's is gone.
     app.world_mut()
@@ -134,12 +133,12 @@ fn main() {
             rows.push((settings, measure(&mut app, &spans)));
         }
     }
-    let errors = support::take_render_errors();
+    let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
         eprintln!("error: wgpu errors: {errors:?}");
         std::process::exit(1);
     }
-    let grid = support::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
+    let grid = bevy_hao_tools::harness::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
     println!(
         "GPU: {adapter}; {scene} at {}x{}, voxel grid {}x{}x{}; medians of {frames} frames\n",
         size.x, size.y, grid.x, grid.y, grid.z

@@ -1,7 +1,7 @@
 //! Hybrid ambient occlusion against Bevy's SSAO and a ray-traced reference, on one view of a scene.
 //!
 //! ```text
-//! cargo run --release --example ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
+//! cargo run --release -p bevy_hao_tools --bin ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
 //!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
 //!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--cascades 4,128,0.125] [--world]
 //!     [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--hao-steps N]
@@ -17,7 +17,7 @@
 //! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 192^3 following the
 //! camera) or `fit` (one grid fitted to the static scene, `--res` cells on its longest axis). `--world`
 //! puts the scene inside a generated level 1 km across (a ground and distant buildings: see
-//! `support::scene::big_world`), which the reference traces too.
+//! `bevy_hao_tools::scene::big_world`), which the reference traces too.
 //!
 //! One headless app (Mesa's lavapipe on a machine without a GPU) renders the same view with three cameras:
 //! HAO alone (voxel rays only), HAO with its near field (the minimum with Bevy's SSAO), and Bevy's SSAO
@@ -28,14 +28,12 @@
 //! comes mostly (over half) from occluders the view cannot see (off screen or hidden behind what it shows),
 //! and writes the four AO images side by side (HAO, HAO + near field, SSAO, reference) as one PNG.
 
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
 use bevy_hao::prelude::*;
-use support::reference::{ReferenceScene, reference_ao};
-use support::scene::{SceneSource, default_camera, spawn_scene};
+use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
+use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene};
 
 struct Args {
     scene: String,
@@ -90,7 +88,7 @@ fn parse_args() -> Result<Args, String> {
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match arg.as_str() {
-            "--size" => a.size = support::args::size(&value("--size")?)?,
+            "--size" => a.size = bevy_hao_tools::harness::args::size(&value("--size")?)?,
             "--rays" => a.rays = value("--rays")?.parse().map_err(|e| format!("bad --rays: {e}"))?,
             "--res" => a.res = value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?,
             "--max-distance" => {
@@ -108,8 +106,8 @@ fn parse_args() -> Result<Args, String> {
                     q => return Err(format!("unknown quality {q}")),
                 }
             }
-            "--camera" => eye = Some(support::args::vec3(&value("--camera")?)?),
-            "--look" => look = Some(support::args::vec3(&value("--look")?)?),
+            "--camera" => eye = Some(bevy_hao_tools::harness::args::vec3(&value("--camera")?)?),
+            "--look" => look = Some(bevy_hao_tools::harness::args::vec3(&value("--look")?)?),
             "--outside" => a.outside = true,
             "--world" => a.world = true,
             "--cascades" => {
@@ -189,7 +187,7 @@ fn main() {
         std::process::exit(1)
     });
     let bounds = triangles.bounds().expect("a scene with triangles");
-    let world_parts = if args.world { support::scene::big_world(bounds, 1000.0) } else { Vec::new() };
+    let world_parts = if args.world { bevy_hao_tools::scene::big_world(bounds, 1000.0) } else { Vec::new() };
     for p in &world_parts {
         triangles.append(p, Default::default());
     }
@@ -204,7 +202,7 @@ fn main() {
         camera.translation,
         camera.forward().as_vec3()
     );
-    support::set_asset_root(source.asset_root());
+    bevy_hao_tools::harness::set_asset_root(source.asset_root());
     let quality = if args.hao_rays.is_some() || args.hao_steps.is_some() || args.hao_half.is_some() {
         let (rays, steps, half) = args.quality.parameters_accumulated(args.accumulation);
         HaoQuality::Custom {
@@ -231,7 +229,7 @@ fn main() {
     let fit = args.fit;
     let cascades = args.cascades;
     let subdivision = args.subdivision;
-    let mut app = support::headless_app(move |app| {
+    let mut app = bevy_hao_tools::harness::headless_app(move |app| {
         let source = setup_source.clone();
         let hao = setup_hao.clone();
         let world_parts = world_parts.clone();
@@ -249,7 +247,7 @@ fn main() {
                 let ground = materials.add(StandardMaterial { perceptual_roughness: 1.0, ..default() });
                 for p in &world_parts {
                     commands.spawn((
-                        Mesh3d(meshes.add(support::scene::bevy_mesh(p, false))),
+                        Mesh3d(meshes.add(bevy_hao_tools::scene::bevy_mesh(p, false))),
                         MeshMaterial3d(ground.clone()),
                         StaticOccluder,
                     ));
@@ -275,7 +273,7 @@ fn main() {
                 for k in 0..3 {
                     let debug = HaoDebugImages::new(&mut images, size);
                     outputs.push(debug.clone());
-                    let target = support::target_image(&mut images, size);
+                    let target = bevy_hao_tools::harness::target_image(&mut images, size);
                     let mut cam = commands.spawn((
                         Camera3d::default(),
                         Camera { order: k as isize, ..default() },
@@ -300,7 +298,7 @@ fn main() {
     let mut last = (u64::MAX, 0);
     for frame in 0..600 {
         app.update();
-        let s = support::stats(&app);
+        let s = bevy_hao_tools::harness::stats(&app);
         let key = (s.static_triangles, s.static_rebuilds);
         if frame > 20 && key == last && s.static_triangles > 0 {
             break;
@@ -310,20 +308,21 @@ fn main() {
     // Then until the temporal history has converged: four times its length (the frames before weigh
     // (1 - 1/n)^(4n), under 2 %).
     let settled = 4 + 4 * accumulation;
-    support::run(&mut app, settled);
-    let errors = support::take_render_errors();
+    bevy_hao_tools::harness::run(&mut app, settled);
+    let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
         eprintln!("error: wgpu errors: {errors:?}");
         std::process::exit(1);
     }
     let outputs = app.world().resource::<Outputs>().clone();
-    let ao: Vec<Vec<f32>> = outputs.0.iter().map(|o| support::read_image_f32(&mut app, o.ao.clone(), 2).2).collect();
-    let (w, h, depth) = support::read_image_f32(&mut app, outputs.0[0].depth.clone(), 0);
-    let (_, _, _, normal_bytes) = support::read_image(&mut app, outputs.0[0].normal.clone(), 0);
+    let ao: Vec<Vec<f32>> =
+        outputs.0.iter().map(|o| bevy_hao_tools::harness::read_image_f32(&mut app, o.ao.clone(), 2).2).collect();
+    let (w, h, depth) = bevy_hao_tools::harness::read_image_f32(&mut app, outputs.0[0].depth.clone(), 0);
+    let (_, _, _, normal_bytes) = bevy_hao_tools::harness::read_image(&mut app, outputs.0[0].normal.clone(), 0);
     let normals: Vec<Vec3> = normal_bytes
         .chunks_exact(8)
         .map(|c| {
-            let f = |i: usize| support::f16_to_f32(u16::from_le_bytes([c[i], c[i + 1]]));
+            let f = |i: usize| bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([c[i], c[i + 1]]));
             Vec3::new(f(0), f(2), f(4)).normalize_or_zero()
         })
         .collect();

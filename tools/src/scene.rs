@@ -1,11 +1,11 @@
 //! Scenes for the examples: the built-in meshes (the procedural cathedral by default) or an OBJ/glTF file
 //! given by path, spawned as Bevy entities with materials, and the same triangles for the CPU reference.
 
+use crate::meshes::{self, obj::ObjModel};
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy_hao::cpu::TriangleMesh;
-use bevy_hao::meshes::{self, obj::ObjModel};
 use std::path::{Path, PathBuf};
 
 /// Where a scene comes from.
@@ -98,7 +98,7 @@ pub fn spawn_scene(
     let mut spawned = Vec::new();
     match source {
         SceneSource::Builtin(name) if name == "cathedral" => {
-            for (part, mesh) in bevy_hao::meshes::cathedral_parts() {
+            for (part, mesh) in crate::meshes::cathedral_parts() {
                 spawned.push(
                     commands
                         .spawn((
@@ -112,7 +112,7 @@ pub fn spawn_scene(
             }
         }
         SceneSource::Builtin(name) => {
-            let mesh = bevy_hao::meshes::builtin(name).expect("checked in parse");
+            let mesh = crate::meshes::builtin(name).expect("checked in parse");
             let smooth = matches!(name.as_str(), "sphere" | "torus");
             spawned.push(
                 commands
@@ -229,7 +229,7 @@ pub fn default_camera(bounds: (Vec3, Vec3), interior: bool) -> Transform {
 /// 150 to 450 units away. The parts are world-space meshes: the level is `size` across (1 km for
 /// `ao_compare --world`), far larger than any cascade.
 pub fn big_world(building: (Vec3, Vec3), size: f32) -> Vec<TriangleMesh> {
-    use bevy_hao::meshes::builtin::cuboid;
+    use crate::meshes::builtin::cuboid;
     let (lo, hi) = building;
     let center = (lo + hi) / 2.0;
     let half = size / 2.0;

@@ -3,7 +3,7 @@
 //! examples. All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
 //! tests check it).
 
-use crate::cpu::TriangleMesh;
+use bevy_hao::cpu::TriangleMesh;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 

@@ -7,10 +7,9 @@
 //! column (plus one cell of margin each way) are tested. That makes the cost proportional to the triangle's
 //! area in cells, not to the volume of its bounding box.
 
-use super::grid::VoxelOccupancy;
-use super::mesh::TriangleMesh;
-use super::overlap::{OverlapKind, OverlapTriangle};
-use super::voxelize::{for_each_grid_triangle, triangle_is_degenerate};
+use bevy_hao::cpu::{
+    OverlapKind, OverlapTriangle, TriangleMesh, VoxelOccupancy, for_each_grid_triangle, triangle_is_degenerate,
+};
 use glam::{Affine3A, DVec3, IVec3, UVec3, Vec3};
 use std::ops::AddAssign;
 

@@ -1,7 +1,7 @@
 //! GPU cost of voxelization, beside the cost of drawing the same scene's depth once.
 //!
 //! ```text
-//! cargo run --release --example bench_voxelize -- <PATH or builtin:NAME>... [--res 128,256,512]
+//! cargo run --release -p bevy_hao_tools --bin bench_voxelize -- <PATH or builtin:NAME>... [--res 128,256,512]
 //!     [--frames 30] [--size 1280x720] [--mode centroid|conservative] [--pattern strips,uniform]
 //! ```
 //!
@@ -29,17 +29,15 @@
 //! worst single frame, and the cells voxelized per frame, beside the depth prepass. Times on a software rasterizer such as lavapipe are not GPU times:
 //! quote them only as ratios of one run, and absolute figures only from a real GPU.
 
-mod support;
-
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::prepass::DepthPrepass;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
 use bevy::render::render_resource::TextureFormat;
+use bevy_hao::RebuildStaticVoxels;
 use bevy_hao::cpu::TriangleMesh;
-use bevy_hao::meshes::load_mesh;
 use bevy_hao::prelude::*;
-use bevy_hao::voxel::RebuildStaticVoxels;
+use bevy_hao_tools::meshes::load_mesh;
 
 const USAGE: &str = "usage: bench_voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--frames 30] [--size 1280x720] \
 [--mode centroid|conservative] [--pattern strips,uniform] [--cascades]";
@@ -68,11 +66,11 @@ fn parse_args() -> Result<Args, String> {
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
         match arg.as_str() {
-            "--res" => a.resolutions = support::args::resolutions(&value("--res")?)?,
+            "--res" => a.resolutions = bevy_hao_tools::harness::args::resolutions(&value("--res")?)?,
             "--frames" => {
                 a.frames = value("--frames")?.parse::<usize>().map_err(|e| format!("bad --frames: {e}"))?.max(1)
             }
-            "--size" => a.size = support::args::size(&value("--size")?)?,
+            "--size" => a.size = bevy_hao_tools::harness::args::size(&value("--size")?)?,
             "--mode" => {
                 a.injection = match value("--mode")?.as_str() {
                     "centroid" => VoxelInjection::Centroid,
@@ -121,7 +119,7 @@ fn measure_moving(
         app.world_mut().query_filtered::<&Transform, With<TheCamera>>().single(app.world()).unwrap().translation;
     let mut last: Vec<Option<std::time::Instant>> = spans
         .iter()
-        .map(|s| support::diagnostic_measurement(app, &format!("render/{s}/elapsed_gpu")).map(|m| m.0))
+        .map(|s| bevy_hao_tools::harness::diagnostic_measurement(app, &format!("render/{s}/elapsed_gpu")).map(|m| m.0))
         .collect();
     let mut sums = vec![(0.0f64, 0.0f64); spans.len()];
     let mut cells = 0u64;
@@ -134,10 +132,12 @@ fn measure_moving(
         }
         app.update();
         if k < frames {
-            cells += support::stats(app).cascades.iter().map(|c| c.static_cells_last_frame).sum::<u64>();
+            cells +=
+                bevy_hao_tools::harness::stats(app).cascades.iter().map(|c| c.static_cells_last_frame).sum::<u64>();
         }
         for (i, span) in spans.iter().enumerate() {
-            if let Some((t, v)) = support::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu"))
+            if let Some((t, v)) =
+                bevy_hao_tools::harness::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu"))
                 && last[i] != Some(t)
             {
                 last[i] = Some(t);
@@ -194,7 +194,7 @@ fn app_for(
 ) -> App {
     let (lo, hi) = mesh.bounds().expect("a mesh with triangles");
     let subject = bevy_mesh_of(mesh);
-    support::headless_app(move |app| {
+    bevy_hao_tools::harness::headless_app(move |app| {
         app.add_systems(
             Startup,
             move |mut commands: Commands,
@@ -221,7 +221,7 @@ fn app_for(
                 let radius = (hi - lo).length() / 2.0;
                 let target = images.add(Image::new_target_texture(size.x, size.y, TextureFormat::Rgba8UnormSrgb, None));
                 let transform = if res == 0 {
-                    support::scene::default_camera((lo, hi), true)
+                    bevy_hao_tools::scene::default_camera((lo, hi), true)
                 } else {
                     Transform::from_translation(center + Vec3::new(0.6, 0.4, 1.0).normalize() * radius * 2.2)
                         .looking_at(center, Vec3::Y)
@@ -258,13 +258,13 @@ fn measure(app: &mut App, frames: usize, rebuild: bool, spans: &[&str]) -> Vec<O
         app.update();
         if k >= 5 {
             for (s, span) in samples.iter_mut().zip(spans) {
-                if let Some(v) = support::diagnostic(app, &format!("render/{span}/elapsed_gpu")) {
+                if let Some(v) = bevy_hao_tools::harness::diagnostic(app, &format!("render/{span}/elapsed_gpu")) {
                     s.push(v);
                 }
             }
         }
     }
-    samples.into_iter().map(support::median).collect()
+    samples.into_iter().map(bevy_hao_tools::harness::median).collect()
 }
 
 fn main() {
@@ -291,11 +291,11 @@ fn main() {
             eprintln!("{} in the default cascades...", loaded.name);
             let mut app = app_for(&loaded.mesh, 0, args.size, args.injection, args.patterns[0]);
             let mut frames = 0;
-            while support::stats(&app).static_rebuilds == 0 && frames < 120 {
+            while bevy_hao_tools::harness::stats(&app).static_rebuilds == 0 && frames < 120 {
                 app.update();
                 frames += 1;
             }
-            support::run(&mut app, 5);
+            bevy_hao_tools::harness::run(&mut app, 5);
             let (lo, hi) = loaded.mesh.bounds().unwrap();
             let axis = if hi.x - lo.x >= hi.z - lo.z { -Vec3::X } else { -Vec3::Z };
             let prepass = "early prepass";
@@ -319,7 +319,7 @@ fn main() {
                 // Back to the start, settled.
                 measure_moving(&mut app, 8, axis, |_| Vec3::ZERO, &spans);
             }
-            let s = support::stats(&app);
+            let s = bevy_hao_tools::harness::stats(&app);
             let bytes: u64 = s.cascades.iter().map(|c| c.bytes.total()).sum();
             memory = format!(
                 "{} cascades of {}^3, {:.1} MB in all (occupancy bits {:.1} MB, texture with mips {:.1} MB, point counts {:.1} MB)",
@@ -330,7 +330,7 @@ fn main() {
                 s.cascades.iter().map(|c| c.bytes.texture).sum::<u64>() as f64 / 1.0e6,
                 s.cascades.iter().map(|c| c.bytes.point_counts).sum::<u64>() as f64 / 1.0e6,
             );
-            let errors = support::take_render_errors();
+            let errors = bevy_hao_tools::harness::take_render_errors();
             if !errors.is_empty() {
                 eprintln!("error: wgpu errors: {errors:?}");
                 std::process::exit(1);
@@ -342,31 +342,31 @@ fn main() {
                 let mut app = app_for(&loaded.mesh, res, args.size, args.injection, pattern);
                 // Warm up until the pipelines are compiled and the grid is built.
                 let mut frames = 0;
-                while support::stats(&app).static_rebuilds == 0 && frames < 120 {
+                while bevy_hao_tools::harness::stats(&app).static_rebuilds == 0 && frames < 120 {
                     app.update();
                     frames += 1;
                 }
                 adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
                 let prepass = "early prepass";
                 let a = measure(&mut app, args.frames, true, &["hao/voxelize_static", "hao/resolve", prepass]);
-                let counters = support::stats(&app).static_counters;
+                let counters = bevy_hao_tools::harness::stats(&app).static_counters;
                 let e = app.world_mut().query_filtered::<Entity, With<Subject>>().single(app.world()).unwrap();
                 app.world_mut().entity_mut(e).remove::<StaticOccluder>().insert(DynamicOccluder);
                 let b = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
                 // The same mesh skinned (four joints a vertex), voxelized in its pose every frame.
                 make_subject_skinned(&mut app, &loaded.mesh);
                 let mut frames = 0;
-                while support::stats(&app).dynamic_instances == 0 && frames < 60 {
+                while bevy_hao_tools::harness::stats(&app).dynamic_instances == 0 && frames < 60 {
                     app.update();
                     frames += 1;
                 }
                 let c = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
-                let errors = support::take_render_errors();
+                let errors = bevy_hao_tools::harness::take_render_errors();
                 if !errors.is_empty() {
                     eprintln!("error: wgpu errors: {errors:?}");
                     std::process::exit(1);
                 }
-                let grid = support::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
+                let grid = bevy_hao_tools::harness::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
                 let name = &loaded.name;
                 let tris = loaded.mesh.triangle_count();
                 let points = counters.sub_triangles as u64;
