@@ -425,12 +425,7 @@ fn view_samples(app: &mut App) -> (u32, u32, Vec<Option<(Vec3, Vec3)>>) {
             let ndc =
                 Vec3::new((x as f32 + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / h as f32 * 2.0, depth[i]);
             let n = &normal_bytes[i * 8..i * 8 + 6];
-            let normal = Vec3::new(
-                bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([n[0], n[1]])),
-                bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([n[2], n[3]])),
-                bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([n[4], n[5]])),
-            )
-            .normalize();
+            let normal = Vec3::new(f16_at(n, 0), f16_at(n, 2), f16_at(n, 4)).normalize();
             samples.push(Some((world_from_clip.project_point3(ndc), normal)));
         }
     }
@@ -846,7 +841,7 @@ fn room_error(parts: Vec<bevy_hao::cpu::TriangleMesh>, volume: VoxelVolume) -> f
         let (x, y) = ((i as u32 % w) as f32, (i as u32 / w) as f32);
         let ndc = Vec3::new((x + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y + 0.5) / h as f32 * 2.0, depth[i]);
         let c = &normal_bytes[i * 8..i * 8 + 6];
-        let f = |k: usize| bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([c[k], c[k + 1]]));
+        let f = |k: usize| f16_at(c, k);
         let normal = Vec3::new(f(0), f(2), f(4)).normalize();
         let rotation = Vec2::new((i as f32 * 0.618_034).fract(), (i as f32 * 0.414_213_5).fract());
         let r = reference_ao(

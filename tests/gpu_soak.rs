@@ -96,7 +96,7 @@ fn move_camera(app: &mut App, frame: usize) {
 /// Every ten frames: despawns the transient occluders and spawns new ones, each with a mesh made for it
 /// (alternately static and dynamic, so that static rebuilds come and go too).
 fn cycle_transients(app: &mut App, frame: usize) {
-    if frame % 10 != 0 {
+    if !frame.is_multiple_of(10) {
         return;
     }
     let world = app.world_mut();
@@ -110,7 +110,7 @@ fn cycle_transients(app: &mut App, frame: usize) {
         let mesh = builtin::torus(0.6 + 0.05 * (cycle % 5) as f32, 0.2, 16 + (cycle % 3) as u32 * 4, 8);
         let handle = world.resource_mut::<Assets<Mesh>>().add(bevy_mesh(&mesh, Layout::U32));
         let mut e = world.spawn((Mesh3d(handle), Transform::from_xyz(x, 0.8, -3.0), Transient));
-        if (cycle + k) % 2 == 0 {
+        if (cycle + k).is_multiple_of(2) {
             e.insert(StaticOccluder);
         } else {
             e.insert(DynamicOccluder);

@@ -130,7 +130,7 @@ pub fn prepare_hao_textures(
         // it is used every frame; a new one is zeroed, which reads as no history).
         let a = texture(&mut texture_cache, "hao_history_a_texture", trace_size, TextureFormat::Rgba32Float);
         let b = texture(&mut texture_cache, "hao_history_b_texture", trace_size, TextureFormat::Rgba32Float);
-        let (history, history_out) = if *frame % 2 == 0 { (a, b) } else { (b, a) };
+        let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
         let settings = GpuHaoSettings {
             rays,

@@ -471,7 +471,7 @@ pub fn sub_triangle_corners(range: &LatticeRange, sub: SubTriangle) -> [UVec2; 3
     if sub.piece == 0 {
         return [l(0), l(1), r(1)];
     }
-    let k = (sub.piece + 1) / 2;
+    let k = sub.piece.div_ceil(2);
     match (sub.piece % 2 == 1, range.diagonal == 0) {
         (true, true) => [l(k), r(k), r(k + 1)],
         (false, true) => [l(k), r(k + 1), l(k + 1)],

@@ -371,7 +371,7 @@ pub(crate) fn update_voxel_volume(
     let level_words = grid.occupancy_word_count() as u64;
     let words_bytes = level_words * 4 * levels as u64;
     let counts_bytes = grid.voxel_count() * 4 * levels as u64;
-    let binding_limit = (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size);
+    let binding_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     let refusal = if texture_size.max_element().max(texture_size.z * levels) > limits.max_texture_dimension_3d {
         Some(format!(
             "{levels} voxel grid level(s) of {}x{}x{} exceed the device's Limits::max_texture_dimension_3d ({})",

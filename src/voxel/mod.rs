@@ -98,7 +98,7 @@ impl Plugin for VoxelizationPlugin {
         }
         // Read mesh data where Bevy keeps it: the allocator's slabs must be bindable as storage, and no slab
         // may exceed what one binding can address.
-        let max_binding = limits.max_storage_buffer_binding_size as u64;
+        let max_binding = limits.max_storage_buffer_binding_size;
         {
             let mut settings = render_app.world_mut().resource_mut::<MeshAllocatorSettings>();
             settings.extra_buffer_usages |= BufferUsages::STORAGE;

@@ -290,6 +290,7 @@ struct ResolvedInstance {
     ranges: [u32; 4],
 }
 
+#[allow(clippy::large_enum_variant, reason = "one per instance per frame, matched at once")]
 enum Resolution {
     Ready(ResolvedInstance),
     /// Not uploaded yet: try again next frame.
@@ -365,7 +366,7 @@ fn joint_attributes(mesh: &RenderMesh) -> Option<(u32, u32)> {
     let find = |id, format| {
         let i = mesh.layout.0.attribute_ids().iter().position(|a| *a == id)?;
         let a = layout.attributes[i];
-        (a.format == format && a.offset % 4 == 0).then_some((a.offset / 4) as u32)
+        (a.format == format && a.offset.is_multiple_of(4)).then_some((a.offset / 4) as u32)
     };
     Some((
         find(Mesh::ATTRIBUTE_JOINT_INDEX.id, VertexFormat::Uint16x4)?,
@@ -924,7 +925,7 @@ pub fn prepare_voxelize(
     // triangle of the largest pass.
     let largest = pending.iter().map(|p| p.instances.iter().map(|r| r.gpu.triangle_count as u64).sum::<u64>()).max();
     let largest = largest.unwrap_or(0);
-    let limit = (device.limits().max_storage_buffer_binding_size as u64 / BIG_TRIANGLE_BYTES).max(1);
+    let limit = (device.limits().max_storage_buffer_binding_size / BIG_TRIANGLE_BYTES).max(1);
     let need = largest.clamp(1, limit);
     if largest > limit && !state.warned_capacity {
         warn!(

@@ -147,7 +147,7 @@ fn read_back(app: &mut App, readback: Readback, settle: usize) -> Vec<u8> {
     data.expect("no readback arrived within 20 frames")
 }
 
-/// Reads a buffer back (see [`read_back`]).
+/// Reads a buffer back (see `read_back`).
 pub fn read_buffer(app: &mut App, buffer: Handle<ShaderBuffer>, settle: usize) -> Vec<u8> {
     read_back(app, Readback::buffer(buffer), settle)
 }
@@ -316,7 +316,8 @@ pub fn read_image_f32(app: &mut App, image: Handle<Image>, settle: usize) -> (u3
 pub fn save_screenshot(app: &mut App, target: Handle<Image>, out: &str) -> Result<(), String> {
     use bevy::render::view::screenshot::{Screenshot, save_to_disk};
     let _ = std::fs::remove_file(out);
-    app.world_mut().spawn(Screenshot::image(target)).observe(save_to_disk(out.to_string()));
+    let path = out.to_string();
+    app.world_mut().spawn(Screenshot::image(target)).observe(save_to_disk(path));
     for _ in 0..20 {
         app.update();
         if std::path::Path::new(out).exists() {
@@ -341,16 +342,9 @@ pub fn target_image(images: &mut Assets<Image>, size: UVec2) -> Handle<Image> {
     images.add(image)
 }
 
-/// An `f16` (as its bits) to `f32`.
-pub fn f16_to_f32(bits: u16) -> f32 {
-    let sign = if bits >> 15 == 1 { -1.0 } else { 1.0 };
-    let exp = ((bits >> 10) & 0x1f) as i32;
-    let frac = (bits & 0x3ff) as f32;
-    match exp {
-        0 => sign * frac * 2f32.powi(-24),
-        31 => f32::NAN,
-        _ => sign * (1.0 + frac / 1024.0) * 2f32.powi(exp - 15),
-    }
+/// The `f16` at `bytes[at..at + 2]` (little-endian, as a half-float texture reads back) as `f32`.
+pub fn f16_at(bytes: &[u8], at: usize) -> f32 {
+    half::f16::from_le_bytes([bytes[at], bytes[at + 1]]).to_f32()
 }
 
 /// Command-line values shared by the examples.

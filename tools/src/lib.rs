@@ -5,7 +5,7 @@
 //!   [`bevy_hao::cpu::TriangleMesh`]es.
 //! * [`ground_truth`]: the exact conservative voxelization the voxelizer is measured against;
 //!   [`metrics`]: bias, excess voxels and the six-direction watertight test; [`binvox`]: export and import.
-//! * [`reference`]: the ray-traced AO reference (rays against the real triangles through a BVH).
+//! * [`mod@reference`]: the ray-traced AO reference (rays against the real triangles through a BVH).
 //! * [`harness`]: headless Bevy apps on Vulkan for the tools and the GPU tests (readback, GPU timings);
 //!   [`scene`]: scenes spawned from the meshes.
 //!

@@ -315,7 +315,7 @@ fn gltf_file(nodes: &str, roots: &str, count: &str, extra_accessor: &str) -> Vec
 fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
     let pad = |v: &[u8], with: u8| {
         let mut v = v.to_vec();
-        while v.len() % 4 != 0 {
+        while !v.len().is_multiple_of(4) {
             v.push(with);
         }
         v

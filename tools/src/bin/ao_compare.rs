@@ -322,7 +322,7 @@ fn main() {
     let normals: Vec<Vec3> = normal_bytes
         .chunks_exact(8)
         .map(|c| {
-            let f = |i: usize| bevy_hao_tools::harness::f16_to_f32(u16::from_le_bytes([c[i], c[i + 1]]));
+            let f = |i: usize| bevy_hao_tools::harness::f16_at(c, i);
             Vec3::new(f(0), f(2), f(4)).normalize_or_zero()
         })
         .collect();

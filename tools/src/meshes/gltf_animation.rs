@@ -126,7 +126,7 @@ impl Keyframe for f32 {
 /// tangents, values and out tangents of all targets), each target interpolated on its own.
 fn sample_weights(inputs: &[f32], outputs: &[f32], interpolation: Interpolation, t: f32) -> Option<Vec<f32>> {
     let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
-    if inputs.is_empty() || outputs.len() % (inputs.len() * per_key) != 0 {
+    if inputs.is_empty() || !outputs.len().is_multiple_of(inputs.len() * per_key) {
         return None;
     }
     let targets = outputs.len() / (inputs.len() * per_key);
