@@ -26,7 +26,9 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_hao::prelude::*;
+use bevy_hao_tools::harness::args::View;
 use bevy_hao_tools::scene::{SceneSource, spawn_scene, sun};
+use clap::Parser;
 
 #[derive(Component)]
 struct Orbit {
@@ -284,55 +286,43 @@ fn crates(
     }
 }
 
+/// Moving geometry and an animated character with hybrid ambient occlusion.
+#[derive(Parser)]
+struct Cli {
+    /// What the view shows.
+    #[arg(long, value_enum, default_value_t = View::Final)]
+    view: View,
+    /// A glTF or GLB character to walk around instead of the built-in walker.
+    #[arg(long)]
+    character: Option<std::path::PathBuf>,
+    /// The character's animation clip, by name or index.
+    #[arg(long, default_value = "0", requires = "character")]
+    clip: String,
+    /// The character's scale.
+    #[arg(long, default_value_t = 1.0, requires = "character", value_parser = positive)]
+    character_scale: f32,
+    /// Render off screen (needs --screenshot).
+    #[arg(long, requires = "screenshot")]
+    headless: bool,
+    /// Frames before the screenshot.
+    #[arg(long, default_value_t = 90)]
+    frames: usize,
+    /// Write a screenshot to this PNG and exit.
+    #[arg(long)]
+    screenshot: Option<String>,
+    /// Image size when headless, WIDTHxHEIGHT.
+    #[arg(long, default_value = "960x540", value_parser = bevy_hao_tools::harness::args::size)]
+    size: UVec2,
+}
+
+fn positive(s: &str) -> Result<f32, String> {
+    s.parse::<f32>().ok().filter(|v| *v > 0.0 && v.is_finite()).ok_or_else(|| format!("{s} is not a positive number"))
+}
+
 fn main() {
-    let mut view = HaoDebugView::Final;
-    let (mut headless, mut frames, mut screenshot, mut size) = (false, 90usize, None, UVec2::new(960, 540));
-    let (mut character_path, mut clip, mut character_scale) = (None, "0".to_string(), 1.0f32);
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--view" => {
-                view = match it.next().as_deref() {
-                    Some("final") => HaoDebugView::Final,
-                    Some("ao") => HaoDebugView::AmbientOcclusion,
-                    Some("voxels") => HaoDebugView::Voxels,
-                    Some("counts") => HaoDebugView::PointCounts,
-                    Some("static-dynamic") => HaoDebugView::StaticDynamic,
-                    Some("cascades") => HaoDebugView::Cascades,
-                    v => {
-                        eprintln!("unknown --view {v:?}");
-                        std::process::exit(2);
-                    }
-                }
-            }
-            "--character" => character_path = it.next().map(std::path::PathBuf::from),
-            "--clip" => clip = it.next().unwrap_or_default(),
-            "--character-scale" => {
-                character_scale =
-                    it.next().and_then(|v| v.parse().ok()).filter(|s: &f32| *s > 0.0 && s.is_finite()).unwrap_or_else(
-                        || {
-                            eprintln!("--character-scale needs a positive number");
-                            std::process::exit(2)
-                        },
-                    )
-            }
-            "--headless" => headless = true,
-            "--frames" => frames = it.next().and_then(|v| v.parse().ok()).expect("--frames N"),
-            "--screenshot" => screenshot = it.next(),
-            "--size" => {
-                size = bevy_hao_tools::harness::args::size(&it.next().unwrap_or_default()).unwrap_or_else(|e| {
-                    eprintln!("{e}");
-                    std::process::exit(2)
-                })
-            }
-            _ => {
-                eprintln!(
-                    "usage: dynamic [--view final|ao|voxels|counts|static-dynamic|cascades] [--character PATH.glb [--clip NAME|INDEX] [--character-scale S]] [--headless --frames 90 --screenshot OUT.png [--size 960x540]]"
-                );
-                std::process::exit(2);
-            }
-        }
-    }
+    let Cli { view, character: character_path, clip, character_scale, headless, frames, screenshot, size } =
+        Cli::parse();
+    let view = HaoDebugView::from(view);
     // A glTF character is loaded from its own folder (Bevy resolves a relative asset root against the
     // executable's folder, so the path is made absolute).
     let character = match character_path {

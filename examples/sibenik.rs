@@ -22,11 +22,44 @@ use bevy::light::GlobalAmbientLight;
 use bevy::prelude::*;
 use bevy::render::view::screenshot::{Screenshot, save_to_disk};
 use bevy_hao::prelude::*;
+use bevy_hao_tools::harness::args::View;
 use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene, sun};
+use clap::Parser;
 
-const USAGE: &str = "usage: sibenik [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--ao hao|ssao|both|off] \
-[--view final|ao|voxels|counts|static-dynamic|cascades] [--res N] [--camera X,Y,Z --look X,Y,Z] \
-[--headless --frames 30 --screenshot OUT.png [--size 960x540]]";
+/// A cathedral with hybrid ambient occlusion, in a window with the inspector or rendered headless.
+#[derive(Parser)]
+struct Cli {
+    /// The scene: builtin:cathedral (or another built-in shape), or the path of an OBJ, glTF or GLB file.
+    #[arg(default_value = "builtin:cathedral")]
+    scene: String,
+    /// The ambient occlusion: HAO, Bevy's SSAO, both (HAO with the near field) or none.
+    #[arg(long, default_value = "hao", value_parser = ["hao", "ssao", "both", "off"])]
+    ao: String,
+    /// What the view shows.
+    #[arg(long, value_enum, default_value_t = View::Final)]
+    view: View,
+    /// One grid fitted to the scene with this many cells on its longest axis, instead of the cascades.
+    #[arg(long)]
+    res: Option<u32>,
+    /// Camera position X,Y,Z (with --look).
+    #[arg(long, value_parser = bevy_hao_tools::harness::args::vec3, requires = "look")]
+    camera: Option<Vec3>,
+    /// The point the camera looks at, X,Y,Z (with --camera).
+    #[arg(long, value_parser = bevy_hao_tools::harness::args::vec3, requires = "camera")]
+    look: Option<Vec3>,
+    /// Render off screen (needs --screenshot).
+    #[arg(long, requires = "screenshot")]
+    headless: bool,
+    /// Frames before the screenshot (30 headless, 120 in a window).
+    #[arg(long)]
+    frames: Option<usize>,
+    /// Write a screenshot to this PNG and exit.
+    #[arg(long)]
+    screenshot: Option<String>,
+    /// Image size when headless, WIDTHxHEIGHT.
+    #[arg(long, default_value = "960x540", value_parser = bevy_hao_tools::harness::args::size)]
+    size: UVec2,
+}
 
 #[derive(Clone)]
 struct Args {
@@ -41,64 +74,19 @@ struct Args {
     size: UVec2,
 }
 
-fn parse_args() -> Result<Args, String> {
-    let mut a = Args {
-        scene: "builtin:cathedral".into(),
-        ao: "hao".into(),
-        view: HaoDebugView::Final,
-        res: None,
-        camera: None,
-        headless: false,
-        frames: 30,
-        screenshot: None,
-        size: UVec2::new(960, 540),
-    };
-    let (mut eye, mut look) = (None, None);
-    let mut it = std::env::args().skip(1);
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
-        match arg.as_str() {
-            "--ao" => {
-                a.ao = value("--ao")?;
-                if !["hao", "ssao", "both", "off"].contains(&a.ao.as_str()) {
-                    return Err(format!("unknown --ao {}", a.ao));
-                }
-            }
-            "--view" => {
-                a.view = match value("--view")?.as_str() {
-                    "final" => HaoDebugView::Final,
-                    "ao" => HaoDebugView::AmbientOcclusion,
-                    "voxels" => HaoDebugView::Voxels,
-                    "counts" => HaoDebugView::PointCounts,
-                    "static-dynamic" => HaoDebugView::StaticDynamic,
-                    "cascades" => HaoDebugView::Cascades,
-                    v => return Err(format!("unknown --view {v}")),
-                }
-            }
-            "--res" => a.res = Some(value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?),
-            "--camera" => eye = Some(bevy_hao_tools::harness::args::vec3(&value("--camera")?)?),
-            "--look" => look = Some(bevy_hao_tools::harness::args::vec3(&value("--look")?)?),
-            "--headless" => a.headless = true,
-            "--frames" => a.frames = value("--frames")?.parse().map_err(|e| format!("bad --frames: {e}"))?,
-            "--screenshot" => a.screenshot = Some(value("--screenshot")?),
-            "--size" => a.size = bevy_hao_tools::harness::args::size(&value("--size")?)?,
-            "-h" | "--help" => return Err(USAGE.into()),
-            s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
-            s => a.scene = s.into(),
-        }
+fn parse_args() -> Args {
+    let c = Cli::parse();
+    Args {
+        frames: c.frames.unwrap_or(if c.headless || c.screenshot.is_none() { 30 } else { 120 }),
+        scene: c.scene,
+        ao: c.ao,
+        view: c.view.into(),
+        res: c.res,
+        camera: c.camera.zip(c.look),
+        headless: c.headless,
+        screenshot: c.screenshot,
+        size: c.size,
     }
-    a.camera = match (eye, look) {
-        (Some(e), Some(l)) => Some((e, l)),
-        (None, None) => None,
-        _ => return Err("--camera and --look go together".into()),
-    };
-    if a.headless && a.screenshot.is_none() {
-        return Err("--headless needs --screenshot OUT.png".into());
-    }
-    if !a.headless && a.screenshot.is_some() && !std::env::args().any(|x| x == "--frames") {
-        a.frames = 120;
-    }
-    Ok(a)
 }
 
 /// The fly camera's state.
@@ -206,13 +194,7 @@ fn fly_camera(
 }
 
 fn main() {
-    let args = match parse_args() {
-        Ok(a) => a,
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(2);
-        }
-    };
+    let args = parse_args();
     let source = SceneSource::parse(&args.scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)

@@ -347,9 +347,40 @@ pub fn f16_at(bytes: &[u8], at: usize) -> f32 {
     half::f16::from_le_bytes([bytes[at], bytes[at + 1]]).to_f32()
 }
 
-/// Command-line values shared by the examples.
+/// Command-line values shared by the tools and the examples (as clap value parsers).
 pub mod args {
     use bevy::math::{UVec2, Vec3};
+    use bevy_hao::HaoDebugView;
+
+    /// What a view shows (`--view`): [`HaoDebugView`]'s choices by their command-line names.
+    #[derive(Clone, Copy, Debug, clap::ValueEnum)]
+    pub enum View {
+        /// The lit image.
+        Final,
+        /// The ambient occlusion.
+        Ao,
+        /// The voxel grid.
+        Voxels,
+        /// Points per voxel as a heat map.
+        Counts,
+        /// Static and dynamic voxels.
+        StaticDynamic,
+        /// Voxels tinted by cascade.
+        Cascades,
+    }
+
+    impl From<View> for HaoDebugView {
+        fn from(v: View) -> Self {
+            match v {
+                View::Final => HaoDebugView::Final,
+                View::Ao => HaoDebugView::AmbientOcclusion,
+                View::Voxels => HaoDebugView::Voxels,
+                View::Counts => HaoDebugView::PointCounts,
+                View::StaticDynamic => HaoDebugView::StaticDynamic,
+                View::Cascades => HaoDebugView::Cascades,
+            }
+        }
+    }
 
     /// `X,Y,Z`.
     pub fn vec3(s: &str) -> Result<Vec3, String> {
@@ -367,10 +398,5 @@ pub mod args {
             w.parse().map_err(|_| format!("bad width {w:?}"))?,
             h.parse().map_err(|_| format!("bad height {h:?}"))?,
         ))
-    }
-
-    /// A comma-separated list of resolutions.
-    pub fn resolutions(s: &str) -> Result<Vec<u32>, String> {
-        s.split(',').map(|r| r.trim().parse::<u32>().map_err(|e| format!("bad resolution {r:?}: {e}"))).collect()
     }
 }

@@ -1,11 +1,7 @@
 //! Hybrid ambient occlusion against Bevy's SSAO and a ray-traced reference, on one view of a scene.
 //!
 //! ```text
-//! cargo run --release -p bevy_hao_tools --bin ao_compare -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
-//!     [--size 320x180] [--rays 256] [--res 128] [--max-distance 3] [--start-offset CELLS] [--quality medium]
-//!     [--camera X,Y,Z --look X,Y,Z] [--outside] [--volume cascades|fit] [--cascades 4,128,0.125] [--world]
-//!     [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--hao-steps N]
-//!     [--hao-resolution full|half] [--denoise RADIUS] [--out ao_compare.png]
+//! cargo run --release -p bevy_hao_tools --bin ao_compare -- [SCENE] [OPTIONS]   (--help lists them)
 //! ```
 //!
 //! HAO accumulates its AO over frames (`--accumulation`, `HybridAmbientOcclusion::accumulation_frames`, 16
@@ -31,135 +27,118 @@
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
+use bevy_hao::cpu::SubdivisionPattern;
 use bevy_hao::prelude::*;
+use bevy_hao_tools::harness::args;
 use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
 use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene};
+use clap::{Parser, ValueEnum};
 
+/// Hybrid ambient occlusion against Bevy's SSAO and a ray-traced reference, on one view of a scene.
+#[derive(Parser)]
+#[command(version)]
 struct Args {
+    /// The scene: builtin:cathedral (or another built-in shape), or the path of an OBJ, glTF or GLB file.
+    #[arg(default_value = "builtin:cathedral")]
     scene: String,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "320x180", value_parser = args::size)]
     size: UVec2,
+    /// Rays per pixel of the ray-traced reference.
+    #[arg(long, default_value_t = 256)]
     rays: u32,
+    /// Cells on the longest axis of the fitted grid (--volume fit).
+    #[arg(long, default_value_t = 128)]
     res: u32,
+    /// How far rays look for occluders, world units (HAO and the reference).
+    #[arg(long, default_value_t = 3.0)]
     max_distance: f32,
+    /// HAO's start offset, voxels (HybridAmbientOcclusion::start_offset).
+    #[arg(long, default_value_t = HybridAmbientOcclusion::default().start_offset)]
     start_offset: f32,
-    quality: HaoQuality,
-    camera: Option<(Vec3, Vec3)>,
+    /// HAO's quality preset.
+    #[arg(long, value_enum, default_value_t = Quality::Medium)]
+    quality: Quality,
+    /// Camera position X,Y,Z (with --look; default: inside, down the long axis).
+    #[arg(long, value_parser = args::vec3, requires = "look")]
+    camera: Option<Vec3>,
+    /// The point the camera looks at, X,Y,Z (with --camera).
+    #[arg(long, value_parser = args::vec3, requires = "camera")]
+    look: Option<Vec3>,
+    /// The default camera outside the scene rather than inside.
+    #[arg(long)]
     outside: bool,
-    fit: bool,
+    /// The voxel volume: the plugin's default cascades, or one grid fitted to the static scene.
+    #[arg(long, value_enum, default_value_t = Volume::Cascades)]
+    volume: Volume,
+    /// The cascades' shape: LEVELS,CELLS,FINEST_CELL_SIZE.
+    #[arg(long, value_parser = cascades)]
     cascades: Option<(u32, u32, f32)>,
+    /// Put the scene inside a generated level 1 km across, which the reference traces too.
+    #[arg(long)]
     world: bool,
-    subdivision: VoxelSubdivision,
+    /// The subdivision pattern: strips or uniform.
+    #[arg(long, default_value = "strips")]
+    pattern: SubdivisionPattern,
+    /// Frames HAO accumulates (HybridAmbientOcclusion::accumulation_frames; 1 for none).
+    #[arg(long, default_value_t = HybridAmbientOcclusion::default().accumulation_frames)]
     accumulation: u32,
+    /// Rays a frame instead of the quality's.
+    #[arg(long)]
     hao_rays: Option<u32>,
+    /// Steps a ray instead of the quality's.
+    #[arg(long)]
     hao_steps: Option<u32>,
-    hao_half: Option<bool>,
+    /// Trace at this resolution instead of the quality's.
+    #[arg(long, value_enum)]
+    hao_resolution: Option<Resolution>,
+    /// The denoiser's radius (HybridAmbientOcclusion::denoise_radius).
+    #[arg(long)]
     denoise: Option<u32>,
+    /// The PNG written: HAO, HAO + near field, SSAO and the reference side by side.
+    #[arg(long, default_value = "ao_compare.png")]
     out: String,
 }
 
-const USAGE: &str = "usage: ao_compare [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb] [--size 320x180] [--rays 256] \
-[--res 128] [--max-distance 3] [--start-offset CELLS] [--quality low|medium|high|ultra] [--camera X,Y,Z --look X,Y,Z] [--outside] \
-[--volume cascades|fit] [--cascades LEVELS,CELLS,FINEST_CELL_SIZE] [--world] [--pattern strips|uniform] [--accumulation FRAMES] [--hao-rays N] [--hao-steps N] [--hao-resolution full|half] [--denoise RADIUS] [--out ao_compare.png]";
+#[derive(Clone, Copy, ValueEnum)]
+enum Quality {
+    Low,
+    Medium,
+    High,
+    Ultra,
+}
 
-fn parse_args() -> Result<Args, String> {
-    let mut a = Args {
-        scene: "builtin:cathedral".into(),
-        size: UVec2::new(320, 180),
-        rays: 256,
-        res: 128,
-        max_distance: 3.0,
-        start_offset: HybridAmbientOcclusion::default().start_offset,
-        quality: HaoQuality::Medium,
-        camera: None,
-        outside: false,
-        fit: false,
-        cascades: None,
-        world: false,
-        subdivision: VoxelSubdivision::Strips,
-        accumulation: HybridAmbientOcclusion::default().accumulation_frames,
-        hao_rays: None,
-        hao_steps: None,
-        hao_half: None,
-        denoise: None,
-        out: "ao_compare.png".into(),
-    };
-    let (mut eye, mut look) = (None, None);
-    let mut it = std::env::args().skip(1);
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
-        match arg.as_str() {
-            "--size" => a.size = bevy_hao_tools::harness::args::size(&value("--size")?)?,
-            "--rays" => a.rays = value("--rays")?.parse().map_err(|e| format!("bad --rays: {e}"))?,
-            "--res" => a.res = value("--res")?.parse().map_err(|e| format!("bad --res: {e}"))?,
-            "--max-distance" => {
-                a.max_distance = value("--max-distance")?.parse().map_err(|e| format!("bad --max-distance: {e}"))?
-            }
-            "--start-offset" => {
-                a.start_offset = value("--start-offset")?.parse().map_err(|e| format!("bad --start-offset: {e}"))?
-            }
-            "--quality" => {
-                a.quality = match value("--quality")?.as_str() {
-                    "low" => HaoQuality::Low,
-                    "medium" => HaoQuality::Medium,
-                    "high" => HaoQuality::High,
-                    "ultra" => HaoQuality::Ultra,
-                    q => return Err(format!("unknown quality {q}")),
-                }
-            }
-            "--camera" => eye = Some(bevy_hao_tools::harness::args::vec3(&value("--camera")?)?),
-            "--look" => look = Some(bevy_hao_tools::harness::args::vec3(&value("--look")?)?),
-            "--outside" => a.outside = true,
-            "--world" => a.world = true,
-            "--cascades" => {
-                let v = value("--cascades")?;
-                let p: Vec<&str> = v.split(',').collect();
-                let bad = || format!("bad --cascades {v} (expected LEVELS,CELLS,FINEST_CELL_SIZE)");
-                if p.len() != 3 {
-                    return Err(bad());
-                }
-                a.cascades = Some((
-                    p[0].parse().map_err(|_| bad())?,
-                    p[1].parse().map_err(|_| bad())?,
-                    p[2].parse().map_err(|_| bad())?,
-                ));
-            }
-            "--volume" => {
-                a.fit = match value("--volume")?.as_str() {
-                    "cascades" => false,
-                    "fit" => true,
-                    v => return Err(format!("unknown volume {v} (cascades or fit)")),
-                }
-            }
-            "--pattern" => a.subdivision = value("--pattern")?.parse::<bevy_hao::cpu::SubdivisionPattern>()?.into(),
-            "--accumulation" => {
-                a.accumulation = value("--accumulation")?.parse().map_err(|e| format!("bad --accumulation: {e}"))?
-            }
-            "--hao-rays" => {
-                a.hao_rays = Some(value("--hao-rays")?.parse().map_err(|e| format!("bad --hao-rays: {e}"))?)
-            }
-            "--hao-steps" => {
-                a.hao_steps = Some(value("--hao-steps")?.parse().map_err(|e| format!("bad --hao-steps: {e}"))?)
-            }
-            "--hao-resolution" => {
-                a.hao_half = Some(match value("--hao-resolution")?.as_str() {
-                    "full" => false,
-                    "half" => true,
-                    r => return Err(format!("bad --hao-resolution {r} (expected full or half)")),
-                })
-            }
-            "--denoise" => a.denoise = Some(value("--denoise")?.parse().map_err(|e| format!("bad --denoise: {e}"))?),
-            "--out" => a.out = value("--out")?,
-            "-h" | "--help" => return Err(USAGE.into()),
-            s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
-            s => a.scene = s.into(),
+impl From<Quality> for HaoQuality {
+    fn from(q: Quality) -> Self {
+        match q {
+            Quality::Low => HaoQuality::Low,
+            Quality::Medium => HaoQuality::Medium,
+            Quality::High => HaoQuality::High,
+            Quality::Ultra => HaoQuality::Ultra,
         }
     }
-    a.camera = match (eye, look) {
-        (Some(e), Some(l)) => Some((e, l)),
-        (None, None) => None,
-        _ => return Err("--camera and --look go together".into()),
-    };
-    Ok(a)
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum Volume {
+    Cascades,
+    Fit,
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum Resolution {
+    Full,
+    Half,
+}
+
+/// `LEVELS,CELLS,FINEST_CELL_SIZE`.
+fn cascades(v: &str) -> Result<(u32, u32, f32), String> {
+    let bad = || format!("expected LEVELS,CELLS,FINEST_CELL_SIZE, got {v}");
+    let p: Vec<&str> = v.split(',').collect();
+    if p.len() != 3 {
+        return Err(bad());
+    }
+    Ok((p[0].parse().map_err(|_| bad())?, p[1].parse().map_err(|_| bad())?, p[2].parse().map_err(|_| bad())?))
 }
 
 #[derive(Component)]
@@ -171,13 +150,7 @@ struct Outputs(Vec<HaoDebugImages>);
 const NAMES: [&str; 3] = ["HAO", "HAO + near field", "Bevy SSAO"];
 
 fn main() {
-    let args = match parse_args() {
-        Ok(a) => a,
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(2);
-        }
-    };
+    let args = Args::parse();
     let source = SceneSource::parse(&args.scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)
@@ -191,7 +164,7 @@ fn main() {
     for p in &world_parts {
         triangles.append(p, Default::default());
     }
-    let camera = match args.camera {
+    let camera = match args.camera.zip(args.look) {
         Some((eye, look)) => Transform::from_translation(eye).looking_at(look, Vec3::Y),
         None => default_camera(bounds, !args.outside),
     };
@@ -203,15 +176,18 @@ fn main() {
         camera.forward().as_vec3()
     );
     bevy_hao_tools::harness::set_asset_root(source.asset_root());
-    let quality = if args.hao_rays.is_some() || args.hao_steps.is_some() || args.hao_half.is_some() {
-        let (rays, steps, half) = args.quality.parameters_accumulated(args.accumulation);
+    let preset = HaoQuality::from(args.quality);
+    let quality = if args.hao_rays.is_some() || args.hao_steps.is_some() || args.hao_resolution.is_some() {
+        let (rays, steps, half) =
+            HybridAmbientOcclusion { quality: preset, accumulation_frames: args.accumulation, ..default() }
+                .trace_parameters();
         HaoQuality::Custom {
             rays: args.hao_rays.unwrap_or(rays),
             steps: args.hao_steps.unwrap_or(steps),
-            half_resolution: args.hao_half.unwrap_or(half),
+            half_resolution: args.hao_resolution.map_or(half, |r| r == Resolution::Half),
         }
     } else {
-        args.quality
+        preset
     };
     let hao = HybridAmbientOcclusion {
         quality,
@@ -226,9 +202,9 @@ fn main() {
     let (size, res) = (args.size, args.res);
     let setup_source = source.clone();
     let setup_hao = hao.clone();
-    let fit = args.fit;
+    let fit = args.volume == Volume::Fit;
     let cascades = args.cascades;
-    let subdivision = args.subdivision;
+    let subdivision = VoxelSubdivision::from(args.pattern);
     let mut app = bevy_hao_tools::harness::headless_app(move |app| {
         let source = setup_source.clone();
         let hao = setup_hao.clone();
@@ -403,7 +379,7 @@ fn main() {
         pixels.len(),
         offscreen.len()
     );
-    let volume = if args.fit {
+    let volume = if fit {
         format!("one grid fitted to the static scene, {} cells on its longest axis", args.res)
     } else if let Some((n, cells, size)) = args.cascades {
         format!("{n} cascades of {cells}^3 following the camera, finest cell {size}")

@@ -2,8 +2,7 @@
 //! same frames.
 //!
 //! ```text
-//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
-//!     [--size 1280x720] [--frames 20] [--res 128]
+//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--res 128]
 //! ```
 //!
 //! One headless camera renders the scene in two kinds of phase of one run, each measured over `--frames`
@@ -25,31 +24,32 @@ use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::prelude::*;
 use bevy_hao::prelude::*;
 use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene};
+use clap::Parser;
 
 #[derive(Component)]
 struct BenchCamera;
 
+/// GPU cost of the hybrid ambient occlusion passes beside Bevy's SSAO pass, at the same resolution, in the
+/// same frames.
+#[derive(Parser)]
+#[command(version)]
+struct Args {
+    /// The scene: builtin:cathedral (or another built-in shape), or the path of an OBJ, glTF or GLB file.
+    #[arg(default_value = "builtin:cathedral")]
+    scene: String,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720", value_parser = bevy_hao_tools::harness::args::size)]
+    size: UVec2,
+    /// Frames measured per phase (medians are printed).
+    #[arg(long, default_value_t = 20)]
+    frames: usize,
+    /// Cells on the longest axis of the voxel volume's levels.
+    #[arg(long, default_value_t = 128)]
+    res: u32,
+}
+
 fn main() {
-    let mut scene = "builtin:cathedral".to_string();
-    let (mut size, mut frames, mut res) = (UVec2::new(1280, 720), 20usize, 128u32);
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--size" => {
-                size = bevy_hao_tools::harness::args::size(&it.next().unwrap_or_default()).unwrap_or_else(|e| {
-                    eprintln!("{e}");
-                    std::process::exit(2)
-                })
-            }
-            "--frames" => frames = it.next().and_then(|v| v.parse().ok()).expect("--frames N"),
-            "--res" => res = it.next().and_then(|v| v.parse().ok()).expect("--res N"),
-            s if s.starts_with("--") => {
-                eprintln!("usage: bench_ao [SCENE] [--size 1280x720] [--frames 20] [--res 128]");
-                std::process::exit(2);
-            }
-            s => scene = s.to_string(),
-        }
-    }
+    let Args { scene, size, frames, res } = Args::parse();
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)

@@ -2,7 +2,7 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_voxelize -- <PATH or builtin:NAME>... [--res 128,256,512]
-//!     [--frames 30] [--size 1280x720] [--mode centroid|conservative] [--pattern strips,uniform]
+//!     [--frames 30] [--size 1280x720] [--mode centroid|conservative] [--pattern strips,uniform] [--cascades]
 //! ```
 //!
 //! For each mesh and resolution, a headless app (Mesa's lavapipe on a machine without a GPU) shows the mesh
@@ -38,9 +38,40 @@ use bevy_hao::RebuildStaticVoxels;
 use bevy_hao::cpu::TriangleMesh;
 use bevy_hao::prelude::*;
 use bevy_hao_tools::meshes::load_mesh;
+use clap::{Parser, ValueEnum};
 
-const USAGE: &str = "usage: bench_voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--frames 30] [--size 1280x720] \
-[--mode centroid|conservative] [--pattern strips,uniform] [--cascades]";
+/// GPU cost of voxelization, beside the cost of drawing the same scene's depth once.
+#[derive(Parser)]
+#[command(version)]
+struct Cli {
+    /// Meshes: paths of OBJ, glTF or GLB files, or builtin:NAME.
+    #[arg(required = true)]
+    inputs: Vec<String>,
+    /// Grid resolutions (cells on the longest axis), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [128, 256])]
+    res: Vec<u32>,
+    /// Frames measured per phase.
+    #[arg(long, default_value_t = 30)]
+    frames: usize,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720", value_parser = bevy_hao_tools::harness::args::size)]
+    size: UVec2,
+    /// Injection mode.
+    #[arg(long, value_enum, default_value_t = Mode::Centroid)]
+    mode: Mode,
+    /// Subdivision patterns, comma-separated: each is measured in turn.
+    #[arg(long, value_delimiter = ',', default_value = "strips")]
+    pattern: Vec<bevy_hao::cpu::SubdivisionPattern>,
+    /// Also measure the default cascades with a moving camera (walking, running, teleporting).
+    #[arg(long)]
+    cascades: bool,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum Mode {
+    Centroid,
+    Conservative,
+}
 
 struct Args {
     inputs: Vec<String>,
@@ -52,48 +83,20 @@ struct Args {
     cascades: bool,
 }
 
-fn parse_args() -> Result<Args, String> {
-    let mut a = Args {
-        inputs: Vec::new(),
-        resolutions: vec![128, 256],
-        frames: 30,
-        size: UVec2::new(1280, 720),
-        injection: VoxelInjection::Centroid,
-        patterns: vec![VoxelSubdivision::Strips],
-        cascades: false,
-    };
-    let mut it = std::env::args().skip(1);
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
-        match arg.as_str() {
-            "--res" => a.resolutions = bevy_hao_tools::harness::args::resolutions(&value("--res")?)?,
-            "--frames" => {
-                a.frames = value("--frames")?.parse::<usize>().map_err(|e| format!("bad --frames: {e}"))?.max(1)
-            }
-            "--size" => a.size = bevy_hao_tools::harness::args::size(&value("--size")?)?,
-            "--mode" => {
-                a.injection = match value("--mode")?.as_str() {
-                    "centroid" => VoxelInjection::Centroid,
-                    "conservative" => VoxelInjection::Conservative,
-                    m => return Err(format!("unknown mode {m}")),
-                }
-            }
-            "--pattern" => {
-                a.patterns = value("--pattern")?
-                    .split(',')
-                    .map(|p| p.parse::<bevy_hao::cpu::SubdivisionPattern>().map(VoxelSubdivision::from))
-                    .collect::<Result<_, _>>()?
-            }
-            "--cascades" => a.cascades = true,
-            "-h" | "--help" => return Err(USAGE.into()),
-            s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
-            s => a.inputs.push(s.to_string()),
-        }
+fn parse_args() -> Args {
+    let cli = Cli::parse();
+    Args {
+        inputs: cli.inputs,
+        resolutions: cli.res,
+        frames: cli.frames.max(1),
+        size: cli.size,
+        injection: match cli.mode {
+            Mode::Centroid => VoxelInjection::Centroid,
+            Mode::Conservative => VoxelInjection::Conservative,
+        },
+        patterns: cli.pattern.into_iter().map(VoxelSubdivision::from).collect(),
+        cascades: cli.cascades,
     }
-    if a.inputs.is_empty() {
-        return Err(USAGE.into());
-    }
-    Ok(a)
 }
 
 #[derive(Component)]
@@ -268,13 +271,7 @@ fn measure(app: &mut App, frames: usize, rebuild: bool, spans: &[&str]) -> Vec<O
 }
 
 fn main() {
-    let args = match parse_args() {
-        Ok(a) => a,
-        Err(e) => {
-            eprintln!("{e}");
-            std::process::exit(2);
-        }
-    };
+    let args = parse_args();
     let mut adapter = String::new();
     let mut rows = Vec::new();
     let mut cascade_rows: Vec<String> = Vec::new();

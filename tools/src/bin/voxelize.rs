@@ -2,10 +2,10 @@
 //! the spirit of Figure 10 of Fei et al. 2012, and binvox export.
 //!
 //! ```text
-//! cargo run --release -p bevy_hao_tools --bin voxelize -- <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0]
-//!     [--mode centroid|conservative] [--pattern strips,uniform] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N]
-//!     [--gpu] [--max-memory-mb 4096] [--point-budget 268435456]
-//!     [--animation NAME|INDEX --time SECONDS] [--list-animations]
+//! cargo run --release -p bevy_hao_tools --bin voxelize -- <PATH or builtin:NAME>... [--res 128,256,512]
+//!     [--gamma 1.0] [--mode centroid|conservative] [--pattern strips,uniform] [--target-bias PCT]
+//!     [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu] [--max-memory-mb 4096]
+//!     [--point-budget 268435456] [--animation NAME|INDEX --time SECONDS] [--list-animations]   (--help)
 //! ```
 //!
 //! For each mesh and resolution the grid is fitted to the mesh's bounds with the longest axis at the
@@ -45,6 +45,7 @@ use bevy_hao::prelude::*;
 use bevy_hao::{RebuildStaticVoxels, VoxelizeCounters};
 use bevy_hao_tools::meshes::load_mesh;
 use bevy_hao_tools::{compare, graze_split, ground_truth_mesh, ground_truth_mesh_with_cuts, watertight, write_binvox};
+use clap::Parser;
 use std::time::Instant;
 
 struct Args {
@@ -65,78 +66,90 @@ struct Args {
     list_animations: bool,
 }
 
-const USAGE: &str = "usage: voxelize <PATH or builtin:NAME>... [--res 128,256,512] [--gamma 1.0] \
-[--mode centroid|conservative] [--pattern strips,uniform] [--target-bias PCT] [--export OUT.binvox] [--gamma-sweep] [--runs N] [--gpu] \
-[--max-memory-mb 4096] [--point-budget 268435456] [--animation NAME|INDEX --time SECONDS] [--list-animations]";
+/// The command line; [`parse_args`] checks it into [`Args`].
+#[derive(Parser)]
+#[command(
+    version,
+    about = "Point-tessellated voxelization of meshes on the CPU (or the GPU), against an exact conservative ground truth"
+)]
+struct Cli {
+    /// Meshes: paths of OBJ, glTF or GLB files, or builtin:NAME.
+    #[arg(required = true)]
+    inputs: Vec<String>,
+    /// Grid resolutions (cells on the longest axis, 1..=2048), comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = [128])]
+    res: Vec<u32>,
+    /// Sub-triangle size factor: pieces are at most 1/gamma cell per axis.
+    #[arg(long, default_value_t = 1.0)]
+    gamma: f32,
+    /// Injection mode: centroid (the paper's) or conservative.
+    #[arg(long, default_value = "centroid")]
+    mode: InjectionMode,
+    /// Subdivision patterns, comma-separated: each runs in turn, rows side by side.
+    #[arg(long, value_delimiter = ',', default_value = "strips")]
+    pattern: Vec<SubdivisionPattern>,
+    /// Choose gamma for this centroid bias, a percentage in (0, 100) (equation 3).
+    #[arg(long)]
+    target_bias: Option<f64>,
+    /// Write the grid to this binvox file (one mesh and resolution at a time).
+    #[arg(long)]
+    export: Option<String>,
+    /// Bias and points over a sweep of gamma.
+    #[arg(long)]
+    gamma_sweep: bool,
+    /// Timed runs per measurement (the median is printed).
+    #[arg(long, default_value_t = 5)]
+    runs: usize,
+    /// Voxelize on the GPU too (a headless Bevy app) and compare voxel for voxel.
+    #[arg(long)]
+    gpu: bool,
+    /// Refuse a run whose grids would take more memory than this, MiB.
+    #[arg(long, default_value_t = 4096)]
+    max_memory_mb: u64,
+    /// Refuse a run with more points than this.
+    #[arg(long, default_value_t = 1 << 28)]
+    point_budget: u64,
+    /// Pose a glTF by this animation clip (name or index) before voxelizing.
+    #[arg(long)]
+    animation: Option<String>,
+    /// The time in the clip, seconds.
+    #[arg(long, default_value_t = 0.0, requires = "animation")]
+    time: f32,
+    /// List the glTF's animation clips and exit.
+    #[arg(long)]
+    list_animations: bool,
+}
 
 fn parse_args() -> Result<Args, String> {
+    let c = Cli::parse();
     let mut a = Args {
-        inputs: Vec::new(),
-        resolutions: vec![128],
-        gamma: 1.0,
-        mode: InjectionMode::Centroid,
-        patterns: vec![SubdivisionPattern::Strips],
+        inputs: c.inputs,
+        resolutions: c.res,
+        gamma: c.gamma,
+        mode: c.mode,
+        patterns: c.pattern,
         target_bias: None,
-        export: None,
-        gamma_sweep: false,
-        max_memory_mb: 4096,
-        point_budget: 1 << 28,
-        runs: 5,
-        gpu: false,
-        animation: None,
-        time: 0.0,
-        list_animations: false,
+        export: c.export,
+        gamma_sweep: c.gamma_sweep,
+        max_memory_mb: c.max_memory_mb,
+        point_budget: c.point_budget,
+        runs: c.runs.max(1),
+        gpu: c.gpu,
+        animation: c.animation,
+        time: c.time,
+        list_animations: c.list_animations,
     };
-    let mut it = std::env::args().skip(1);
-    while let Some(arg) = it.next() {
-        let mut value = |name: &str| it.next().ok_or_else(|| format!("{name} needs a value"));
-        match arg.as_str() {
-            "--res" => {
-                a.resolutions = bevy_hao_tools::harness::args::resolutions(&value("--res")?)?;
-                if a.resolutions.iter().any(|&r| r == 0 || r > 2048) {
-                    return Err("resolutions must be in 1..=2048".into());
-                }
-            }
-            "--gamma" => a.gamma = value("--gamma")?.parse().map_err(|e| format!("bad --gamma: {e}"))?,
-            "--mode" => a.mode = value("--mode")?.parse()?,
-            "--pattern" => {
-                a.patterns = value("--pattern")?.split(',').map(str::parse).collect::<Result<_, _>>()?;
-                if a.patterns.is_empty() {
-                    return Err("--pattern needs at least one of strips, uniform".into());
-                }
-            }
-            "--target-bias" => {
-                let p: f64 = value("--target-bias")?.parse().map_err(|e| format!("bad --target-bias: {e}"))?;
-                if !(p > 0.0 && p < 100.0) {
-                    return Err("--target-bias is a percentage in (0, 100)".into());
-                }
-                a.target_bias = Some(p / 100.0);
-            }
-            "--export" => a.export = Some(value("--export")?),
-            "--gamma-sweep" => a.gamma_sweep = true,
-            "--max-memory-mb" => {
-                a.max_memory_mb = value("--max-memory-mb")?.parse().map_err(|e| format!("bad --max-memory-mb: {e}"))?
-            }
-            "--point-budget" => {
-                a.point_budget = value("--point-budget")?.parse().map_err(|e| format!("bad --point-budget: {e}"))?
-            }
-            "--gpu" => a.gpu = true,
-            "--animation" => a.animation = Some(value("--animation")?),
-            "--time" => {
-                a.time = value("--time")?.parse().map_err(|e| format!("bad --time: {e}"))?;
-                if !a.time.is_finite() {
-                    return Err("--time must be a finite number of seconds".into());
-                }
-            }
-            "--list-animations" => a.list_animations = true,
-            "--runs" => a.runs = value("--runs")?.parse::<usize>().map_err(|e| format!("bad --runs: {e}"))?.max(1),
-            "-h" | "--help" => return Err(USAGE.into()),
-            s if s.starts_with("--") => return Err(format!("unknown option {s}\n{USAGE}")),
-            s => a.inputs.push(s.to_string()),
-        }
+    if a.resolutions.iter().any(|&r| r == 0 || r > 2048) {
+        return Err("resolutions must be in 1..=2048".into());
     }
-    if a.inputs.is_empty() {
-        return Err(USAGE.into());
+    if let Some(p) = c.target_bias {
+        if !(p > 0.0 && p < 100.0) {
+            return Err("--target-bias is a percentage in (0, 100)".into());
+        }
+        a.target_bias = Some(p / 100.0);
+    }
+    if !a.time.is_finite() {
+        return Err("--time must be a finite number of seconds".into());
     }
     if !(a.gamma.is_finite() && a.gamma > 0.0) {
         return Err("--gamma must be positive".into());
