@@ -120,3 +120,139 @@ fn every_wgsl_file_composes_and_validates() {
     }
     assert!(checked >= 12);
 }
+
+/// `(entry shader, WGSL struct, Rust size, Rust field offsets)` of a Rust struct uploaded as `$t`.
+macro_rules! layout {
+    ($shader:expr, $wgsl:expr, $t:ty, [$($f:ident),* $(,)?]) => {
+        ($shader, $wgsl, std::mem::size_of::<$t>(), vec![$(std::mem::offset_of!($t, $f)),*])
+    };
+}
+
+/// Every `#[repr(C)]` struct the passes upload, with its WGSL twin and a shader that declares it.
+fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
+    use crate::ao::prepare::GpuHaoSettings;
+    use crate::debug::GpuDebugSettings;
+    use crate::voxel::pipelines::{GpuLevelRegion, GpuOccluderInstance, GpuSlabGroup, GpuVoxelizeParams};
+    vec![
+        layout!(
+            "src/ao/hao_trace.wgsl",
+            "HaoSettings",
+            GpuHaoSettings,
+            [
+                rays,
+                steps,
+                max_distance,
+                falloff,
+                intensity,
+                start_offset,
+                frame,
+                near_field,
+                half_resolution,
+                denoise_radius,
+                accumulation_frames,
+                pad,
+            ]
+        ),
+        layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, has_counts, has_ao, _pad]),
+        layout!(
+            "src/voxel/voxelize_classify.wgsl",
+            "OccluderInstance",
+            GpuOccluderInstance,
+            [
+                grid_from_local,
+                vertex_start,
+                vertex_count,
+                vertex_stride,
+                position_offset,
+                index_start,
+                index_format,
+                triangle_count,
+                first_triangle,
+                skin_index,
+                joint_count,
+                joint_offset,
+                weight_offset,
+                morph_weights_offset,
+                morph_weight_count,
+                morph_targets_offset,
+                morph_vertex_count,
+            ]
+        ),
+        layout!(
+            "src/voxel/voxelize_classify.wgsl",
+            "SlabGroup",
+            GpuSlabGroup,
+            [first_instance, instance_count, triangle_count, _pad,]
+        ),
+        layout!(
+            "src/voxel/voxelize_classify.wgsl",
+            "VoxelizeParams",
+            GpuVoxelizeParams,
+            [
+                region_min,
+                mode,
+                region_max,
+                gamma,
+                window_min,
+                point_budget,
+                closed_max,
+                store_counts,
+                wrap,
+                counter_base,
+                dims,
+                voxel_base,
+                pattern,
+                _pad_a,
+                _pad_b,
+                _pad_c,
+            ]
+        ),
+        layout!(
+            "src/voxel/voxel_resolve.wgsl",
+            "LevelRegion",
+            GpuLevelRegion,
+            [region_min, texture_z, region_max, voxel_base, window_min, _pad0, wrap, _pad1, dims, _pad2, size, _pad3,]
+        ),
+    ]
+}
+
+/// The struct named `name` in `module` (its own, or an imported one under naga_oil's decorated name):
+/// its members' offsets and its size.
+fn wgsl_layout(module: &naga::Module, name: &str) -> Option<(Vec<usize>, usize)> {
+    let decorated = format!("{name}X_naga_oil_mod_X");
+    module.types.iter().find_map(|(_, t)| match (&t.name, &t.inner) {
+        (Some(n), naga::TypeInner::Struct { members, span }) if n == name || n.starts_with(&decorated) => {
+            Some((members.iter().map(|m| m.offset as usize).collect(), *span as usize))
+        }
+        _ => None,
+    })
+}
+
+/// The Rust structs the passes upload have their WGSL twins' layouts: the same size and the same offset
+/// for every member, as naga lays the WGSL out. Uniforms built with `ShaderType` (the voxel grid) are
+/// checked by size against encase's.
+#[test]
+fn uploaded_structs_match_their_wgsl_layouts() {
+    use bevy::render::render_resource::ShaderType as _;
+    let mut composer = composer();
+    let mut module = |path: &str| {
+        composer
+            .make_naga_module(NagaModuleDescriptor {
+                source: &read(path),
+                file_path: path,
+                shader_type: ShaderType::Wgsl,
+                ..Default::default()
+            })
+            .unwrap_or_else(|e| panic!("{path}: {e:?}"))
+    };
+    for (shader, name, size, offsets) in layouts() {
+        let (wgsl_offsets, wgsl_size) =
+            wgsl_layout(&module(shader), name).unwrap_or_else(|| panic!("no struct {name} in {shader}"));
+        assert_eq!(wgsl_size, size, "{name}: WGSL size {wgsl_size}, Rust {size}");
+        assert_eq!(wgsl_offsets, offsets, "{name}: member offsets (WGSL, then Rust)");
+    }
+    let (_, grid_size) = wgsl_layout(&module("src/ao/hao_trace.wgsl"), "VoxelGrid").expect("VoxelGrid");
+    assert_eq!(grid_size as u64, crate::voxel::bindings::GpuVoxelGrid::min_size().get(), "VoxelGrid size");
+    let (_, big) = wgsl_layout(&module("src/voxel/voxelize_expand.wgsl"), "BigTriangle").expect("BigTriangle");
+    assert_eq!(big as u64, crate::voxel::pipelines::BIG_TRIANGLE_BYTES, "BigTriangle size");
+}

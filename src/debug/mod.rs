@@ -85,11 +85,11 @@ impl Plugin for HaoDebugViewPlugin {
 /// WGSL `DebugSettings`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-struct GpuDebugSettings {
-    mode: u32,
-    has_counts: u32,
-    has_ao: u32,
-    _pad: u32,
+pub(crate) struct GpuDebugSettings {
+    pub(crate) mode: u32,
+    pub(crate) has_counts: u32,
+    pub(crate) has_ao: u32,
+    pub(crate) _pad: u32,
 }
 
 /// The debug view pipelines (one per target format) and placeholders for missing inputs.

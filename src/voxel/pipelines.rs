@@ -92,7 +92,9 @@ pub(crate) struct GpuVoxelizeParams {
     pub voxel_base: u32,
     /// 0: the uniform subdivision pattern, 1: strips.
     pub pattern: u32,
-    pub _pad: [u32; 3],
+    pub _pad_a: u32,
+    pub _pad_b: u32,
+    pub _pad_c: u32,
 }
 
 /// A box of one level to resolve into the texture, at one mip (WGSL `LevelRegion`).

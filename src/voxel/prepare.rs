@@ -980,7 +980,9 @@ pub fn prepare_voxelize(
             dims: level.dims.to_array(),
             voxel_base: level.voxel_base,
             pattern: (settings.pattern == SubdivisionPattern::Strips) as u32,
-            _pad: [0; 3],
+            _pad_a: 0,
+            _pad_b: 0,
+            _pad_c: 0,
         };
         let params = settings_buffer(&device, "hao_voxelize_params", &params);
         let (occ, cnt) = if is_static {
