@@ -12,9 +12,9 @@ mod voxel;
 #[cfg(test)]
 mod wgsl_tests;
 
-pub use ao::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin};
+pub use ao::{HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin};
 pub use components::*;
-pub use debug::{HaoDebugView, HaoDebugViewPlugin};
+pub use debug::{HaoDebugImages, HaoDebugView, HaoDebugViewPlugin};
 pub use voxel::{
     CascadeLevelStats, LevelBytes, RebuildStaticVoxels, VOXEL_GRID_GROUP, VoxelGridAssets, VoxelGridBindings,
     VoxelizationPlugin, VoxelizationStats, VoxelizationStatsData, VoxelizeCounters, voxel_grid_layout,

@@ -48,7 +48,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/ao/hao_denoise.wgsl", vec![vec![]]),
         ("src/ao/hao_upsample.wgsl", vec![vec![]]),
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),
-        ("src/ao/hao_debug_copy.wgsl", vec![vec![]]),
+        ("src/debug/debug_images.wgsl", vec![vec![]]),
         ("src/debug/debug_view.wgsl", vec![vec![]]),
     ]
 }

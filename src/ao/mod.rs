@@ -20,13 +20,13 @@
 //!
 //! The CPU twins: [`crate::cpu::ao`] (trace), [`crate::cpu::temporal`], [`crate::cpu::denoise`].
 
-mod node;
+pub(crate) mod node;
 mod pipelines;
 pub(crate) mod prepare;
 mod settings;
 
 pub(crate) use settings::HaoAddedSsao;
-pub use settings::{HaoDebugImages, HaoQuality, HybridAmbientOcclusion};
+pub use settings::{HaoQuality, HybridAmbientOcclusion};
 
 use bevy::asset::embedded_asset;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
@@ -51,12 +51,8 @@ impl Plugin for HybridAmbientOcclusionPlugin {
         embedded_asset!(app, "hao_denoise.wgsl");
         embedded_asset!(app, "hao_upsample.wgsl");
         embedded_asset!(app, "hao_apply.wgsl");
-        embedded_asset!(app, "hao_debug_copy.wgsl");
         app.register_type::<HybridAmbientOcclusion>()
-            .add_plugins((
-                ExtractComponentPlugin::<HybridAmbientOcclusion>::default(),
-                ExtractComponentPlugin::<HaoDebugImages>::default(),
-            ))
+            .add_plugins(ExtractComponentPlugin::<HybridAmbientOcclusion>::default())
             .add_systems(PostUpdate, (configure_hao_cameras, report_invalid_settings));
     }
 
@@ -84,8 +80,7 @@ impl Plugin for HybridAmbientOcclusionPlugin {
             )
             .add_systems(
                 Core3d,
-                (node::hao, node::hao_debug_copy)
-                    .chain()
+                node::hao
                     .in_set(Core3dSystems::MainPass)
                     .before(main_opaque_pass_3d)
                     .before(bevy::pbr::deferred::deferred_lighting),

@@ -2,7 +2,7 @@
 //! occlusion (the main opaque pass, deferred lighting).
 
 use super::pipelines::HaoPipelines;
-use super::prepare::{HaoBindGroups, HaoDebugBindGroup, HaoViewResources};
+use super::prepare::{HaoBindGroups, HaoViewResources};
 use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings};
 use bevy::core_pipeline::prepass::PreviousViewUniformOffset;
 use bevy::prelude::*;
@@ -94,23 +94,4 @@ pub fn hao(
         span.end(&mut pass);
     }
     encoder.pop_debug_group();
-}
-
-/// Copies the view's AO, depth and normal into its [`super::HaoDebugImages`].
-pub fn hao_debug_copy(
-    view: ViewQuery<(&HaoDebugBindGroup, &bevy::render::camera::ExtractedCamera)>,
-    pipelines: Res<HaoPipelines>,
-    cache: Res<PipelineCache>,
-    mut ctx: RenderContext,
-) {
-    let (bind_group, camera) = view.into_inner();
-    let Some(size) = camera.physical_viewport_size else { return };
-    let Some(pipeline) = cache.get_compute_pipeline(pipelines.debug_copy) else { return };
-    let mut pass = ctx
-        .command_encoder()
-        .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_debug_copy"), timestamp_writes: None });
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, &bind_group.0, &[]);
-    let (x, y) = groups(size);
-    pass.dispatch_workgroups(x, y, 1);
 }

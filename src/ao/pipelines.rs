@@ -29,8 +29,6 @@ pub struct HaoPipelines {
     pub upsample_layout: BindGroupLayoutDescriptor,
     /// Group 0 of apply.
     pub apply_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the debug copy.
-    pub debug_layout: BindGroupLayoutDescriptor,
     /// Rays through the voxels.
     pub trace: CachedComputePipelineId,
     /// Temporal accumulation.
@@ -43,8 +41,6 @@ pub struct HaoPipelines {
     pub upsample: CachedComputePipelineId,
     /// Into the texture PBR reads.
     pub apply: CachedComputePipelineId,
-    /// Into the debug images.
-    pub debug_copy: CachedComputePipelineId,
 }
 
 impl FromWorld for HaoPipelines {
@@ -129,20 +125,6 @@ impl FromWorld for HaoPipelines {
                 (texture_2d(unfilterable), texture_storage_2d(ssao_format, StorageTextureAccess::WriteOnly)),
             ),
         );
-        let debug_layout = BindGroupLayoutDescriptor::new(
-            "hao_debug_copy_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    texture_2d(unfilterable),
-                    texture_depth_2d(),
-                    texture_2d(unfilterable),
-                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
-                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
-                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                ),
-            ),
-        );
         let cache = world.resource::<PipelineCache>();
         let queue_pipeline =
             |label, layout, shader, entry, defs| queue_compute(cache, label, layout, shader, entry, defs);
@@ -189,13 +171,6 @@ impl FromWorld for HaoPipelines {
             "apply",
             apply_defs,
         );
-        let debug_copy = queue_pipeline(
-            "hao_debug_copy",
-            vec![debug_layout.clone()],
-            load_embedded_asset!(world, "hao_debug_copy.wgsl"),
-            "debug_copy",
-            vec![],
-        );
         Self {
             view_layout,
             trace_layout,
@@ -204,14 +179,12 @@ impl FromWorld for HaoPipelines {
             denoise_layout,
             upsample_layout,
             apply_layout,
-            debug_layout,
             trace,
             temporal,
             denoise_horizontal,
             denoise_vertical,
             upsample,
             apply,
-            debug_copy,
         }
     }
 }

@@ -1,15 +1,14 @@
 //! Per-view textures, settings and bind groups of the HAO passes.
 
 use super::pipelines::HaoPipelines;
-use super::settings::{HaoDebugImages, HybridAmbientOcclusion};
+use super::settings::HybridAmbientOcclusion;
 use bevy::core_pipeline::prepass::{PreviousViewUniforms, ViewPrepassTextures};
 use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
-use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderDevice;
-use bevy::render::texture::{CachedTexture, GpuImage, TextureCache};
+use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::ViewUniforms;
 use bytemuck::{Pod, Zeroable};
 
@@ -87,10 +86,6 @@ pub struct HaoBindGroups {
     /// Apply.
     pub apply: BindGroup,
 }
-
-/// A view's debug-copy bind group.
-#[derive(Component)]
-pub struct HaoDebugBindGroup(pub BindGroup);
 
 /// Creates the per-view textures and settings.
 pub fn prepare_hao_textures(
@@ -174,9 +169,7 @@ pub fn prepare_hao_bind_groups(
     cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
     previous_view_uniforms: Res<PreviousViewUniforms>,
-    images: Res<RenderAssets<GpuImage>>,
     views: Query<(Entity, &HaoViewResources, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
-    debug_views: Query<(Entity, &HaoDebugImages, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
 ) {
     let Some(view_binding) = view_uniforms.uniforms.binding() else { return };
     let Some(previous_view_binding) = previous_view_uniforms.uniforms.binding() else { return };
@@ -252,25 +245,5 @@ pub fn prepare_hao_bind_groups(
             upsample,
             apply,
         });
-    }
-    for (entity, debug, prepass, ssao) in &debug_views {
-        let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
-        let (Some(ao), Some(d), Some(n)) = (images.get(&debug.ao), images.get(&debug.depth), images.get(&debug.normal))
-        else {
-            continue;
-        };
-        let bind_group = device.create_bind_group(
-            "hao_debug_copy_bind_group",
-            &cache.get_bind_group_layout(&pipelines.debug_layout),
-            &BindGroupEntries::sequential((
-                &ssao.screen_space_ambient_occlusion_texture.default_view,
-                depth,
-                normal,
-                &ao.texture_view,
-                &d.texture_view,
-                &n.texture_view,
-            )),
-        );
-        commands.entity(entity).insert(HaoDebugBindGroup(bind_group));
     }
 }

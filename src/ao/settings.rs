@@ -202,43 +202,6 @@ impl HaoQuality {
     }
 }
 
-/// Put on a camera to get what its ambient occlusion was computed from and what it came to, in images that
-/// can be shown or read back (`Readback::texture`): the AO PBR reads (HAO's, or Bevy's SSAO alone on a camera
-/// without [`HybridAmbientOcclusion`]) as `R32Float`, the prepass depth as `R32Float` (Bevy's reverse-Z
-/// NDC depth, 0 = far), and the world normal as `Rgba16Float`. Sized like the camera's target.
-#[derive(Component, ExtractComponent, Clone, Debug, PartialEq)]
-pub struct HaoDebugImages {
-    /// Ambient occlusion, 1 = open.
-    pub ao: Handle<Image>,
-    /// Depth.
-    pub depth: Handle<Image>,
-    /// World-space normal (xyz).
-    pub normal: Handle<Image>,
-}
-
-impl HaoDebugImages {
-    /// Creates the three images for a target of `size` pixels.
-    pub fn new(images: &mut Assets<Image>, size: UVec2) -> Self {
-        use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat, TextureUsages};
-        let mut image = |format: TextureFormat| {
-            let mut image = Image::new_uninit(
-                Extent3d { width: size.x, height: size.y, depth_or_array_layers: 1 },
-                TextureDimension::D2,
-                format,
-                bevy::asset::RenderAssetUsages::RENDER_WORLD,
-            );
-            image.texture_descriptor.usage =
-                TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING | TextureUsages::COPY_SRC;
-            images.add(image)
-        };
-        Self {
-            ao: image(TextureFormat::R32Float),
-            depth: image(TextureFormat::R32Float),
-            normal: image(TextureFormat::Rgba16Float),
-        }
-    }
-}
-
 /// Marks a camera whose `ScreenSpaceAmbientOcclusion` was added by [`HybridAmbientOcclusion`] (and goes
 /// when it goes).
 #[derive(Component, Clone, Copy, Debug, Default)]

@@ -5,6 +5,10 @@
 //! voxel texture with the same empty-space skipping as the HAO trace and reads the occupancy bits, the
 //! static grid's bits and the point counts for the colors.
 
+mod images;
+
+pub use images::HaoDebugImages;
+
 use crate::voxel::extract::ExtractedVoxelGrid;
 use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
 use bevy::asset::{embedded_asset, load_embedded_asset};
@@ -71,9 +75,11 @@ impl Plugin for HaoDebugViewPlugin {
     fn build(&self, app: &mut App) {
         embedded_asset!(app, "debug_view.wgsl");
         app.register_type::<HaoDebugView>().add_plugins(ExtractComponentPlugin::<HaoDebugView>::default());
+        images::build(app);
     }
 
     fn finish(&self, app: &mut App) {
+        images::finish(app);
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
         render_app
             .init_gpu_resource::<DebugViewPipelines>()

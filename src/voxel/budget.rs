@@ -7,7 +7,9 @@
 //! itself is enforced exactly on the GPU (the scan pass); this estimate warns before it is hit, and the
 //! inspector shows it.
 
-use super::assets::{VoxelGridAssets, VoxelizationStats, occluder_is_dynamic};
+use super::occluders::occluder_is_dynamic;
+use super::stats::VoxelizationStats;
+use super::volume::VoxelGridAssets;
 use crate::components::*;
 use crate::cpu::{TriangleSizes, expected_point_count};
 use bevy::mesh::{Indices, VertexAttributeValues};

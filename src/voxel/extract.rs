@@ -4,7 +4,8 @@
 //! `RenderMeshInstances`, which hold no CPU transforms when meshes are built on the GPU, and which are culled
 //! to the views: an occluder behind the camera must still be voxelized.
 
-use super::assets::{VoxelGridAssets, VoxelVolumeFocus, occluder_is_dynamic, world_aabb};
+use super::occluders::{occluder_is_dynamic, world_aabb};
+use super::volume::{VoxelGridAssets, VoxelVolumeFocus};
 use crate::components::*;
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::DynamicSkinnedMeshBounds;

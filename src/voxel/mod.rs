@@ -23,19 +23,21 @@
 //! functions after it. GPU time spans: `hao/voxelize_static`, `hao/voxelize_dynamic`, `hao/resolve` (add
 //! Bevy's `RenderDiagnosticsPlugin` to see them).
 
-pub(crate) mod assets;
 pub(crate) mod bindings;
 mod budget;
 pub(crate) mod extract;
+mod occluders;
 mod pass;
 pub(crate) mod pipelines;
 mod prepare;
 mod stats;
+pub(crate) mod volume;
 
-pub use assets::{CascadeLevelStats, LevelBytes, VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
 pub use bindings::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
 pub use extract::RebuildStaticVoxels;
 pub use stats::VoxelizeCounters;
+pub use stats::{CascadeLevelStats, LevelBytes, VoxelizationStats, VoxelizationStatsData};
+pub use volume::VoxelGridAssets;
 
 use bevy::asset::embedded_asset;
 use bevy::core_pipeline::schedule::camera_driver;
@@ -107,13 +109,13 @@ impl Plugin for VoxelizationPlugin {
             s.max_slab_size = s.max_slab_size.min(max_binding);
             s.large_threshold = s.large_threshold.min(max_binding);
         }
-        let stats = assets::VoxelizationStats::default();
-        app.insert_resource(stats.clone()).init_resource::<assets::VoxelVolumeFocus>().add_systems(
+        let stats = stats::VoxelizationStats::default();
+        app.insert_resource(stats.clone()).init_resource::<volume::VoxelVolumeFocus>().add_systems(
             PostUpdate,
             (
-                assets::promote_moved_occluders,
-                assets::update_voxel_focus,
-                assets::update_voxel_volume,
+                occluders::promote_moved_occluders,
+                volume::update_voxel_focus,
+                volume::update_voxel_volume,
                 budget::estimate_point_budget,
             )
                 .chain()

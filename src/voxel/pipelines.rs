@@ -1,6 +1,6 @@
 //! The voxelization pipelines and the layouts of the data they read.
 
-use super::assets::voxel_texture_format;
+use super::volume::voxel_texture_format;
 use bevy::asset::load_embedded_asset;
 use bevy::prelude::*;
 use bevy::render::render_resource::binding_types::{

@@ -3,10 +3,11 @@
 //! slabs a cascade scrolled into, boxes where a static occluder changed, whole levels when rebuilt; dynamic
 //! geometry every frame in every level it overlaps), and build the buffers and bind groups of the passes.
 
-use super::assets::{CascadeLevelStats, VoxelGridAssets, VoxelizationStats};
 use super::extract::{ExtractedOccluder, ExtractedOccluders, ExtractedVoxelGrid};
 use super::pipelines::*;
+use super::stats::{CascadeLevelStats, VoxelizationStats};
 use super::stats::{STATIC_REGION_SLOTS, counter_base};
+use super::volume::VoxelGridAssets;
 use crate::cpu::{self, InjectionMode, SubdivisionPattern, VoxelGrid};
 use bevy::math::{Affine3A, IVec3};
 use bevy::mesh::VertexFormat;

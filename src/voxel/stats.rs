@@ -1,4 +1,10 @@
-//! The GPU's voxelization counters (the `COUNTER_*` constants of `voxelize_common.wgsl`).
+//! What the plugin knows about voxelization, shared by the main and render worlds: the GPU's counters (the
+//! `COUNTER_*` constants of `voxelize_common.wgsl`), read back a few frames late, and the CPU's figures.
+
+use crate::cpu::VoxelGrid;
+use bevy::prelude::*;
+use bevy::render::gpu_readback::ReadbackComplete;
+use std::sync::{Arc, Mutex};
 
 /// Counters per pass.
 pub const COUNTER_BLOCK: usize = 14;
@@ -111,4 +117,117 @@ impl VoxelizeCounters {
             expanded_points: w[13],
         }
     }
+}
+
+/// One cascade level as it stands (see [`VoxelizationStatsData::cascades`]).
+#[derive(Clone, Copy, Default, Debug, PartialEq)]
+pub struct CascadeLevelStats {
+    /// World-space cell size.
+    pub cell_size: f32,
+    /// The lattice cell at the window's min corner.
+    pub window_min: IVec3,
+    /// Cells voxelized again for static geometry in the last frame (entered slabs, changed regions).
+    pub static_cells_last_frame: u64,
+    /// Static cells voxelized again since the start.
+    pub static_cells_total: u64,
+    /// Times the level was rebuilt whole (a new volume, a teleport, a forced rebuild).
+    pub rebuilds: u64,
+    /// Times the level scrolled (moved by less than its size).
+    pub scrolls: u64,
+    /// GPU memory of the level, bytes: occupancy bits (static and frame), texture with mips, point counts.
+    pub bytes: LevelBytes,
+}
+
+/// GPU memory of one level, bytes.
+#[derive(Clone, Copy, Default, Debug, PartialEq, Eq)]
+pub struct LevelBytes {
+    /// Occupancy bits, static and frame copies.
+    pub occupancy: u64,
+    /// The 3D texture's share, all mips.
+    pub texture: u64,
+    /// Point counts, static and frame copies (0 when off).
+    pub point_counts: u64,
+}
+
+impl LevelBytes {
+    /// All of it.
+    pub fn total(&self) -> u64 {
+        self.occupancy + self.texture + self.point_counts
+    }
+}
+
+/// What the plugin knows about voxelization, shared by the main and render worlds: counters of CPU-side
+/// work (static rebuilds, instances) and the GPU's own counters, read back a few frames late.
+#[derive(Resource, Clone, Default, Debug)]
+pub struct VoxelizationStats(pub(crate) Arc<Mutex<VoxelizationStatsData>>);
+
+/// The figures behind [`VoxelizationStats`].
+#[derive(Clone, Default, Debug, PartialEq)]
+pub struct VoxelizationStatsData {
+    /// The grid in use, if any (for cascades, one cascade's storage: see [`VoxelGridAssets::grid`]).
+    pub grid: Option<VoxelGrid>,
+    /// The cascade levels and what they did (one entry for a single grid).
+    pub cascades: Vec<CascadeLevelStats>,
+    /// Frames in which static geometry was voxelized (a new grid, a change to the static set, a cascade
+    /// that scrolled or was rebuilt; see [`Self::cascades`] for which cells).
+    pub static_rebuilds: u64,
+    /// Frames in which the voxelization passes ran (static, dynamic or resolve).
+    pub frames_voxelized: u64,
+    /// Static instances read in the last frame with static work (summed over its regions and levels).
+    pub static_instances: u64,
+    /// Triangles of those.
+    pub static_triangles: u64,
+    /// Dynamic instances voxelized in the last frame.
+    pub dynamic_instances: u64,
+    /// Triangles of those.
+    pub dynamic_triangles: u64,
+    /// Occluders skipped because their mesh cannot be voxelized (not a triangle list, not bindable).
+    pub skipped_instances: u64,
+    /// The GPU counters of the last static build.
+    pub static_counters: VoxelizeCounters,
+    /// The GPU counters of the last frame's dynamic pass.
+    pub dynamic_counters: VoxelizeCounters,
+    /// Readbacks of the counters received so far.
+    pub counter_readbacks: u64,
+    /// The estimate of the static occluders' points (equation 5 or its strip counterpart: [`crate::cpu::expected_point_count`]).
+    pub estimated_static_points: u64,
+    /// The estimate of the dynamic occluders' points per frame.
+    pub estimated_dynamic_points: u64,
+}
+
+impl VoxelizationStats {
+    /// A copy of the current figures.
+    pub fn get(&self) -> VoxelizationStatsData {
+        self.0.lock().map(|d| d.clone()).unwrap_or_default()
+    }
+
+    pub(crate) fn update(&self, f: impl FnOnce(&mut VoxelizationStatsData)) {
+        if let Ok(mut d) = self.0.lock() {
+            f(&mut d);
+        }
+    }
+}
+
+/// Decodes the counters read back from the GPU and warns (once per episode) when the point budget was
+/// exceeded or triangles were too large to voxelize.
+pub(crate) fn read_voxelize_counters(event: On<ReadbackComplete>, stats: Res<VoxelizationStats>) {
+    let words: Vec<u32> = event.data.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+    let Some((static_counters, dynamic_counters)) = decode_counters(&words) else { return };
+    stats.update(|s| {
+        for (name, new, old) in [("static", &static_counters, &s.static_counters), ("dynamic", &dynamic_counters, &s.dynamic_counters)] {
+            if new.budget_exceeded && !old.budget_exceeded {
+                warn!(
+                    "bevy_hao: {name} voxelization needs {} points, over VoxelVolume::point_budget; {} were injected and \
+                     voxels are missing. Raise the budget or lower the resolution or gamma",
+                    new.points_requested, new.points_dispatched
+                );
+            }
+            if new.oversize > old.oversize {
+                warn!("bevy_hao: {} {name} triangles need more than 2^28 sub-triangles and were skipped", new.oversize);
+            }
+        }
+        s.static_counters = static_counters;
+        s.dynamic_counters = dynamic_counters;
+        s.counter_readbacks += 1;
+    });
 }
