@@ -1,7 +1,7 @@
 //! Per-view textures, settings and bind groups of the HAO passes.
 
+use super::HybridAmbientOcclusion;
 use super::pipelines::HaoPipelines;
-use super::settings::HybridAmbientOcclusion;
 use bevy::core_pipeline::prepass::{PreviousViewUniforms, ViewPrepassTextures};
 use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
 use bevy::prelude::*;
