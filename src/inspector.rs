@@ -14,8 +14,8 @@
 //! an [`HaoInspected`] marker.
 
 use crate::ao::{HaoQuality, HybridAmbientOcclusion};
-use crate::components::{VolumeResolution, VoxelInjection, VoxelSubdivision, VoxelVolume};
 use crate::debug::HaoDebugView;
+use crate::voxel::components::{VolumeResolution, VoxelInjection, VoxelSubdivision, VoxelVolume};
 use crate::voxel::{VoxelGridAssets, VoxelizationStats};
 use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
 use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel};
@@ -214,15 +214,15 @@ fn inspector_window(
         ui.heading("Voxel volume");
         match volumes.iter_mut().next() {
             Some((_, mut volume)) => {
-                let mut follow = matches!(volume.bounds, crate::components::VolumeBounds::FollowCamera { .. });
+                let mut follow = matches!(volume.bounds, crate::voxel::components::VolumeBounds::FollowCamera { .. });
                 if ui.checkbox(&mut follow, "cascades follow the camera").changed() {
                     volume.bounds = if follow {
-                        crate::components::VolumeBounds::default()
+                        crate::voxel::components::VolumeBounds::default()
                     } else {
-                        crate::components::VolumeBounds::FitStaticScene { margin: 0.5 }
+                        crate::voxel::components::VolumeBounds::FitStaticScene { margin: 0.5 }
                     };
                 }
-                if let crate::components::VolumeBounds::FollowCamera { cascades, cells, finest_cell_size } =
+                if let crate::voxel::components::VolumeBounds::FollowCamera { cascades, cells, finest_cell_size } =
                     &mut volume.bounds
                 {
                     let mut c = *cascades;

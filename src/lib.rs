@@ -2,7 +2,6 @@
 #![warn(missing_docs)]
 
 mod ao;
-mod components;
 pub mod cpu;
 mod debug;
 #[cfg(feature = "inspector")]
@@ -13,8 +12,8 @@ mod voxel;
 mod wgsl_tests;
 
 pub use ao::{HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin};
-pub use components::*;
 pub use debug::{HaoDebugImages, HaoDebugView, HaoDebugViewPlugin};
+pub use voxel::components::*;
 pub use voxel::{
     CascadeLevelStats, LevelBytes, RebuildStaticVoxels, VOXEL_GRID_GROUP, VoxelGridAssets, VoxelGridBindings,
     VoxelizationPlugin, VoxelizationStats, VoxelizationStatsData, VoxelizeCounters, voxel_grid_layout,
@@ -35,6 +34,6 @@ impl Plugin for HaoPlugin {
 /// The components and plugin most apps need.
 pub mod prelude {
     pub use crate::HaoPlugin;
-    pub use crate::components::*;
+    pub use crate::voxel::components::*;
     pub use crate::{HaoDebugImages, HaoDebugView, HaoQuality, HybridAmbientOcclusion};
 }

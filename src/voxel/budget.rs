@@ -10,8 +10,8 @@
 use super::occluders::occluder_is_dynamic;
 use super::stats::VoxelizationStats;
 use super::volume::VoxelGridAssets;
-use crate::components::*;
 use crate::cpu::{TriangleSizes, expected_point_count};
+use crate::voxel::components::*;
 use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;

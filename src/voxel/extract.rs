@@ -6,7 +6,7 @@
 
 use super::occluders::{occluder_is_dynamic, world_aabb};
 use super::volume::{VoxelGridAssets, VoxelVolumeFocus};
-use crate::components::*;
+use crate::voxel::components::*;
 use bevy::camera::primitives::Aabb;
 use bevy::camera::visibility::DynamicSkinnedMeshBounds;
 use bevy::math::Affine3A;

@@ -25,6 +25,7 @@
 
 pub(crate) mod bindings;
 mod budget;
+pub mod components;
 pub(crate) mod extract;
 mod occluders;
 mod pass;
@@ -66,11 +67,11 @@ impl Plugin for VoxelizationPlugin {
         embedded_asset!(app, "voxelize_expand.wgsl");
         embedded_asset!(app, "voxel_resolve.wgsl");
         embedded_asset!(app, "voxel_mip.wgsl");
-        app.register_type::<crate::components::StaticOccluder>()
-            .register_type::<crate::components::DynamicOccluder>()
-            .register_type::<crate::components::NoVoxelOcclusion>()
-            .register_type::<crate::components::PromotedToDynamic>()
-            .register_type::<crate::components::VoxelVolume>()
+        app.register_type::<crate::voxel::components::StaticOccluder>()
+            .register_type::<crate::voxel::components::DynamicOccluder>()
+            .register_type::<crate::voxel::components::NoVoxelOcclusion>()
+            .register_type::<crate::voxel::components::PromotedToDynamic>()
+            .register_type::<crate::voxel::components::VoxelVolume>()
             .add_message::<extract::RebuildStaticVoxels>()
             .init_resource::<extract::StaticRebuildRequests>()
             .add_systems(PostUpdate, extract::count_rebuild_requests);

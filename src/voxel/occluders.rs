@@ -1,7 +1,7 @@
-//! Main world: which meshes are occluders, static or dynamic (the markers of `crate::components`, and
+//! Main world: which meshes are occluders, static or dynamic (the markers of `crate::voxel::components`, and
 //! meshes that move without one promoted to dynamic).
 
-use crate::components::*;
+use crate::voxel::components::*;
 use bevy::camera::primitives::Aabb;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;

@@ -1,8 +1,8 @@
 //! Main world: the voxel grid's GPU assets, created and replaced as the [`VoxelVolume`] asks, and the
 //! camera the cascades follow.
 
-use crate::components::*;
 use crate::cpu::{self, VoxelGrid};
+use crate::voxel::components::*;
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::Aabb;
 use bevy::image::ImageSampler;

@@ -326,13 +326,14 @@ fn main() {
     };
     let pixels: Vec<usize> = (0..(w * h) as usize).filter(|&i| depth[i] > 0.0 && normals[i] != Vec3::ZERO).collect();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let bar = bevy_hao_tools::harness::progress_bar(pixels.len() as u64, "reference");
     let results: Vec<(usize, f32, f32)> = std::thread::scope(|s| {
         let chunks: Vec<&[usize]> = pixels.chunks(pixels.len().div_ceil(threads).max(1)).collect();
         let handles: Vec<_> = chunks
             .into_iter()
             .map(|chunk| {
                 let (scene, hidden, depth, normals) = (&scene, &hidden, &depth, &normals);
-                let hao = &hao;
+                let (hao, bar) = (&hao, &bar);
                 s.spawn(move || {
                     chunk
                         .iter()
@@ -354,6 +355,7 @@ fn main() {
                                 epsilon,
                                 hidden,
                             );
+                            bar.inc(1);
                             (i, r.ao, r.hidden_share)
                         })
                         .collect::<Vec<_>>()
@@ -362,6 +364,7 @@ fn main() {
             .collect();
         handles.into_iter().flat_map(|h| h.join().unwrap()).collect()
     });
+    bar.finish_and_clear();
     let mut reference = vec![1.0f32; (w * h) as usize];
     let mut offscreen = Vec::new();
     for &(i, ao, share) in &results {
