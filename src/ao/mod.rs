@@ -239,8 +239,8 @@ pub struct HybridAmbientOcclusion {
 }
 
 impl HybridAmbientOcclusion {
-    /// `(rays, steps, half_resolution)` traced each frame: the quality's, with fewer rays for the presets
-    /// when frames are accumulated (see [`HaoQuality::parameters_accumulated`]).
+    /// `(rays, steps, half_resolution)` traced each frame: the quality's (see [`HaoQuality`]), with fewer
+    /// rays for the presets when 4 or more frames are accumulated.
     pub fn trace_parameters(&self) -> (u32, u32, bool) {
         self.quality.parameters_accumulated(self.accumulation_frames.clamp(1, 64))
     }
@@ -354,7 +354,7 @@ pub enum HaoQuality {
 
 impl HaoQuality {
     /// `(rays, steps, half_resolution)` of a frame without temporal accumulation.
-    pub fn parameters(&self) -> (u32, u32, bool) {
+    pub(crate) fn parameters(&self) -> (u32, u32, bool) {
         match *self {
             Self::Low => (4, 24, true),
             Self::Medium => (6, 32, false),
@@ -368,7 +368,7 @@ impl HaoQuality {
 
     /// `(rays, steps, half_resolution)` of a frame whose result is accumulated over `accumulation_frames`
     /// frames: the presets trace fewer rays from 4 frames on; `Custom` traces what it says.
-    pub fn parameters_accumulated(&self, accumulation_frames: u32) -> (u32, u32, bool) {
+    pub(crate) fn parameters_accumulated(&self, accumulation_frames: u32) -> (u32, u32, bool) {
         let (rays, steps, half) = self.parameters();
         if accumulation_frames < 4 {
             return (rays, steps, half);

@@ -164,7 +164,7 @@ pub struct VoxelizationStats(pub(crate) Arc<Mutex<VoxelizationStatsData>>);
 /// The figures behind [`VoxelizationStats`].
 #[derive(Clone, Default, Debug, PartialEq)]
 pub struct VoxelizationStatsData {
-    /// The grid in use, if any (for cascades, one cascade's storage: see [`VoxelGridAssets::grid`]).
+    /// The grid in use, if any (for cascades, one cascade's storage: see [`crate::VoxelGridAssets::grid`]).
     pub grid: Option<VoxelGrid>,
     /// The cascade levels and what they did (one entry for a single grid).
     pub cascades: Vec<CascadeLevelStats>,

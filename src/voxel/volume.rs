@@ -58,7 +58,7 @@ pub struct VoxelGridAssets {
     /// so that every mip texel covers exactly `2^level` cells per axis (the padding is empty). Levels are
     /// stacked along z: level `l` starts at texel `z = l * texture_size.z`.
     pub texture_size: UVec3,
-    /// The voxelization statistics counters (see [`VoxelizeCounters`]).
+    /// The voxelization statistics counters (see [`crate::VoxelizeCounters`]).
     pub counters: Handle<ShaderBuffer>,
     /// Bumped whenever the assets are replaced (the render world then rebuilds the static grid).
     pub generation: u64,
