@@ -256,3 +256,71 @@ fn uploaded_structs_match_their_wgsl_layouts() {
     let (_, big) = wgsl_layout(&module("src/voxel/voxelize_expand.wgsl"), "BigTriangle").expect("BigTriangle");
     assert_eq!(big as u64, crate::voxel::pipelines::BIG_TRIANGLE_BYTES, "BigTriangle size");
 }
+
+/// The value of `const NAME: T = VALUE;` in the WGSL file `path` (integer literals with or without `u`,
+/// hexadecimal, or floats).
+fn wgsl_const(path: &str, name: &str) -> f64 {
+    let source = read(path);
+    let line = source
+        .lines()
+        .find(|l| l.trim_start().starts_with(&format!("const {name}:")))
+        .unwrap_or_else(|| panic!("no const {name} in {path}"));
+    let value = line.split('=').nth(1).expect("a value").trim().trim_end_matches(';').trim();
+    let digits = value.trim_end_matches('u');
+    if let Some(hex) = digits.strip_prefix("0x") {
+        u64::from_str_radix(hex, 16).expect("a hexadecimal literal") as f64
+    } else {
+        digits.parse::<f64>().unwrap_or_else(|e| panic!("{name} = {value}: {e}"))
+    }
+}
+
+/// The constants Rust and WGSL share have one value: each WGSL `const` against the Rust constant it
+/// mirrors (CPU twin or render code), and the voxelizer's workgroup sizes against `VOXELIZE_WORKGROUP`.
+#[test]
+fn shared_constants_agree() {
+    use crate::cpu::{cascade, temporal, tessellation, voxelize};
+    use crate::voxel::{bindings, pipelines, stats};
+    let common = "src/voxel/voxelize_common.wgsl";
+    let hao = "src/ao/hao_common.wgsl";
+    let pairs: [(&str, &str, f64); 17] = [
+        (common, "MAX_SUBDIVISION", tessellation::MAX_SUBDIVISION as f64),
+        (common, "MAX_SUB_TRIANGLES_PER_TRIANGLE", tessellation::MAX_SUB_TRIANGLES_PER_TRIANGLE as f64),
+        (common, "INLINE_SUB_TRIANGLES", tessellation::INLINE_SUB_TRIANGLES as f64),
+        (common, "STRIPS_MAX_COARSE", tessellation::STRIPS_MAX_COARSE as f64),
+        (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
+        (common, "COUNTER_COUNT", stats::COUNTER_BLOCK as f64),
+        (common, "FRAME_POINTS_USED", stats::FRAME_POINTS_USED as f64),
+        ("src/voxel/voxelize_scan.wgsl", "EXPAND_WORKGROUP", pipelines::VOXELIZE_WORKGROUP as f64),
+        ("src/voxel/voxelize_classify.wgsl", "NO_SKIN", pipelines::NO_SKIN as f64),
+        ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
+        ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
+        ("src/voxel/voxel_grid.wgsl", "MAX_CHANGED_BOXES", bindings::MAX_CHANGED_BOXES as f64),
+        (hao, "DEPTH_TOLERANCE", temporal::DEPTH_TOLERANCE as f64),
+        (hao, "NORMAL_TOLERANCE", temporal::NORMAL_TOLERANCE as f64),
+        (hao, "CLAMP_MARGIN", temporal::CLAMP_MARGIN as f64),
+        (hao, "CLAMPED_COUNT", temporal::CLAMPED_COUNT as f64),
+        (hao, "CHANGED_COUNT", temporal::CHANGED_COUNT as f64),
+    ];
+    for (path, name, rust) in pairs {
+        let wgsl = wgsl_const(path, name);
+        // f32 constants compared at f32 precision.
+        assert!((wgsl - rust).abs() <= rust.abs() * 1.0e-7, "{path}: {name} is {wgsl} in WGSL, {rust} in Rust");
+    }
+    // The classify and expand entry points run VOXELIZE_WORKGROUP invocations a workgroup (the dispatches
+    // are sized by it).
+    let mut composer = composer();
+    for path in ["src/voxel/voxelize_classify.wgsl", "src/voxel/voxelize_expand.wgsl"] {
+        let module = composer
+            .make_naga_module(NagaModuleDescriptor {
+                source: &read(path),
+                file_path: path,
+                shader_type: ShaderType::Wgsl,
+                ..Default::default()
+            })
+            .unwrap_or_else(|e| panic!("{path}: {e:?}"));
+        for entry in &module.entry_points {
+            let size = entry.workgroup_size;
+            assert_eq!(size, [pipelines::VOXELIZE_WORKGROUP, 1, 1], "{path}: {}", entry.name);
+        }
+    }
+}

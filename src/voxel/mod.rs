@@ -31,7 +31,7 @@ mod occluders;
 mod pass;
 pub(crate) mod pipelines;
 mod prepare;
-mod stats;
+pub(crate) mod stats;
 pub(crate) mod volume;
 
 pub use bindings::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
