@@ -515,20 +515,18 @@ fn walls_app_and_voxels(
 /// `(h + 1) / 2`, NaN for the background): each block traces from its pixel of the frame
 /// (`half_resolution_offset`), or from its first pixel where that one shows another surface.
 fn cpu_trace_half(
-    app: &mut App,
     samples: &[Option<(Vec3, Vec3)>],
     (w, h): (u32, u32),
+    view_from_world: Mat4,
     settings: &HybridAmbientOcclusion,
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
 ) -> Vec<f32> {
     use bevy_hao::cpu::ao::{half_resolution_offset, samples_offset_pixel};
-    let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
-    let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let view_depth = |p: Vec3| -view_from_world.transform_point3(p).z;
     let (hw, hh) = (w.div_ceil(2), h.div_ceil(2));
     let offset = half_resolution_offset(frame);
-    let mut traced = vec![None; samples.len()];
+    let mut traced = vec![None; (hw * hh) as usize];
     for by in 0..hh {
         for bx in 0..hw {
             let block = (2 * by * w + 2 * bx) as usize;
@@ -540,18 +538,16 @@ fn cpu_trace_half(
                 }
                 _ => block,
             };
-            traced[(by * hw + bx) as usize] = Some((pixel, samples[pixel]));
+            traced[(by * hw + bx) as usize] = Some(pixel);
         }
     }
-    // `cpu_trace` over the traced pixels, each with its own pixel's noise.
-    let mut ao = vec![f32::NAN; traced.len()];
-    for (i, t) in traced.iter().enumerate() {
-        let Some((pixel, sample)) = *t else { continue };
-        let mut one = vec![None; pixel + 1];
-        one[pixel] = sample;
-        ao[i] = cpu_trace(&one, w, settings, levels, frame).0[pixel];
+    // `cpu_trace` over the traced pixels only, each with its own pixel's noise.
+    let mut sparse = vec![None; samples.len()];
+    for &pixel in traced.iter().flatten() {
+        sparse[pixel] = samples[pixel];
     }
-    ao
+    let (full, _) = cpu_trace(&sparse, w, settings, levels, frame);
+    traced.iter().map(|t| t.map_or(f32::NAN, |pixel| full[pixel])).collect()
 }
 
 /// Holds the GPU's temporal accumulation over a still camera, at full or half resolution, to the CPU
@@ -579,10 +575,12 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
     let (tw, th) = if half_resolution { (w.div_ceil(2), h.div_ceil(2)) } else { (w, h) };
     // The noise turns every frame with the render frame's number: the twin's frames, as the GPU stores them
     // (f16), for the frames this run may have read back.
+    let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
+    let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let frames: Vec<Vec<f32>> = (0..rendered + 2)
         .map(|f| {
             let ao = if half_resolution {
-                cpu_trace_half(&mut app, &samples, (w, h), &settings, &levels, f as u32)
+                cpu_trace_half(&samples, (w, h), view_from_world, &settings, &levels, f as u32)
             } else {
                 cpu_trace(&samples, w, &settings, &levels, f as u32).0
             };
@@ -592,8 +590,6 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
     // The twin at the traced resolution against the image (where it shows geometry). At half resolution
     // each pixel reads the blocks through `upsample_taps`, weighed by depth and normal against the blocks'
     // first pixels.
-    let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
-    let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let geometry = |i: usize| samples[i].map(|(p, n)| (-view_from_world.transform_point3(p).z, n));
     let upsample = |cpu: &[f32], pixel: usize| -> f32 {
         use bevy_hao::cpu::denoise::{bilateral_weight, upsample_taps};

@@ -1,8 +1,8 @@
 // Hybrid ambient occlusion, pass 1: per pixel (or per 2x2 pixels at half resolution, from a pixel of the
 // block that turns every frame: `half_resolution_offset`), cosine-weighted rays from the surface (position
 // from the depth prepass, normal from the normal prepass) through the voxel texture, with empty-space
-// skipping on its max-reduced mips. Writes the noisy AO (1 = open, 0 = occluded)
-// with the pixel's view depth and octahedral normal, which the denoiser weighs by.
+// skipping on its max-reduced mips. Writes the noisy AO (1 = open, 0 = occluded) with the block's view
+// depth and octahedral normal, which the denoiser weighs by.
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`. The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{

@@ -1,8 +1,8 @@
 // Hybrid ambient occlusion, pass 2b: the denoised AO at full resolution, and the near field. At full
 // resolution this pass is the vertical half of the bilateral filter (`bilateral_line`). A half-resolution
-// trace, filtered both ways by hao_denoise.wgsl, is upsampled: a block's value stands for its middle (the trace samples its pixels
-// in turn), so a pixel's centre lies a quarter of a block from the nearest, and it reads the 2x2 nearest
-// blocks, weighed linearly and by their depth and normal against its own (CPU twin:
+// trace, filtered both ways by hao_denoise.wgsl, is upsampled: a block's value stands for its middle (the
+// trace samples its pixels in turn), so a pixel's centre lies a quarter of a block from the nearest, and it
+// reads the 2x2 nearest blocks, weighed linearly and by their depth and normal against its own (CPU twin:
 // `bevy_hao::cpu::denoise::upsample_taps`). With the near field on, the result is the minimum with Bevy's
 // screen-space AO.
 #import bevy_render::view::View
