@@ -133,7 +133,7 @@ pub fn spawn_scene(
                 warn!("{}: {w}", path.display());
             }
             let dir = path.parent().unwrap_or(Path::new("."));
-            for data in model.mesh_data() {
+            for data in &model.groups {
                 let mut m = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
                     .with_inserted_attribute(
                         Mesh::ATTRIBUTE_POSITION,
@@ -175,7 +175,7 @@ pub fn spawn_scene(
                             Mesh3d(meshes.add(m)),
                             MeshMaterial3d(materials.add(std)),
                             bevy_hao::StaticOccluder,
-                            Name::new(data.material.unwrap_or_default()),
+                            Name::new(data.material.clone().unwrap_or_default()),
                         ))
                         .id(),
                 );

@@ -1,37 +1,29 @@
-//! A Wavefront OBJ reader: positions, texture coordinates, normals, polygonal faces (fan-triangulated),
-//! negative indices, `usemtl` groups, and the `mtllib` materials' diffuse color and texture.
+//! Wavefront OBJ files, read by [`tobj`]: positions, texture coordinates, normals, polygonal faces
+//! (fan-triangulated), negative indices, and one group per `o`/`g` name and `usemtl` change. The `mtllib`
+//! materials' diffuse colour, opacity and texture are read by [`parse_mtl`].
+//!
+//! MTL files are not read by `tobj::load_mtl_buf`: tobj 4.0.5 panics on a colour line with fewer than
+//! three numbers (`Kd 0.5`; checked), and a material file is as hostile as any other input. [`parse_mtl`]
+//! reads what a PBR material can use and skips what it cannot parse.
+//!
+//! A face that tobj cannot read (an index out of range, a word that is not an index) refuses the whole
+//! file with tobj's message; the hand-written reader this replaces skipped such faces with a warning.
 
 use bevy_hao::cpu::TriangleMesh;
 use glam::{Vec2, Vec3};
+use std::cell::RefCell;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-/// One face corner: indices (0-based) into the position, texture-coordinate and normal lists.
-type Corner = (u32, Option<u32>, Option<u32>);
-
-/// An OBJ file, parsed.
+/// An OBJ file, read.
 #[derive(Debug, Clone, Default)]
 pub struct ObjModel {
-    /// The `v` lines.
-    pub positions: Vec<Vec3>,
-    /// The `vt` lines.
-    pub uvs: Vec<Vec2>,
-    /// The `vn` lines.
-    pub normals: Vec<Vec3>,
-    /// Faces grouped by material, in file order.
-    pub groups: Vec<ObjGroup>,
+    /// The file's groups, in file order, each flattened for rendering.
+    pub groups: Vec<ObjMeshData>,
     /// Materials from the `mtllib` files that could be read.
     pub materials: Vec<ObjMaterial>,
-    /// Problems met while reading (skipped lines, missing material files).
+    /// Problems met while reading (skipped elements, material files not read).
     pub warnings: Vec<String>,
-}
-
-/// Triangles that share a material.
-#[derive(Debug, Clone, Default)]
-pub struct ObjGroup {
-    /// The `usemtl` name, if any.
-    pub material: Option<String>,
-    /// Triangles as three corners each.
-    triangles: Vec<[Corner; 3]>,
 }
 
 /// A material from an MTL file (the parts a PBR material can use).
@@ -47,10 +39,10 @@ pub struct ObjMaterial {
     pub opacity: f32,
 }
 
-/// A group flattened for rendering: one vertex per distinct corner.
+/// One group's triangles with one vertex per distinct corner (position, texture coordinate and normal).
 #[derive(Debug, Clone, Default)]
 pub struct ObjMeshData {
-    /// The group's material name.
+    /// The group's material name, when its `usemtl` names a material that was read.
     pub material: Option<String>,
     /// Positions.
     pub positions: Vec<Vec3>,
@@ -63,158 +55,86 @@ pub struct ObjMeshData {
 }
 
 impl ObjModel {
-    /// Reads an OBJ file and the MTL files it names.
-    pub fn load(path: &Path) -> std::io::Result<Self> {
+    /// Reads an OBJ file and the MTL files it names (looked up beside it).
+    pub fn load(path: &Path) -> Result<Self, String> {
         // Read lossily: a stray non-UTF-8 byte (in a comment, a name) must not reject the file.
-        let text = String::from_utf8_lossy(&std::fs::read(path)?).into_owned();
-        let mut model = Self::parse(&text);
-        let dir = path.parent().unwrap_or(Path::new("."));
-        for lib in text.lines().filter_map(|l| l.trim().strip_prefix("mtllib ")) {
-            let mtl_path = dir.join(lib.trim());
-            match std::fs::read(&mtl_path) {
-                Ok(mtl) => {
-                    model.materials.extend(parse_mtl(&String::from_utf8_lossy(&mtl), mtl_path.parent().unwrap_or(dir)))
-                }
-                Err(e) => model.warnings.push(format!("material library {} not read: {e}", mtl_path.display())),
-            }
-        }
-        Ok(model)
+        let text = String::from_utf8_lossy(&std::fs::read(path).map_err(|e| e.to_string())?).into_owned();
+        Self::read(&text, Some(path.parent().unwrap_or(Path::new("."))))
     }
 
-    /// Parses OBJ text (materials are not loaded: see [`Self::load`]).
-    pub fn parse(text: &str) -> Self {
-        let mut m = Self::default();
-        let mut skipped_elements = 0usize;
-        let mut bad_faces = 0usize;
-        m.groups.push(ObjGroup::default());
-        for line in text.lines() {
-            let line = line.trim();
-            let mut words = line.split_whitespace();
-            let Some(tag) = words.next() else { continue };
-            let floats =
-                |words: std::str::SplitWhitespace| words.filter_map(|w| w.parse::<f32>().ok()).collect::<Vec<_>>();
-            match tag {
-                "v" => {
-                    let f = floats(words);
-                    m.positions.push(Vec3::new(
-                        *f.first().unwrap_or(&f32::NAN),
-                        *f.get(1).unwrap_or(&f32::NAN),
-                        *f.get(2).unwrap_or(&f32::NAN),
-                    ));
-                }
-                "vt" => {
-                    let f = floats(words);
-                    m.uvs.push(Vec2::new(*f.first().unwrap_or(&0.0), *f.get(1).unwrap_or(&0.0)));
-                }
-                "vn" => {
-                    let f = floats(words);
-                    m.normals.push(Vec3::new(
-                        *f.first().unwrap_or(&0.0),
-                        *f.get(1).unwrap_or(&0.0),
-                        *f.get(2).unwrap_or(&0.0),
-                    ));
-                }
-                "f" => {
-                    let corners: Option<Vec<Corner>> = words.map(|w| m.corner(w)).collect();
-                    match corners {
-                        Some(c) if c.len() >= 3 => {
-                            let group = m.groups.last_mut().expect("there is always a group");
-                            for k in 1..c.len() - 1 {
-                                group.triangles.push([c[0], c[k], c[k + 1]]);
-                            }
-                        }
-                        _ => bad_faces += 1,
-                    }
-                }
-                "usemtl" => {
-                    let name = line[6..].trim().to_string();
-                    let last = m.groups.last_mut().expect("there is always a group");
-                    if last.triangles.is_empty() {
-                        last.material = Some(name);
-                    } else {
-                        m.groups.push(ObjGroup { material: Some(name), triangles: Vec::new() });
-                    }
-                }
-                "l" | "p" => skipped_elements += 1,
-                _ => {}
-            }
-        }
-        m.groups.retain(|g| !g.triangles.is_empty());
-        if skipped_elements > 0 {
-            m.warnings.push(format!("{skipped_elements} line or point elements skipped (not triangles)"));
-        }
-        if bad_faces > 0 {
-            m.warnings.push(format!("{bad_faces} faces skipped (fewer than 3 corners or an index out of range)"));
-        }
-        m
+    /// Reads OBJ text without its materials (see [`Self::load`]).
+    pub fn parse(text: &str) -> Result<Self, String> {
+        Self::read(text, None)
     }
 
-    fn corner(&self, word: &str) -> Option<Corner> {
-        let mut parts = word.split('/');
-        let resolve = |s: Option<&str>, len: usize| -> Option<Option<u32>> {
-            match s {
-                None | Some("") => Some(None),
-                Some(s) => {
-                    let i: i64 = s.parse().ok()?;
-                    let idx = if i < 0 { len as i64 + i } else { i - 1 };
-                    (0..len as i64).contains(&idx).then_some(Some(idx as u32))
+    /// Reads OBJ text; `mtl_dir` is where its `mtllib` files are looked up (`None`: not read).
+    fn read(text: &str, mtl_dir: Option<&Path>) -> Result<Self, String> {
+        let materials = RefCell::new(Vec::<ObjMaterial>::new());
+        let warnings = RefCell::new(Vec::<String>::new());
+        let options =
+            tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
+        let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &options, |lib| {
+            let Some(dir) = mtl_dir else { return Err(tobj::LoadError::OpenFileFailed) };
+            let path = dir.join(lib);
+            let parsed = match std::fs::read(&path) {
+                Ok(bytes) => parse_mtl(&String::from_utf8_lossy(&bytes), path.parent().unwrap_or(dir)),
+                Err(e) => {
+                    warnings.borrow_mut().push(format!("material library {} not read: {e}", path.display()));
+                    return Err(tobj::LoadError::OpenFileFailed);
                 }
-            }
-        };
-        let v = resolve(parts.next(), self.positions.len())??;
-        let vt = resolve(parts.next(), self.uvs.len())?;
-        let vn = resolve(parts.next(), self.normals.len())?;
-        Some((v, vt, vn))
+            };
+            // tobj numbers a library's materials from the count it already holds, as `materials` does.
+            let map = parsed.iter().enumerate().map(|(i, m)| (m.name.clone(), i)).collect::<HashMap<_, _>>();
+            let names = parsed.iter().map(|m| tobj::Material { name: m.name.clone(), ..Default::default() }).collect();
+            materials.borrow_mut().extend(parsed);
+            Ok((names, map))
+        })
+        .map_err(|e| format!("not a readable OBJ file: {e}"))?;
+
+        let materials = materials.into_inner();
+        let mut warnings = warnings.into_inner();
+        let skipped = text.lines().filter(|l| matches!(l.split_whitespace().next(), Some("l" | "p"))).count();
+        if skipped > 0 {
+            warnings.push(format!("{skipped} line or point elements skipped (not triangles)"));
+        }
+        let groups =
+            models.into_iter().map(|model| group(model.mesh, &materials)).filter(|g| !g.indices.is_empty()).collect();
+        Ok(Self { groups, materials, warnings })
     }
 
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
-        self.groups.iter().map(|g| g.triangles.len()).sum()
+        self.groups.iter().map(|g| g.indices.len() / 3).sum()
     }
 
-    /// All triangles on the shared position list (what the voxelizers need).
+    /// All groups' triangles in one mesh (what the voxelizers need).
     pub fn to_triangle_mesh(&self) -> TriangleMesh {
-        TriangleMesh::new(
-            self.positions.clone(),
-            self.groups.iter().flat_map(|g| g.triangles.iter().map(|t| t.map(|c| c.0))).collect(),
-        )
-    }
-
-    /// Each group flattened for rendering (one vertex per distinct corner).
-    pub fn mesh_data(&self) -> Vec<ObjMeshData> {
-        self.groups
-            .iter()
-            .map(|g| {
-                let mut map = std::collections::HashMap::new();
-                let mut d = ObjMeshData { material: g.material.clone(), ..Default::default() };
-                let (mut normals, mut uvs) = (Vec::new(), Vec::new());
-                let (mut all_n, mut all_uv) = (true, true);
-                for t in &g.triangles {
-                    for c in t {
-                        let index = *map.entry(*c).or_insert_with(|| {
-                            d.positions.push(self.positions[c.0 as usize]);
-                            match c.2 {
-                                Some(n) => normals.push(self.normals[n as usize]),
-                                None => all_n = false,
-                            }
-                            match c.1 {
-                                Some(t) => uvs.push(self.uvs[t as usize] * Vec2::new(1.0, -1.0) + Vec2::Y),
-                                None => all_uv = false,
-                            }
-                            d.positions.len() as u32 - 1
-                        });
-                        d.indices.push(index);
-                    }
-                }
-                d.normals = all_n.then_some(normals);
-                d.uvs = all_uv.then_some(uvs);
-                d
-            })
-            .collect()
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for g in &self.groups {
+            let base = positions.len() as u32;
+            positions.extend_from_slice(&g.positions);
+            triangles.extend(g.indices.chunks_exact(3).map(|t| [base + t[0], base + t[1], base + t[2]]));
+        }
+        TriangleMesh::new(positions, triangles)
     }
 }
 
-/// Parses MTL text; texture paths are resolved against `dir`.
+/// A tobj mesh (single-indexed, triangulated) as a group.
+fn group(mesh: tobj::Mesh, materials: &[ObjMaterial]) -> ObjMeshData {
+    let vertices = mesh.positions.len() / 3;
+    let vec3s = |v: &[f32]| v.chunks_exact(3).map(Vec3::from_slice).collect::<Vec<_>>();
+    ObjMeshData {
+        material: mesh.material_id.and_then(|i| materials.get(i)).map(|m| m.name.clone()),
+        positions: vec3s(&mesh.positions),
+        normals: (mesh.normals.len() == 3 * vertices).then(|| vec3s(&mesh.normals)),
+        uvs: (mesh.texcoords.len() == 2 * vertices)
+            .then(|| mesh.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect()),
+        indices: mesh.indices,
+    }
+}
+
+/// Parses MTL text; texture paths are resolved against `dir`. Lines it cannot parse are skipped.
 pub fn parse_mtl(text: &str, dir: &Path) -> Vec<ObjMaterial> {
     let mut out: Vec<ObjMaterial> = Vec::new();
     for line in text.lines() {
@@ -258,21 +178,50 @@ pub fn parse_mtl(text: &str, dir: &Path) -> Vec<ObjMaterial> {
 mod tests {
     use super::*;
 
+    const QUAD_AND_TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n\
+                                     g quad\nusemtl a\nf 1/1/1 2/1/1 3/1/1 4/1/1\ng tri\nusemtl b\nf -4 -3 -1\nl 1 2\np 3\n";
+
     #[test]
-    fn polygons_negative_indices_groups_and_bad_faces() {
-        let text = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n\
-                    usemtl a\nf 1/1/1 2/1/1 3/1/1 4/1/1\nusemtl b\nf -4 -3 -1\nf 1 2 9\nl 1 2\n";
-        let m = ObjModel::parse(text);
+    fn polygons_negative_indices_and_groups() {
+        let m = ObjModel::parse(QUAD_AND_TRIANGLE).unwrap();
         assert_eq!(m.triangle_count(), 3);
-        assert_eq!(m.groups.len(), 2);
-        assert_eq!(m.groups[0].material.as_deref(), Some("a"));
+        assert_eq!(m.groups.len(), 2, "one group per `g`");
+        // The quad, fanned from its first corner: (0,0) (1,0) (1,1) and (0,0) (1,1) (0,1).
         let t = m.to_triangle_mesh();
-        assert_eq!(t.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 3]]);
-        assert_eq!(m.warnings.len(), 2);
-        let data = m.mesh_data();
-        assert!(data[0].normals.is_some() && data[0].uvs.is_some());
-        assert!(data[1].normals.is_none());
-        assert_eq!(data[0].positions.len(), 4);
+        let corners = |k: usize| t.triangles[k].map(|i| t.positions[i as usize].truncate());
+        assert_eq!(corners(0), [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0)]);
+        assert_eq!(corners(1), [Vec2::new(0.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)]);
+        // -4 -3 -1: the first, second and fourth positions.
+        assert_eq!(corners(2), [Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 1.0)]);
+        assert_eq!(m.warnings, ["2 line or point elements skipped (not triangles)"]);
+        assert!(m.groups[0].normals.is_some() && m.groups[0].uvs.is_some());
+        assert_eq!(m.groups[0].uvs.as_ref().unwrap()[0], Vec2::new(0.0, 1.0), "v flipped");
+        assert!(m.groups[1].normals.is_none() && m.groups[1].uvs.is_none());
+        assert_eq!(m.groups[0].positions.len(), 4);
+    }
+
+    #[test]
+    fn bad_faces_refuse_the_file_with_a_message() {
+        for bad in ["v 0 0 0\nf 1 2 9\n", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", "v 0 0\nf 1 1 1\n"] {
+            let e = ObjModel::parse(bad).unwrap_err();
+            assert!(e.starts_with("not a readable OBJ file"), "{bad:?}: {e}");
+        }
+    }
+
+    #[test]
+    fn materials_are_named_by_usemtl_and_read_beside_the_file() {
+        let dir = std::env::temp_dir().join(format!("bevy_hao_obj_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("m.mtl"), "newmtl a\nKd 0.5 0.4 0.3\nmap_Kd tex\\a.png\nnewmtl b\nKd 0.5\n").unwrap();
+        std::fs::write(dir.join("m.obj"), format!("mtllib m.mtl\nmtllib missing.mtl\n{QUAD_AND_TRIANGLE}")).unwrap();
+        let m = ObjModel::load(&dir.join("m.obj")).unwrap();
+        std::fs::remove_dir_all(&dir).ok();
+        assert_eq!(m.groups[0].material.as_deref(), Some("a"));
+        assert_eq!(m.groups[1].material.as_deref(), Some("b"));
+        assert_eq!(m.materials[0].diffuse, [0.5, 0.4, 0.3]);
+        assert_eq!(m.materials[0].diffuse_texture.as_deref(), Some(dir.join("tex/a.png").as_path()));
+        assert_eq!(m.materials[1].diffuse, [0.8; 3], "a short Kd line is skipped");
+        assert!(m.warnings.iter().any(|w| w.contains("missing.mtl")), "{:?}", m.warnings);
     }
 
     #[test]
