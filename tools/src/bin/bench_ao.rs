@@ -112,6 +112,8 @@ fn main() {
         }
         samples.into_iter().map(bevy_hao_tools::harness::median).collect()
     };
+    // SSAO alone, then each preset with and without accumulation.
+    let bar = bevy_hao_tools::harness::progress_bar(9, "bench_ao");
     let cam = app.world_mut().query_filtered::<Entity, With<BenchCamera>>().single(app.world()).unwrap();
     // Bevy's SSAO alone (High), no HAO on the camera: the plugin takes the SSAO it added away with HAO (in
     // the next frame), then the camera gets its own.
@@ -119,6 +121,7 @@ fn main() {
     app.update();
     app.world_mut().entity_mut(cam).insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
     let ssao_alone = measure(&mut app, &["ssao"])[0];
+    bar.inc(1);
     // HAO at its defaults: the plugin adds its own (cheapest) SSAO again once the user's is gone.
     app.world_mut()
         .entity_mut(cam)
@@ -131,8 +134,10 @@ fn main() {
             let settings = HybridAmbientOcclusion { quality, accumulation_frames, ..default() };
             app.world_mut().entity_mut(cam).insert(settings.clone());
             rows.push((settings, measure(&mut app, &spans)));
+            bar.inc(1);
         }
     }
+    bar.finish_and_clear();
     let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
         eprintln!("error: wgpu errors: {errors:?}");

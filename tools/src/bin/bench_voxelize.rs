@@ -276,6 +276,8 @@ fn main() {
     let mut rows = Vec::new();
     let mut cascade_rows: Vec<String> = Vec::new();
     let mut memory = String::new();
+    let runs = args.resolutions.len() * args.patterns.len() + usize::from(args.cascades);
+    let bar = bevy_hao_tools::harness::progress_bar((args.inputs.len() * runs) as u64, "bench_voxelize");
     for input in &args.inputs {
         let loaded = match load_mesh(input) {
             Ok(l) => l,
@@ -285,7 +287,7 @@ fn main() {
             }
         };
         if args.cascades {
-            eprintln!("{} in the default cascades...", loaded.name);
+            bar.set_message(format!("{} in the default cascades", loaded.name));
             let mut app = app_for(&loaded.mesh, 0, args.size, args.injection, args.patterns[0]);
             let mut frames = 0;
             while bevy_hao_tools::harness::stats(&app).static_rebuilds == 0 && frames < 120 {
@@ -332,10 +334,11 @@ fn main() {
                 eprintln!("error: wgpu errors: {errors:?}");
                 std::process::exit(1);
             }
+            bar.inc(1);
         }
         for &res in &args.resolutions {
             for &pattern in &args.patterns {
-                eprintln!("{} at {res}, {pattern:?}...", loaded.name);
+                bar.set_message(format!("{} at {res}, {pattern:?}", loaded.name));
                 let mut app = app_for(&loaded.mesh, res, args.size, args.injection, pattern);
                 // Warm up until the pipelines are compiled and the grid is built.
                 let mut frames = 0;
@@ -387,9 +390,11 @@ fn main() {
                         }
                     ));
                 }
+                bar.inc(1);
             }
         }
     }
+    bar.finish_and_clear();
     println!(
         "GPU: {adapter}; {} frames per phase; depth prepass at {}x{}; {:?} injection\n",
         args.frames, args.size.x, args.size.y, args.injection

@@ -401,6 +401,16 @@ fn main() {
         return;
     }
     let several_outputs = args.inputs.len() * args.resolutions.len() > 1;
+    // A progress bar over the mesh/resolution runs when there are several (drawn only on a terminal);
+    // messages are printed above it.
+    let bar = if several_outputs {
+        bevy_hao_tools::harness::progress_bar((args.inputs.len() * args.resolutions.len()) as u64, "voxelize")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    macro_rules! note {
+        ($($arg:tt)*) => { bar.suspend(|| eprintln!($($arg)*)) };
+    }
     println!(
         "| mesh | res | grid | triangles | gamma | mode | pattern | points injected | estimated points | voxels set \
          | points per voxel | ground-truth voxels | bias % | grazed share of bias % | excess voxels | watertight \
@@ -421,7 +431,7 @@ fn main() {
                         (bevy_hao_tools::meshes::LoadedMesh { name, mesh, warnings }, Some(clip))
                     }
                     Err(e) => {
-                        eprintln!("error: {e}");
+                        note!("error: {e}");
                         std::process::exit(1);
                     }
                 }
@@ -429,25 +439,27 @@ fn main() {
             None => match load_mesh(input) {
                 Ok(l) => (l, None),
                 Err(e) => {
-                    eprintln!("error: {e}");
+                    note!("error: {e}");
                     std::process::exit(1);
                 }
             },
         };
         for w in &loaded.warnings {
-            eprintln!("warning: {}: {w}", loaded.name);
+            note!("warning: {}: {w}", loaded.name);
         }
         let mesh = loaded.mesh;
         let stats = mesh.stats();
         let Some((lo, hi)) = stats.bounds else {
-            eprintln!("warning: {}: no triangles with finite vertices; skipped", loaded.name);
+            note!("warning: {}: no triangles with finite vertices; skipped", loaded.name);
+            bar.inc(args.resolutions.len() as u64);
             continue;
         };
         for &res in &args.resolutions {
+            let _tick = Tick(&bar);
             let grid = match VoxelGrid::fit_to_bounds(lo, hi, res) {
                 Ok(g) => g,
                 Err(e) => {
-                    eprintln!("warning: {} at {res}: {e}; skipped", loaded.name);
+                    note!("warning: {} at {res}: {e}; skipped", loaded.name);
                     continue;
                 }
             };
@@ -456,9 +468,13 @@ fn main() {
             // with point counts, the watertight test's flood fill) take about 8 bytes a voxel.
             let need_mb = grid.voxel_count().saturating_mul(8) / (1 << 20);
             if need_mb > args.max_memory_mb {
-                eprintln!(
+                note!(
                     "error: {} at {res}: a {}x{}x{} grid needs about {need_mb} MB, over --max-memory-mb {}; skipped",
-                    loaded.name, grid.dims.x, grid.dims.y, grid.dims.z, args.max_memory_mb
+                    loaded.name,
+                    grid.dims.x,
+                    grid.dims.y,
+                    grid.dims.z,
+                    args.max_memory_mb
                 );
                 failures += 1;
                 continue;
@@ -484,16 +500,21 @@ fn main() {
                 }
             }
             if points > args.point_budget {
-                eprintln!(
+                note!(
                     "error: {} at {res}: voxelizing needs up to {points} sub-triangles, over --point-budget {}; skipped",
-                    loaded.name, args.point_budget
+                    loaded.name,
+                    args.point_budget
                 );
                 failures += 1;
                 continue;
             }
-            eprintln!(
+            note!(
                 "{} at {res}: {} triangles, grid {}x{}x{}",
-                loaded.name, stats.triangles, grid.dims.x, grid.dims.y, grid.dims.z
+                loaded.name,
+                stats.triangles,
+                grid.dims.x,
+                grid.dims.y,
+                grid.dims.z
             );
             // Ground truth (and which of its cells the surface only grazes).
             let mut truth = VoxelOccupancy::new(grid, false);
@@ -519,7 +540,7 @@ fn main() {
                     match BiasModel::fit(&samples) {
                         Some(model) => {
                             gamma = model.gamma_for_bias(target, 16.0);
-                            eprintln!(
+                            note!(
                                 "  equation 3 fitted: p1 = {:.3}%, A = {:.2}, B = {:.3}; gamma for {:.3}% = {gamma:.3}",
                                 model.p1 * 100.0,
                                 model.a,
@@ -529,7 +550,7 @@ fn main() {
                         }
                         None => {
                             gamma = 1.0;
-                            eprintln!(
+                            note!(
                                 "  equation 3 cannot be fitted (bias at gamma 1 is {:.3}% and does not fall); gamma = 1",
                                 samples[0].1 * 100.0
                             );
@@ -545,19 +566,19 @@ fn main() {
                     match gpu_voxelize(source, (lo, hi), res, &settings, args.runs) {
                         Ok((occ, counters, t, adapter)) => {
                             if occ.grid() != &grid {
-                                eprintln!("error: the GPU grid {:?} differs from the CPU's {:?}", occ.grid(), grid);
+                                note!("error: the GPU grid {:?} differs from the CPU's {:?}", occ.grid(), grid);
                                 std::process::exit(1);
                             }
                             // The CPU twin on the same mesh and grid: how many voxels the two disagree on.
                             let twin = VoxelOccupancy::new(grid, false);
                             voxelize_mesh(&mesh, to_grid, &settings, &twin);
                             let (only_gpu, only_cpu) = (occ.count_not_in(&twin), twin.count_not_in(&occ));
-                            eprintln!(
+                            note!(
                                 "  GPU vs CPU twin: {only_gpu} voxels only on the GPU, {only_cpu} only on the CPU, of {} ({:.3} per 1000)",
                                 twin.set_voxel_count(),
                                 1000.0 * (only_gpu + only_cpu) as f64 / twin.set_voxel_count().max(1) as f64
                             );
-                            eprintln!(
+                            note!(
                                 "  GPU ({adapter}): {} triangles read, {} injected at once, {} queued for expansion, {} invalid, {} degenerate, {} oversize",
                                 counters.triangles,
                                 counters.small,
@@ -570,16 +591,18 @@ fn main() {
                             (t.unwrap_or(f64::NAN), counters.injected as u64)
                         }
                         Err(e) => {
-                            eprintln!("error: {} at {res} on the GPU: {e}", loaded.name);
+                            note!("error: {} at {res} on the GPU: {e}", loaded.name);
                             std::process::exit(1);
                         }
                     }
                 } else {
                     let (t, vstats) = run(gamma, args.runs, &mut result);
                     if vstats.invalid + vstats.degenerate + vstats.oversize > 0 {
-                        eprintln!(
+                        note!(
                             "  skipped triangles: {} invalid, {} degenerate, {} oversize",
-                            vstats.invalid, vstats.degenerate, vstats.oversize
+                            vstats.invalid,
+                            vstats.degenerate,
+                            vstats.oversize
                         );
                     }
                     (t, vstats.injected)
@@ -631,9 +654,9 @@ fn main() {
                     let written = std::fs::File::create(&path)
                         .and_then(|f| write_binvox(&result, &mut std::io::BufWriter::new(f)));
                     match written {
-                        Ok(()) => eprintln!("  wrote {path}"),
+                        Ok(()) => note!("  wrote {path}"),
                         Err(e) => {
-                            eprintln!("error: writing {path}: {e}");
+                            note!("error: writing {path}: {e}");
                             std::process::exit(1);
                         }
                     }
@@ -641,7 +664,7 @@ fn main() {
                 if args.gamma_sweep {
                     let mut rows = Vec::new();
                     for g in [0.5f32, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0] {
-                        eprintln!("  sweep gamma {g}");
+                        note!("  sweep gamma {g}");
                         let (t, s) = run(g, args.runs.min(3), &mut result);
                         rows.push((
                             g,
@@ -656,6 +679,7 @@ fn main() {
             }
         }
     }
+    bar.finish_and_clear();
     for (name, res, pattern, truth_voxels, rows) in sweeps {
         println!(
             "\nGamma sweep, {name} at {res} ({} mode, {pattern} pattern): bias and time against gamma (Figure 5d)\n",
@@ -672,11 +696,20 @@ fn main() {
         }
     }
     if !voxelized {
-        eprintln!("error: nothing was voxelized");
+        note!("error: nothing was voxelized");
         std::process::exit(1);
     }
     if failures > 0 {
-        eprintln!("error: {failures} mesh/resolution run(s) were refused (see above)");
+        note!("error: {failures} mesh/resolution run(s) were refused (see above)");
         std::process::exit(1);
+    }
+}
+
+/// Advances the progress bar when a mesh/resolution run ends, however it ends.
+struct Tick<'a>(&'a indicatif::ProgressBar);
+
+impl Drop for Tick<'_> {
+    fn drop(&mut self) {
+        self.0.inc(1);
     }
 }
