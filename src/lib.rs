@@ -4,6 +4,7 @@
 mod ao;
 pub mod cpu;
 mod debug;
+mod gpu;
 #[cfg(feature = "inspector")]
 pub mod inspector;
 mod voxel;

@@ -1,6 +1,7 @@
 //! Every WGSL file of the crate, composed with naga_oil (as Bevy does) and validated with naga. No GPU
 //! needed.
 
+use bevy::render::render_resource::encase::internal::WriteInto;
 use naga_oil::compose::{ComposableModuleDescriptor, Composer, NagaModuleDescriptor, ShaderDefValue, ShaderType};
 use std::collections::HashMap;
 use std::path::Path;
@@ -53,6 +54,19 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
     ]
 }
 
+/// The shader defs every compute pipeline gets (`crate::gpu::shader_defs`), as naga_oil takes them.
+fn shared_defs() -> HashMap<String, ShaderDefValue> {
+    use bevy::shader::ShaderDefVal;
+    crate::gpu::shader_defs()
+        .into_iter()
+        .map(|d| match d {
+            ShaderDefVal::Bool(k, v) => (k, ShaderDefValue::Bool(v)),
+            ShaderDefVal::Int(k, v) => (k, ShaderDefValue::Int(v)),
+            ShaderDefVal::UInt(k, v) => (k, ShaderDefValue::UInt(v)),
+        })
+        .collect()
+}
+
 fn read(path: &str) -> String {
     std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(path)).unwrap_or_else(|e| panic!("{path}: {e}"))
 }
@@ -84,7 +98,8 @@ fn every_wgsl_file_composes_and_validates() {
     for (path, variants) in shaders() {
         let source = read(path);
         for defs in variants {
-            let shader_defs: HashMap<String, ShaderDefValue> = defs.iter().map(|(k, v)| (k.to_string(), *v)).collect();
+            let mut shader_defs = shared_defs();
+            shader_defs.extend(defs.iter().map(|(k, v)| (k.to_string(), *v)));
             let module = composer
                 .make_naga_module(NagaModuleDescriptor {
                     source: &source,
@@ -228,9 +243,19 @@ fn wgsl_layout(module: &naga::Module, name: &str) -> Option<(Vec<usize>, usize)>
     })
 }
 
+/// What encase writes for a uniform (`ShaderType`) is its `repr(C)` twin's memory, for a value of
+/// distinct words: so the offsets [`uploaded_structs_match_their_wgsl_layouts`] checks are the GPU's.
+fn encased_as_in_memory<T: bytemuck::Pod + bevy::render::render_resource::ShaderType + WriteInto>() {
+    let words: Vec<u32> = (0..std::mem::size_of::<T>() / 4).map(|k| 0x0101_0101 * (k as u32 + 1)).collect();
+    let value: T = bytemuck::pod_read_unaligned(bytemuck::cast_slice(&words));
+    let name = std::any::type_name::<T>();
+    assert_eq!(crate::gpu::uniform_bytes(&value), bytemuck::bytes_of(&value), "{name}: encase's bytes");
+    assert_eq!(T::min_size().get(), std::mem::size_of::<T>() as u64, "{name}: the binding's minimum size");
+}
+
 /// The Rust structs the passes upload have their WGSL twins' layouts: the same size and the same offset
-/// for every member, as naga lays the WGSL out. Uniforms built with `ShaderType` (the voxel grid) are
-/// checked by size against encase's.
+/// for every member, as naga lays the WGSL out; the uniforms, written by encase, lie as in memory. The
+/// voxel grid (a `ShaderType` with arrays) is checked by size.
 #[test]
 fn uploaded_structs_match_their_wgsl_layouts() {
     use bevy::render::render_resource::ShaderType as _;
@@ -241,6 +266,7 @@ fn uploaded_structs_match_their_wgsl_layouts() {
                 source: &read(path),
                 file_path: path,
                 shader_type: ShaderType::Wgsl,
+                shader_defs: shared_defs(),
                 ..Default::default()
             })
             .unwrap_or_else(|e| panic!("{path}: {e:?}"))
@@ -251,6 +277,11 @@ fn uploaded_structs_match_their_wgsl_layouts() {
         assert_eq!(wgsl_size, size, "{name}: WGSL size {wgsl_size}, Rust {size}");
         assert_eq!(wgsl_offsets, offsets, "{name}: member offsets (WGSL, then Rust)");
     }
+    encased_as_in_memory::<crate::ao::prepare::GpuHaoSettings>();
+    encased_as_in_memory::<crate::debug::GpuDebugSettings>();
+    encased_as_in_memory::<crate::voxel::pipelines::GpuVoxelizeParams>();
+    encased_as_in_memory::<crate::voxel::pipelines::GpuLevelRegion>();
+    encased_as_in_memory::<crate::voxel::pipelines::GpuSlabGroup>();
     let (_, grid_size) = wgsl_layout(&module("src/ao/hao_trace.wgsl"), "VoxelGrid").expect("VoxelGrid");
     assert_eq!(grid_size as u64, crate::voxel::bindings::GpuVoxelGrid::min_size().get(), "VoxelGrid size");
     let (_, big) = wgsl_layout(&module("src/voxel/voxelize_expand.wgsl"), "BigTriangle").expect("BigTriangle");
@@ -274,24 +305,17 @@ fn wgsl_const(path: &str, name: &str) -> f64 {
     }
 }
 
-/// The constants Rust and WGSL share have one value: each WGSL `const` against the Rust constant it
-/// mirrors (CPU twin or render code), and the voxelizer's workgroup sizes against `VOXELIZE_WORKGROUP`.
+/// The constants Rust and WGSL share that are WGSL `const`s rather than shader defs (floats, and those of
+/// `voxel_grid.wgsl`, which other crates' shaders import) have one value: each against the Rust constant it
+/// mirrors. And the voxelizer's entry points, sized by a shader def, run `VOXELIZE_WORKGROUP` invocations.
 #[test]
 fn shared_constants_agree() {
-    use crate::cpu::{cascade, temporal, tessellation, voxelize};
-    use crate::voxel::{bindings, pipelines, stats};
+    use crate::cpu::{cascade, temporal, voxelize};
+    use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 17] = [
-        (common, "MAX_SUBDIVISION", tessellation::MAX_SUBDIVISION as f64),
-        (common, "MAX_SUB_TRIANGLES_PER_TRIANGLE", tessellation::MAX_SUB_TRIANGLES_PER_TRIANGLE as f64),
-        (common, "INLINE_SUB_TRIANGLES", tessellation::INLINE_SUB_TRIANGLES as f64),
-        (common, "STRIPS_MAX_COARSE", tessellation::STRIPS_MAX_COARSE as f64),
+    let pairs: [(&str, &str, f64); 9] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
-        (common, "COUNTER_COUNT", stats::COUNTER_BLOCK as f64),
-        (common, "FRAME_POINTS_USED", stats::FRAME_POINTS_USED as f64),
-        ("src/voxel/voxelize_scan.wgsl", "EXPAND_WORKGROUP", pipelines::VOXELIZE_WORKGROUP as f64),
-        ("src/voxel/voxelize_classify.wgsl", "NO_SKIN", pipelines::NO_SKIN as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_CHANGED_BOXES", bindings::MAX_CHANGED_BOXES as f64),
@@ -315,6 +339,7 @@ fn shared_constants_agree() {
                 source: &read(path),
                 file_path: path,
                 shader_type: ShaderType::Wgsl,
+                shader_defs: shared_defs(),
                 ..Default::default()
             })
             .unwrap_or_else(|e| panic!("{path}: {e:?}"));

@@ -8,7 +8,7 @@
 @group(0) @binding(1) var pbr_ambient_occlusion: texture_storage_2d<r32float, write>;
 #endif
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn apply(@builtin(global_invocation_id) gid: vec3<u32>) {
     if any(gid.xy >= textureDimensions(pbr_ambient_occlusion)) {
         return;

@@ -9,14 +9,14 @@
 @group(0) @binding(1) var<uniform> settings: HaoSettings;
 @group(0) @binding(2) var filtered_out: texture_storage_2d<rgba32float, write>;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn denoise_horizontal(@builtin(global_invocation_id) gid: vec3<u32>) {
     if all(gid.xy < textureDimensions(accumulated)) {
         textureStore(filtered_out, gid.xy, bilateral_line(accumulated, gid.xy, vec2<i32>(1, 0), settings.denoise_radius));
     }
 }
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn denoise_vertical(@builtin(global_invocation_id) gid: vec3<u32>) {
     if all(gid.xy < textureDimensions(accumulated)) {
         textureStore(filtered_out, gid.xy, bilateral_line(accumulated, gid.xy, vec2<i32>(0, 1), settings.denoise_radius));

@@ -29,7 +29,7 @@ struct PreviousViewData {
 @group(1) @binding(0) var<uniform> view: View;
 @group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = textureDimensions(noisy);
     if any(gid.xy >= size) {

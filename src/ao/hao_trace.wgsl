@@ -24,7 +24,7 @@ fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
     return p.xyz / p.w;
 }
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let out_size = textureDimensions(ao_out);
     if any(gid.xy >= out_size) {

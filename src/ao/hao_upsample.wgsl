@@ -18,7 +18,7 @@
 @group(0) @binding(5) var ao_out: texture_storage_2d<r32float, write>;
 @group(1) @binding(0) var<uniform> view: View;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = textureDimensions(ao_out);
     if any(gid.xy >= size) {

@@ -3,6 +3,7 @@
 
 use super::pipelines::HaoPipelines;
 use super::prepare::{HaoBindGroups, HaoViewResources};
+use crate::gpu::SCREEN_WORKGROUP;
 use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings};
 use bevy::core_pipeline::prepass::PreviousViewUniformOffset;
 use bevy::prelude::*;
@@ -12,7 +13,7 @@ use bevy::render::renderer::{RenderContext, ViewQuery};
 use bevy::render::view::ViewUniformOffset;
 
 fn groups(size: UVec2) -> (u32, u32) {
-    (size.x.div_ceil(8), size.y.div_ceil(8))
+    (size.x.div_ceil(SCREEN_WORKGROUP), size.y.div_ceil(SCREEN_WORKGROUP))
 }
 
 /// Trace, accumulate, denoise, apply.

@@ -1,13 +1,12 @@
 //! The HAO pipelines.
 
-use crate::voxel::pipelines::queue_compute;
+use super::prepare::GpuHaoSettings;
+use crate::gpu::queue_compute;
 use crate::voxel::voxel_grid_layout;
 use bevy::asset::load_embedded_asset;
 use bevy::core_pipeline::prepass::PreviousViewData;
 use bevy::prelude::*;
-use bevy::render::render_resource::binding_types::{
-    texture_2d, texture_depth_2d, texture_storage_2d, uniform_buffer, uniform_buffer_sized,
-};
+use bevy::render::render_resource::binding_types::{texture_2d, texture_depth_2d, texture_storage_2d, uniform_buffer};
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderAdapter;
 use bevy::render::view::ViewUniform;
@@ -68,7 +67,7 @@ impl FromWorld for HaoPipelines {
                 (
                     texture_depth_2d(),
                     texture_2d(unfilterable),
-                    uniform_buffer_sized(false, None),
+                    uniform_buffer::<GpuHaoSettings>(false),
                     texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
                 ),
             ),
@@ -81,7 +80,7 @@ impl FromWorld for HaoPipelines {
                     texture_2d(unfilterable),
                     texture_2d(unfilterable),
                     texture_depth_2d(),
-                    uniform_buffer_sized(false, None),
+                    uniform_buffer::<GpuHaoSettings>(false),
                     texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
                 ),
             ),
@@ -99,7 +98,7 @@ impl FromWorld for HaoPipelines {
                 ShaderStages::COMPUTE,
                 (
                     texture_2d(unfilterable),
-                    uniform_buffer_sized(false, None),
+                    uniform_buffer::<GpuHaoSettings>(false),
                     texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
                 ),
             ),
@@ -113,7 +112,7 @@ impl FromWorld for HaoPipelines {
                     texture_depth_2d(),
                     texture_2d(unfilterable),
                     texture_2d(unfilterable),
-                    uniform_buffer_sized(false, None),
+                    uniform_buffer::<GpuHaoSettings>(false),
                     texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
                 ),
             ),

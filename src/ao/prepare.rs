@@ -14,7 +14,7 @@ use bytemuck::{Pod, Zeroable};
 
 /// The WGSL `HaoSettings`.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub struct GpuHaoSettings {
     /// Rays per pixel.
     pub rays: u32,
@@ -142,11 +142,7 @@ pub fn prepare_hao_textures(
             accumulation_frames: hao.accumulation_frames,
             pad: 0,
         };
-        let settings = device.create_buffer_with_data(&BufferInitDescriptor {
-            label: Some("hao_settings"),
-            contents: bytemuck::bytes_of(&settings),
-            usage: BufferUsages::UNIFORM,
-        });
+        let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {
             noisy,
             history,

@@ -8,7 +8,7 @@
 @group(0) @binding(4) var depth_image: texture_storage_2d<r32float, write>;
 @group(0) @binding(5) var normal_image: texture_storage_2d<rgba16float, write>;
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn debug_copy(@builtin(global_invocation_id) gid: vec3<u32>) {
     if any(gid.xy >= textureDimensions(ao_image)) {
         return;

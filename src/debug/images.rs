@@ -1,7 +1,7 @@
 //! [`HaoDebugImages`]: what a view's ambient occlusion was computed from and what it came to, copied into
 //! images after the HAO passes (`debug_images.wgsl`).
 
-use crate::voxel::pipelines::queue_compute;
+use crate::gpu::{SCREEN_WORKGROUP, queue_compute};
 use bevy::asset::{embedded_asset, load_embedded_asset};
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
@@ -160,5 +160,5 @@ fn copy_debug_images(
         .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_debug_images"), timestamp_writes: None });
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, &bind_group.0, &[]);
-    pass.dispatch_workgroups(size.x.div_ceil(8), size.y.div_ceil(8), 1);
+    pass.dispatch_workgroups(size.x.div_ceil(SCREEN_WORKGROUP), size.y.div_ceil(SCREEN_WORKGROUP), 1);
 }

@@ -20,9 +20,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::render_asset::RenderAssets;
-use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, texture_2d, uniform_buffer, uniform_buffer_sized,
-};
+use bevy::render::render_resource::binding_types::{storage_buffer_read_only_sized, texture_2d, uniform_buffer};
 use bevy::render::render_resource::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::storage::GpuShaderBuffer;
@@ -90,7 +88,7 @@ impl Plugin for HaoDebugViewPlugin {
 
 /// WGSL `DebugSettings`.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub(crate) struct GpuDebugSettings {
     pub(crate) mode: u32,
     pub(crate) has_counts: u32,
@@ -144,7 +142,7 @@ impl FromWorld for DebugViewPipelines {
                     storage_buffer_read_only_sized(false, None),
                     storage_buffer_read_only_sized(false, None),
                     texture_2d(unfilterable),
-                    uniform_buffer_sized(false, None),
+                    uniform_buffer::<GpuDebugSettings>(false),
                     texture_2d(unfilterable),
                 ),
             ),
@@ -209,11 +207,7 @@ fn prepare_debug_views(
             has_ao: has_ao as u32,
             _pad: 0,
         };
-        let settings = device.create_buffer_with_data(&BufferInitDescriptor {
-            label: Some("hao_debug_view_settings"),
-            contents: bytemuck::bytes_of(&settings),
-            usage: BufferUsages::UNIFORM,
-        });
+        let settings = crate::gpu::uniform_buffer(&device, "hao_debug_view_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(DebugViewResources { pipeline, settings });
     }
 }

@@ -4,7 +4,8 @@ use super::volume::voxel_texture_format;
 use bevy::asset::load_embedded_asset;
 use bevy::prelude::*;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_read_only_sized, storage_buffer_sized, texture_3d, texture_storage_3d, uniform_buffer_sized,
+    storage_buffer_read_only, storage_buffer_read_only_sized, storage_buffer_sized, texture_3d, texture_storage_3d,
+    uniform_buffer,
 };
 use bevy::render::render_resource::*;
 use bevy::render::renderer::{RenderAdapter, RenderDevice};
@@ -56,7 +57,7 @@ pub const NO_SKIN: u32 = u32::MAX;
 
 /// The instances of one classify dispatch (WGSL `SlabGroup`).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub struct GpuSlabGroup {
     /// First instance in the instance buffer.
     pub first_instance: u32,
@@ -71,24 +72,24 @@ pub struct GpuSlabGroup {
 /// Per-pass settings (WGSL `VoxelizeParams`): the level, the region of it to inject into, and how its
 /// cells are stored.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub(crate) struct GpuVoxelizeParams {
-    pub region_min: [i32; 3],
+    pub region_min: IVec3,
     /// 0: centroid, 1: conservative.
     pub mode: u32,
-    pub region_max: [i32; 3],
+    pub region_max: IVec3,
     /// The effective gamma.
     pub gamma: f32,
-    pub window_min: [i32; 3],
+    pub window_min: IVec3,
     /// Most points per frame.
     pub point_budget: u32,
-    pub closed_max: [i32; 3],
+    pub closed_max: IVec3,
     /// Whether point counts are written.
     pub store_counts: u32,
-    pub wrap: [u32; 3],
+    pub wrap: UVec3,
     /// First counter of this pass's block.
     pub counter_base: u32,
-    pub dims: [u32; 3],
+    pub dims: UVec3,
     pub voxel_base: u32,
     /// 0: the uniform subdivision pattern, 1: strips.
     pub pattern: u32,
@@ -99,19 +100,19 @@ pub(crate) struct GpuVoxelizeParams {
 
 /// A box of one level to resolve into the texture, at one mip (WGSL `LevelRegion`).
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub(crate) struct GpuLevelRegion {
-    pub region_min: [i32; 3],
+    pub region_min: IVec3,
     pub texture_z: u32,
-    pub region_max: [i32; 3],
+    pub region_max: IVec3,
     pub voxel_base: u32,
-    pub window_min: [i32; 3],
+    pub window_min: IVec3,
     pub _pad0: u32,
-    pub wrap: [u32; 3],
+    pub wrap: UVec3,
     pub _pad1: u32,
-    pub dims: [u32; 3],
+    pub dims: UVec3,
     pub _pad2: u32,
-    pub size: [u32; 3],
+    pub size: UVec3,
     pub _pad3: u32,
 }
 
@@ -198,18 +199,15 @@ impl FromWorld for VoxelizePipelines {
         let params_in_storage = storage_buffers >= PARAMS_IN_STORAGE_BUFFERS;
         let skinning = storage_buffers >= SKINNING_STORAGE_BUFFERS;
         let morph = cfg!(feature = "morph") && storage_buffers >= MORPH_STORAGE_BUFFERS;
-        let params_binding = || {
-            if params_in_storage {
-                storage_buffer_read_only_sized(false, None)
-            } else {
-                uniform_buffer_sized(false, None)
-            }
-        };
+        // The per-dispatch settings, bound with their size.
+        fn params_binding<T: ShaderType>(params_in_storage: bool) -> BindGroupLayoutEntryBuilder {
+            if params_in_storage { storage_buffer_read_only::<T>(false) } else { uniform_buffer::<T>(false) }
+        }
         let slab_entries = (
             storage_buffer_read_only_sized(false, None),
             storage_buffer_read_only_sized(false, None),
             storage_buffer_read_only_sized(false, None),
-            params_binding(),
+            params_binding::<GpuSlabGroup>(params_in_storage),
         );
         let read_only = || storage_buffer_read_only_sized(false, None);
         let slab_layout = if morph {
@@ -238,7 +236,7 @@ impl FromWorld for VoxelizePipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    params_binding(),
+                    params_binding::<GpuVoxelizeParams>(params_in_storage),
                     storage_buffer_sized(false, None),
                     storage_buffer_sized(false, None),
                     storage_buffer_sized(false, None),
@@ -257,7 +255,7 @@ impl FromWorld for VoxelizePipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    uniform_buffer_sized(false, None),
+                    uniform_buffer::<GpuLevelRegion>(false),
                     storage_buffer_read_only_sized(false, None),
                     texture_storage_3d(texture_format, StorageTextureAccess::WriteOnly),
                 ),
@@ -268,7 +266,7 @@ impl FromWorld for VoxelizePipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    uniform_buffer_sized(false, None),
+                    uniform_buffer::<GpuLevelRegion>(false),
                     texture_3d(TextureSampleType::Float { filterable: false }),
                     texture_storage_3d(texture_format, StorageTextureAccess::WriteOnly),
                 ),
@@ -286,8 +284,9 @@ impl FromWorld for VoxelizePipelines {
         let texture_defs: Vec<ShaderDefVal> =
             if texture_format == TextureFormat::R8Unorm { vec!["VOXEL_TEXTURE_R8".into()] } else { vec![] };
         let pipeline_cache = world.resource::<PipelineCache>();
-        let queue =
-            |label, layout, shader, entry, defs| queue_compute(pipeline_cache, label, layout, shader, entry, defs);
+        let queue = |label, layout, shader, entry, defs| {
+            crate::gpu::queue_compute(pipeline_cache, label, layout, shader, entry, defs)
+        };
         let classify = queue(
             "hao_voxelize_classify",
             vec![slab_layout.clone(), pass_layout.clone()],
@@ -349,24 +348,4 @@ impl FromWorld for VoxelizePipelines {
             dummy_counts,
         }
     }
-}
-
-/// Queues one compute pipeline of bevy_hao: every pass has a label, its layouts, one shader, one
-/// entry point and its shader defs. Shared by the voxelization and the AO pipelines.
-pub(crate) fn queue_compute(
-    cache: &PipelineCache,
-    label: &'static str,
-    layout: Vec<BindGroupLayoutDescriptor>,
-    shader: Handle<Shader>,
-    entry: &'static str,
-    shader_defs: Vec<ShaderDefVal>,
-) -> CachedComputePipelineId {
-    cache.queue_compute_pipeline(ComputePipelineDescriptor {
-        label: Some(label.into()),
-        layout,
-        shader,
-        shader_defs,
-        entry_point: Some(entry.into()),
-        ..default()
-    })
 }

@@ -19,6 +19,7 @@ use bevy::prelude::*;
 use bevy::render::mesh::allocator::MeshAllocator;
 use bevy::render::mesh::{RenderMesh, RenderMeshBufferInfo};
 use bevy::render::render_asset::{ExtractedAssets, RenderAssets};
+use bevy::render::render_resource::encase::internal::WriteInto;
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderDevice;
 use bevy::render::storage::GpuShaderBuffer;
@@ -495,22 +496,14 @@ fn resolve_list<'a>(
     ready
 }
 
-fn uniform<T: bytemuck::Pod>(device: &RenderDevice, label: &'static str, value: &T) -> Buffer {
-    device.create_buffer_with_data(&BufferInitDescriptor {
-        label: Some(label),
-        contents: bytemuck::bytes_of(value),
-        usage: BufferUsages::UNIFORM,
-    })
+fn uniform<T: ShaderType + WriteInto>(device: &RenderDevice, label: &'static str, value: &T) -> Buffer {
+    crate::gpu::uniform_buffer(device, label, value, BufferUsages::UNIFORM)
 }
 
 /// A buffer of per-dispatch settings, bound as a uniform or a read-only storage buffer as the pipelines
 /// chose (see `VoxelizePipelines::params_in_storage`).
-fn settings_buffer<T: bytemuck::Pod>(device: &RenderDevice, label: &'static str, value: &T) -> Buffer {
-    device.create_buffer_with_data(&BufferInitDescriptor {
-        label: Some(label),
-        contents: bytemuck::bytes_of(value),
-        usage: BufferUsages::UNIFORM | BufferUsages::STORAGE,
-    })
+fn settings_buffer<T: ShaderType + WriteInto>(device: &RenderDevice, label: &'static str, value: &T) -> Buffer {
+    crate::gpu::uniform_buffer(device, label, value, BufferUsages::STORAGE)
 }
 
 /// Workgroups (x, y) covering `count` invocations of `size`, with x at most 65535.
@@ -968,17 +961,17 @@ pub fn prepare_voxelize(
         let (slabs, _) = build_slab_dispatches(&device, &pipelines, &cache, p.instances, joints, morph_weights, label);
         let region = level.region(p.region);
         let params = GpuVoxelizeParams {
-            region_min: region.min.to_array(),
+            region_min: region.min,
             mode,
-            region_max: region.max.to_array(),
+            region_max: region.max,
             gamma: settings.effective_gamma(),
-            window_min: region.window_min.to_array(),
+            window_min: region.window_min,
             point_budget: assets.point_budget,
-            closed_max: region.closed_max.to_array(),
+            closed_max: region.closed_max,
             store_counts: counts.is_some() as u32,
-            wrap: level.wrap().to_array(),
+            wrap: level.wrap(),
             counter_base: p.counter_base,
-            dims: level.dims.to_array(),
+            dims: level.dims,
             voxel_base: level.voxel_base,
             pattern: (settings.pattern == SubdivisionPattern::Strips) as u32,
             _pad_a: 0,
@@ -1045,17 +1038,17 @@ pub fn prepare_voxelize(
         }
         for b in list {
             let params = |mip: u32, b: CellBox| GpuLevelRegion {
-                region_min: b.0.to_array(),
+                region_min: b.0,
                 texture_z: level.texture_z >> mip,
-                region_max: b.1.to_array(),
+                region_max: b.1,
                 voxel_base: level.voxel_base,
-                window_min: (level.window_min >> mip as i32).to_array(),
+                window_min: level.window_min >> mip as i32,
                 _pad0: 0,
-                wrap: (level.wrap() >> mip).to_array(),
+                wrap: level.wrap() >> mip,
                 _pad1: 0,
-                dims: level.dims.to_array(),
+                dims: level.dims,
                 _pad2: 0,
-                size: (level.size >> mip).to_array(),
+                size: level.size >> mip,
                 _pad3: 0,
             };
             let p0 = uniform(&device, "hao_voxel_resolve_params", &params(0, b));

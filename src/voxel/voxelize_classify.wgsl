@@ -79,7 +79,7 @@ struct MorphTarget {
 #endif
 
 const INDEX_NONE: u32 = 0u;
-const NO_SKIN: u32 = 0xffffffffu;
+const NO_SKIN: u32 = #{NO_SKIN}u;
 const INDEX_U16: u32 = 1u;
 
 fn read_index(format: u32, element: u32) -> u32 {
@@ -184,7 +184,7 @@ var<workgroup> inline_total: atomic<u32>;
 var<workgroup> inline_accepted: atomic<u32>;
 var<workgroup> inline_base: u32;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(#{VOXELIZE_WORKGROUP})
 fn classify(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,

@@ -3,18 +3,19 @@
 // the same operations in the same order, so that the GPU and the CPU reference produce the same grids.
 #define_import_path bevy_hao::voxelize_common
 
+// `#{NAME}`: a shader def carrying the Rust constant's value (src/gpu.rs: `shader_defs`).
 // tessellation.rs: MAX_SUBDIVISION, MAX_SUB_TRIANGLES_PER_TRIANGLE
-const MAX_SUBDIVISION: u32 = 1048576u;
-const MAX_SUB_TRIANGLES_PER_TRIANGLE: u32 = 268435456u;
+const MAX_SUBDIVISION: u32 = #{MAX_SUBDIVISION}u;
+const MAX_SUB_TRIANGLES_PER_TRIANGLE: u32 = #{MAX_SUB_TRIANGLES_PER_TRIANGLE}u;
 // tessellation.rs: INLINE_SUB_TRIANGLES (sub-triangles a triangle may have and still be injected by the
 // invocation that reads it, rather than queued for the expand pass)
-const INLINE_SUB_TRIANGLES: u32 = 16u;
+const INLINE_SUB_TRIANGLES: u32 = #{INLINE_SUB_TRIANGLES}u;
 // voxelize.rs: CONSERVATIVE_PAD
 const CONSERVATIVE_PAD: f32 = 0.00390625;
 // tessellation.rs: CLIP_MAX_VERTICES
 const CLIP_MAX_VERTICES: u32 = 9u;
 // tessellation.rs: STRIPS_MAX_COARSE
-const STRIPS_MAX_COARSE: u32 = 1024u;
+const STRIPS_MAX_COARSE: u32 = #{STRIPS_MAX_COARSE}u;
 
 // tessellation.rs: SubdivisionPattern (VoxelizeParams::pattern)
 const PATTERN_UNIFORM: u32 = 0u;
@@ -42,9 +43,9 @@ const COUNTER_POINTS_REQUESTED: u32 = 10u;
 const COUNTER_POINTS_DISPATCHED: u32 = 11u;
 const COUNTER_BUDGET_EXCEEDED: u32 = 12u;
 const COUNTER_EXPAND_POINTS: u32 = 13u;
-const COUNTER_COUNT: u32 = 14u;
+const COUNTER_COUNT: u32 = #{COUNTER_COUNT}u;
 // Before the passes' counter blocks: the points spent so far this frame (every pass, both paths).
-const FRAME_POINTS_USED: u32 = 0u;
+const FRAME_POINTS_USED: u32 = #{FRAME_POINTS_USED}u;
 
 // Per-pass settings (src/voxel/pipelines.rs: `GpuVoxelizeParams`). The pass injects into the box
 // [region_min, region_max) of its level's lattice (cpu/voxelize.rs: `InjectionRegion`); lattice cell c is

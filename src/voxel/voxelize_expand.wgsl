@@ -27,7 +27,7 @@ fn find_triangle(g: u32, lo_in: u32, hi_in: u32) -> u32 {
     return lo;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(#{VOXELIZE_WORKGROUP})
 fn expand(
     @builtin(workgroup_id) wg: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,

@@ -14,7 +14,7 @@
 
 const SCAN_WIDTH: u32 = 256u;
 // Invocations per expand workgroup (voxelize_expand.wgsl).
-const EXPAND_WORKGROUP: u32 = 64u;
+const EXPAND_WORKGROUP: u32 = #{VOXELIZE_WORKGROUP}u;
 
 var<workgroup> partial: array<u32, 256>;
 

@@ -3,6 +3,12 @@
 //! applied. Triangle strips and fans are unrolled into lists; point and line primitives are skipped with a
 //! warning. Skinned meshes are skinned by their joints' transforms and morphed meshes take their weights:
 //! the nodes' own ([`read_gltf`]), or an animation clip's at a time ([`read_gltf_posed`]).
+//!
+//! Buffers are read here, not by `gltf::import_buffers`, whose limits are not this reader's. In gltf
+//! 1.4.1's `src/import.rs`, a relative URI is percent-decoded with `urlencoding::decode(uri).unwrap()` (a
+//! panic on an escape that is not UTF-8), a `file://` URI is read from anywhere on disk, and a file is read
+//! whole whatever the buffer's declared length; its `import` feature also brings base64 0.13 beside the
+//! 0.22 used here. Here a buffer file must lie in the glTF's folder and is read up to its declared length.
 
 use super::gltf_animation;
 use base64::Engine;
