@@ -39,6 +39,7 @@ pub mod denoise;
 pub mod grid;
 pub mod mesh;
 pub mod overlap;
+pub mod pn;
 pub mod skinning;
 pub mod temporal;
 pub mod tessellation;
@@ -49,6 +50,7 @@ pub use cascade::{CascadeError, CascadeLevel, CascadeShape, cascade_window, ente
 pub use grid::{GridError, VoxelGrid, VoxelOccupancy, cell_of_point};
 pub use mesh::{MeshStats, TriangleMesh};
 pub use overlap::{OverlapKind, OverlapTriangle, triangle_box_overlap};
+pub use pn::{PnPatch, smooth_vertex_normals, voxelize_mesh_pn, voxelize_pn_triangle_in_region};
 pub use skinning::{VertexSkin, morph_position, morphed_mesh, skin_matrix, skin_position, skinned_mesh};
 pub use tessellation::{
     LatticeRange, SubTriangle, Subdivision, SubdivisionPattern, TessellationFactors, TriangleSizes,

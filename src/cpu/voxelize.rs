@@ -203,7 +203,7 @@ pub fn lattice_cell(p: Vec3, region: &InjectionRegion) -> Option<IVec3> {
 
 /// The index in an occupancy of `dims` cells of a lattice cell inside the region.
 #[inline]
-fn storage_index(cell: IVec3, region: &InjectionRegion, dims: UVec3) -> u32 {
+pub(crate) fn storage_index(cell: IVec3, region: &InjectionRegion, dims: UVec3) -> u32 {
     linear_index((cell - region.window_min).as_uvec3(), dims)
 }
 

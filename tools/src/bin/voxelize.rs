@@ -57,6 +57,7 @@ struct Args {
     target_bias: Option<f64>,
     export: Option<String>,
     gamma_sweep: bool,
+    pn: bool,
     runs: usize,
     gpu: bool,
     max_memory_mb: u64,
@@ -97,6 +98,11 @@ struct Cli {
     /// Bias and points over a sweep of gamma.
     #[arg(long)]
     gamma_sweep: bool,
+    /// Voxelize PN triangles (Fei 2012 section 3.4): each triangle curved by the vertex normals of the
+    /// welded mesh (smooth everywhere, hard edges included). CPU only. Bias, excess and the watertight
+    /// test still compare with the flat mesh's ground truth.
+    #[arg(long)]
+    pn: bool,
     /// Timed runs per measurement (the median is printed).
     #[arg(long, default_value_t = 5)]
     runs: usize,
@@ -131,6 +137,7 @@ fn parse_args() -> Result<Args, String> {
         target_bias: None,
         export: c.export,
         gamma_sweep: c.gamma_sweep,
+        pn: c.pn,
         max_memory_mb: c.max_memory_mb,
         point_budget: c.point_budget,
         runs: c.runs.max(1),
@@ -161,6 +168,11 @@ fn parse_args() -> Result<Args, String> {
     if used != a.gamma {
         eprintln!("warning: --gamma {} is out of range for {} mode; using {used}", a.gamma, a.mode);
         a.gamma = used;
+    }
+    if a.gpu && a.pn {
+        return Err(
+            "--pn runs on the CPU reference (the GPU voxelizer has no PN triangles yet); leave out --gpu".into()
+        );
     }
     if a.gpu && (a.gamma_sweep || a.target_bias.is_some()) {
         return Err("--gamma-sweep and --target-bias run on the CPU reference; leave out --gpu".into());
@@ -447,7 +459,9 @@ fn main() {
         for w in &loaded.warnings {
             note!("warning: {}: {w}", loaded.name);
         }
-        let mesh = loaded.mesh;
+        // PN triangles need a normal per vertex: the welded mesh's, smooth.
+        let mesh = if args.pn { bevy_hao_tools::meshes::builtin::weld(loaded.mesh) } else { loaded.mesh };
+        let pn_normals = args.pn.then(|| smooth_vertex_normals(&mesh));
         let stats = mesh.stats();
         let Some((lo, hi)) = stats.bounds else {
             note!("warning: {}: no triangles with finite vertices; skipped", loaded.name);
@@ -495,6 +509,8 @@ fn main() {
                     };
                     let gamma =
                         VoxelizeSettings { gamma: most, mode: args.mode, ..Default::default() }.effective_gamma();
+                    // A PN patch raises gamma by up to MAX_PN_GAMMA_SCALE.
+                    let gamma = if args.pn { gamma * bevy_hao::cpu::pn::MAX_PN_GAMMA_SCALE } else { gamma };
                     let most_points = args.patterns.iter().map(|&p| subdivision(v, gamma, p).sub_triangle_count());
                     points = points.saturating_add(most_points.max().unwrap_or(0));
                 }
@@ -526,7 +542,10 @@ fn main() {
                 let mut result = VoxelOccupancy::new(grid, true);
                 let run = |gamma: f32, runs: usize, result: &mut VoxelOccupancy| {
                     let settings = VoxelizeSettings { gamma, mode: args.mode, pattern };
-                    median_ms(runs, result, |out| voxelize_mesh(&mesh, to_grid, &settings, out))
+                    median_ms(runs, result, |out| match &pn_normals {
+                        Some(normals) => voxelize_mesh_pn(&mesh, normals, to_grid, &settings, out),
+                        None => voxelize_mesh(&mesh, to_grid, &settings, out),
+                    })
                 };
                 let mut gamma = args.gamma;
                 if let Some(target) = args.target_bias {
@@ -627,7 +646,13 @@ fn main() {
                     grid.dims.z,
                     stats.triangles,
                     gamma,
-                    if args.gpu { format!("{} (gpu)", args.mode) } else { args.mode.to_string() },
+                    if args.gpu {
+                        format!("{} (gpu)", args.mode)
+                    } else if args.pn {
+                        format!("{} (pn)", args.mode)
+                    } else {
+                        args.mode.to_string()
+                    },
                     injected,
                     estimate,
                     cmp.result_voxels,

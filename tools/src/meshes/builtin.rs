@@ -8,12 +8,13 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 
 /// Names accepted by [`builtin`] (and by the examples as `builtin:NAME`).
-pub const BUILTIN_NAMES: [&str; 8] =
-    ["windmill", "pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "torus", "cathedral"];
+pub const BUILTIN_NAMES: [&str; 9] =
+    ["windmill", "pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "icosphere", "torus", "cathedral"];
 
 /// The names of the closed shapes among [`BUILTIN_NAMES`] (all but the windmill, whose blades are open
 /// sheets, and the cathedral, which is a union of closed solids with openings).
-pub const CLOSED_BUILTINS: [&str; 6] = ["pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "torus"];
+pub const CLOSED_BUILTINS: [&str; 7] =
+    ["pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "icosphere", "torus"];
 
 /// A built-in mesh by name, or `None`.
 pub fn builtin(name: &str) -> Option<TriangleMesh> {
@@ -24,6 +25,7 @@ pub fn builtin(name: &str) -> Option<TriangleMesh> {
         "star" => star(12),
         "tetrahedron" => tetrahedron(),
         "sphere" => sphere(1.0, 32, 16),
+        "icosphere" => icosphere(1.0, 2),
         "torus" => torus(1.0, 0.35, 48, 24),
         "cathedral" => cathedral(),
         _ => return None,
@@ -194,6 +196,69 @@ pub fn sphere(radius: f32, segments: u32, rings: u32) -> TriangleMesh {
             m.triangles.push([ring(r, s), ring(r + 1, s + 1), ring(r, s + 1)]);
         }
     }
+    orient_outward(m, Vec3::ZERO)
+}
+
+/// An icosphere: the icosahedron with each triangle cut in four `subdivisions` times, the new vertices
+/// pushed out onto the sphere (`20 * 4^subdivisions` triangles; 20, 80, 320, ...). Welded, outward-facing.
+pub fn icosphere(radius: f32, subdivisions: u32) -> TriangleMesh {
+    let t = (1.0 + 5.0f32.sqrt()) / 2.0;
+    let mut positions: Vec<Vec3> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .iter()
+    .map(|p| Vec3::from(*p).normalize())
+    .collect();
+    let mut triangles: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut middle = std::collections::HashMap::new();
+        let mut mid = |a: u32, b: u32, positions: &mut Vec<Vec3>| {
+            *middle.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                positions.push((positions[a as usize] + positions[b as usize]).normalize());
+                positions.len() as u32 - 1
+            })
+        };
+        triangles = triangles
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) = (mid(a, b, &mut positions), mid(b, c, &mut positions), mid(c, a, &mut positions));
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    let m = TriangleMesh::new(positions.into_iter().map(|p| p * radius).collect(), triangles);
     orient_outward(m, Vec3::ZERO)
 }
 
