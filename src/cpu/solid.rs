@@ -1,0 +1,185 @@
+//! Solid voxelization (Dong et al. 2004): the inside of a closed mesh filled by parity along z. Every
+//! triangle crosses the vertical lines through the cell centres its projection onto xy covers; a cell is
+//! inside when an odd number of crossings lie below its centre in its column. The surface voxelization
+//! (any mode) plus the inside is the solid.
+//!
+//! A crossing is counted once where a line meets two triangles at their shared edge or vertex: the
+//! projected triangles own their edges by the top-left rule, in `f64` from the `f32` grid-space corners.
+//! Triangles seen edge-on from above (zero projected area) cross no line.
+//!
+//! A mesh that is not closed ([`open_edge_count`]) leaves some columns with an odd number of crossings:
+//! those columns are not filled at all (counted in [`SolidFill::odd_columns`]), so an open mesh is filled
+//! where its columns pair up and hollow elsewhere. Two closed meshes that overlap fill their overlap only
+//! if they are filled separately: in one call the crossings of both pair up, and the shared part is
+//! left out.
+//!
+//! This is the CPU reference; the GPU voxelizer does not have it yet.
+
+use super::grid::VoxelOccupancy;
+use super::mesh::TriangleMesh;
+use super::voxelize::grid_space_position;
+use glam::{Affine3A, DVec2, UVec3, Vec3};
+use std::collections::HashMap;
+
+/// What [`fill_solid`] did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct SolidFill {
+    /// Cells set inside that were not set before.
+    pub filled: u64,
+    /// Columns crossed an odd number of times (the mesh is not closed there), left unfilled.
+    pub odd_columns: u64,
+    /// Crossings found.
+    pub crossings: u64,
+}
+
+/// Edges that keep the mesh from being closed: directed edges (by corner position, so that duplicated
+/// vertices count as one) that are not used exactly once with their reverse used exactly once.
+pub fn open_edge_count(mesh: &TriangleMesh) -> u64 {
+    let key = |p: Vec3| p.to_array().map(f32::to_bits);
+    let mut edges: HashMap<([u32; 3], [u32; 3]), u32> = HashMap::new();
+    for t in 0..mesh.triangle_count() {
+        let Some(v) = mesh.triangle(t) else { continue };
+        for k in 0..3 {
+            let (a, b) = (key(v[k]), key(v[(k + 1) % 3]));
+            if a != b {
+                *edges.entry((a, b)).or_insert(0) += 1;
+            }
+        }
+    }
+    edges.iter().filter(|&(&(a, b), &n)| n != 1 || edges.get(&(b, a)) != Some(&1)).count() as u64
+}
+
+/// Whether a point exactly on the edge `a -> b` of a counter-clockwise triangle belongs to it (top-left
+/// rule, y up: edges that go down, and horizontal edges that go left).
+fn owns_edge(a: DVec2, b: DVec2) -> bool {
+    let d = b - a;
+    d.y < 0.0 || (d.y == 0.0 && d.x < 0.0)
+}
+
+/// Fills the inside of `mesh` (transformed to grid space by `grid_from_local`) into `out`, which should
+/// already hold its surface. Cells are inside by their centres; see the module docs.
+pub fn fill_solid(mesh: &TriangleMesh, grid_from_local: Affine3A, out: &VoxelOccupancy) -> SolidFill {
+    let dims = out.grid().dims;
+    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); dims.x as usize * dims.y as usize];
+    let mut fill = SolidFill::default();
+    for t in 0..mesh.triangle_count() {
+        let Some(v) = mesh.triangle(t) else { continue };
+        let v = v.map(|p| grid_space_position(&grid_from_local, p).as_dvec3());
+        if !v.iter().all(|p| p.is_finite()) {
+            continue;
+        }
+        let mut p = v.map(|p| p.truncate());
+        let mut z = v.map(|p| p.z);
+        let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
+        if area == 0.0 {
+            continue;
+        }
+        if area < 0.0 {
+            p.swap(1, 2);
+            z.swap(1, 2);
+        }
+        let area = area.abs();
+        let lo = p[0].min(p[1]).min(p[2]);
+        let hi = p[0].max(p[1]).max(p[2]);
+        // Columns whose centres (i + 0.5, j + 0.5) lie in the box.
+        let first = (lo - 0.5).ceil().max(DVec2::ZERO);
+        let last = (hi - 0.5).floor().min(DVec2::new(dims.x as f64 - 1.0, dims.y as f64 - 1.0));
+        if first.x > last.x || first.y > last.y {
+            continue;
+        }
+        let owns = [owns_edge(p[1], p[2]), owns_edge(p[2], p[0]), owns_edge(p[0], p[1])];
+        for j in first.y as u32..=last.y as u32 {
+            for i in first.x as u32..=last.x as u32 {
+                let c = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
+                // Edge functions: w[k] is twice the area of the triangle c makes with the edge opposite k.
+                let w = [
+                    (p[2] - p[1]).perp_dot(c - p[1]),
+                    (p[0] - p[2]).perp_dot(c - p[2]),
+                    (p[1] - p[0]).perp_dot(c - p[0]),
+                ];
+                if (0..3).all(|k| w[k] > 0.0 || (w[k] == 0.0 && owns[k])) {
+                    let zc = (w[0] * z[0] + w[1] * z[1] + w[2] * z[2]) / area;
+                    columns[(i + dims.x * j) as usize].push(zc);
+                    fill.crossings += 1;
+                }
+            }
+        }
+    }
+    for (index, crossings) in columns.iter_mut().enumerate() {
+        if crossings.is_empty() {
+            continue;
+        }
+        if crossings.len() % 2 == 1 {
+            fill.odd_columns += 1;
+            continue;
+        }
+        crossings.sort_by(f64::total_cmp);
+        let (i, j) = (index as u32 % dims.x, index as u32 / dims.x);
+        for pair in crossings.chunks_exact(2) {
+            // Cells k with centre k + 0.5 in (enter, leave].
+            let from = (pair[0] - 0.5).floor() as i64 + 1;
+            let to = (pair[1] - 0.5).floor() as i64;
+            for k in from.max(0)..=to.min(dims.z as i64 - 1) {
+                let cell = UVec3::new(i, j, k as u32);
+                if !out.is_set(cell) {
+                    out.set(cell);
+                    fill.filled += 1;
+                }
+            }
+        }
+    }
+    fill
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::VoxelGrid;
+
+    /// A closed box from `lo` to `hi` (12 triangles, outward).
+    fn cuboid(lo: Vec3, hi: Vec3) -> TriangleMesh {
+        let c = |x: bool, y: bool, z: bool| {
+            Vec3::new(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z })
+        };
+        let positions: Vec<Vec3> = (0..8).map(|k| c(k & 1 != 0, k & 2 != 0, k & 4 != 0)).collect();
+        let quads = [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]];
+        let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+        TriangleMesh::new(positions, triangles)
+    }
+
+    #[test]
+    fn a_box_is_filled_by_its_cell_centres() {
+        let g = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(16)).unwrap();
+        // Corners on cell centres' lines (x = 2.5): shared edges and vertices are met exactly.
+        let mesh = cuboid(Vec3::new(2.5, 3.5, 1.2), Vec3::new(10.5, 8.5, 12.7));
+        assert_eq!(open_edge_count(&mesh), 0);
+        let out = VoxelOccupancy::new(g, false);
+        let f = fill_solid(&mesh, Affine3A::IDENTITY, &out);
+        assert_eq!(f.odd_columns, 0);
+        // Columns with centres in [2.5, 10.5] x [3.5, 8.5], the left and top edges owning theirs (top-left
+        // rule) and the right and bottom ones not: x 2..=9, y 4..=8; cells with centres in (1.2, 12.7]:
+        // z 1..=12.
+        for z in 0..16 {
+            for y in 0..16 {
+                for x in 0..16 {
+                    let inside = (2..=9).contains(&x) && (4..=8).contains(&y) && (1..=12).contains(&z);
+                    assert_eq!(out.is_set(UVec3::new(x, y, z)), inside, "{x} {y} {z}");
+                }
+            }
+        }
+        assert_eq!(f.filled, 8 * 5 * 12);
+    }
+
+    #[test]
+    fn an_open_mesh_is_reported_and_its_odd_columns_left_hollow() {
+        let g = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(16)).unwrap();
+        let mut mesh = cuboid(Vec3::splat(2.3), Vec3::splat(9.7));
+        mesh.triangles.drain(2..4); // the top face removed: its 4 rim edges have no twin
+        assert_eq!(open_edge_count(&mesh), 4);
+        let out = VoxelOccupancy::new(g, false);
+        let f = fill_solid(&mesh, Affine3A::IDENTITY, &out);
+        // Every column over the box (centres 2.5..=9.5) meets only the bottom.
+        assert_eq!(f.odd_columns, 8 * 8);
+        assert_eq!(f.filled, 0);
+    }
+}
