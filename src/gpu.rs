@@ -29,6 +29,7 @@ pub(crate) fn shader_defs() -> Vec<ShaderDefVal> {
         u("COUNTER_COUNT", stats::COUNTER_BLOCK as u32),
         u("FRAME_POINTS_USED", stats::FRAME_POINTS_USED),
         u("NO_SKIN", pipelines::NO_SKIN),
+        u("NO_NORMALS", pipelines::NO_NORMALS),
         u("VOXELIZE_WORKGROUP", pipelines::VOXELIZE_WORKGROUP),
         u("SCREEN_WORKGROUP", SCREEN_WORKGROUP),
     ]

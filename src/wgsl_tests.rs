@@ -191,6 +191,10 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 morph_weight_count,
                 morph_targets_offset,
                 morph_vertex_count,
+                normal_offset,
+                _pad_a,
+                _pad_b,
+                _pad_c,
             ]
         ),
         layout!(
@@ -314,7 +318,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 9] = [
+    let pairs: [(&str, &str, f64); 10] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -324,6 +328,7 @@ fn shared_constants_agree() {
         (hao, "CLAMP_MARGIN", temporal::CLAMP_MARGIN as f64),
         (hao, "CLAMPED_COUNT", temporal::CLAMPED_COUNT as f64),
         (hao, "CHANGED_COUNT", temporal::CHANGED_COUNT as f64),
+        (common, "MAX_PN_GAMMA_SCALE", crate::cpu::pn::MAX_PN_GAMMA_SCALE as f64),
     ];
     for (path, name, rust) in pairs {
         let wgsl = wgsl_const(path, name);

@@ -1,6 +1,7 @@
 //! GPU voxelization on a headless Bevy app (lavapipe here), read back and held against the CPU reference.
 
 use bevy::asset::RenderAssetUsages;
+use bevy::math::Affine3A;
 use bevy::mesh::PrimitiveTopology;
 use bevy::prelude::*;
 use bevy_hao::cpu::{self, TriangleMesh, VoxelGrid, VoxelOccupancy, voxelize_mesh};
@@ -563,4 +564,102 @@ fn a_weaker_device_gets_refusals_and_fallbacks_with_warnings_and_no_errors() {
     assert!(take_render_errors().is_empty());
     // (Fewer than 8 storage buffers per stage, where the plugin disables its voxelizer with a warning, is
     // not tested here: Bevy's own GPU preprocessing needs 8 and fails on such a device first.)
+}
+
+/// A Bevy mesh of `mesh` with the normals `normals` (one per position) and `u32` indices.
+fn mesh_with_normals(mesh: &TriangleMesh, normals: &[Vec3]) -> Mesh {
+    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
+        .with_inserted_attribute(
+            Mesh::ATTRIBUTE_POSITION,
+            mesh.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+        )
+        .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, normals.iter().map(|n| n.to_array()).collect::<Vec<_>>())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, vec![[0.5f32, 0.5]; mesh.positions.len()])
+        .with_inserted_indices(bevy::mesh::Indices::U32(mesh.triangles.iter().flatten().copied().collect()))
+}
+
+/// `PnTriangles` occluders voxelize on the GPU as their CPU twin `voxelize_mesh_pn` does: two icospheres
+/// with their sphere normals, one squashed and turned (normals through the inverse transpose), one
+/// crossing the grid's edge, in both modes; a mesh without normals is voxelized flat with a warning.
+#[test]
+fn pn_triangles_on_the_gpu_equal_their_cpu_twin() {
+    let _gpu = gpu_lock();
+    let coarse = builtin::icosphere(1.0, 1);
+    let fine = builtin::icosphere(1.0, 2);
+    let sphere_normals = |m: &TriangleMesh| m.positions.iter().map(|p| p.normalize()).collect::<Vec<_>>();
+    let scene = [
+        (coarse.clone(), Transform::from_xyz(-1.5, 0.2, 0.1).with_scale(Vec3::splat(1.6))),
+        (
+            fine.clone(),
+            Transform::from_xyz(1.7, -0.3, 0.4)
+                .with_rotation(Quat::from_euler(EulerRot::XYZ, 0.4, -0.7, 0.2))
+                .with_scale(Vec3::new(1.2, 0.7, 1.0)),
+        ),
+        // Crossing the grid's +z face: its lattice is not clipped.
+        (coarse.clone(), Transform::from_xyz(0.3, 1.9, 3.6).with_scale(Vec3::splat(0.9))),
+    ];
+    for injection in [VoxelInjection::Centroid, VoxelInjection::Conservative] {
+        let spawned = scene.clone();
+        let flat_mesh = coarse.clone();
+        let mut app = headless_app(move |app| {
+            app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                commands.spawn(volume(4.0, 96, injection));
+                for (mesh, transform) in &spawned {
+                    let normals = sphere_normals(mesh);
+                    commands.spawn((
+                        Mesh3d(meshes.add(mesh_with_normals(mesh, &normals))),
+                        *transform,
+                        StaticOccluder,
+                        PnTriangles,
+                    ));
+                }
+                // No normals: voxelized flat (with a warning).
+                commands.spawn((
+                    Mesh3d(meshes.add(bevy_mesh(&flat_mesh, Layout::U32))),
+                    Transform::from_xyz(0.0, -2.5, -2.0),
+                    StaticOccluder,
+                    PnTriangles,
+                ));
+            });
+        });
+        run(&mut app, 6);
+        let gpu = read_occupancy(&mut app);
+        let assets = grid_assets(&app).unwrap();
+        let grid = assets.grid;
+        let cpu = VoxelOccupancy::new(grid, false);
+        let flat = VoxelOccupancy::new(grid, false);
+        let mut cpu_stats = cpu::VoxelizeStats::default();
+        for (mesh, transform) in &scene {
+            let to_grid = grid.grid_from_world() * GlobalTransform::from(*transform).affine();
+            cpu_stats += cpu::voxelize_mesh_pn(mesh, &sphere_normals(mesh), to_grid, &assets.settings, &cpu);
+            voxelize_mesh(mesh, to_grid, &assets.settings, &flat);
+        }
+        let to_grid = grid.grid_from_world() * Affine3A::from_translation(Vec3::new(0.0, -2.5, -2.0));
+        cpu_stats += voxelize_mesh(&coarse, to_grid, &assets.settings, &cpu);
+        voxelize_mesh(&coarse, to_grid, &assets.settings, &flat);
+        let (only_gpu, only_cpu) = (gpu.count_not_in(&cpu), cpu.count_not_in(&gpu));
+        let set = cpu.set_voxel_count();
+        let s = stats(&app).static_counters;
+        println!(
+            "{injection:?}: {set} voxels on the CPU, {only_gpu} only on the GPU, {only_cpu} only on the CPU; \
+             sub-triangles GPU {} CPU {}; {} voxels differ from the flat triangles",
+            s.sub_triangles,
+            cpu_stats.sub_triangles,
+            cpu.count_not_in(&flat) + flat.count_not_in(&cpu)
+        );
+        assert!(set > 5_000, "{set}");
+        // The cubic is evaluated in f32 on both sides, with fused multiply-adds on the GPU: a corner near a
+        // cell face may fall on the other side. Allow one voxel in 10^3.
+        assert!((only_gpu + only_cpu) * 1000 <= set, "{injection:?}: {only_gpu} + {only_cpu} of {set} differ");
+        let diff = (s.sub_triangles as i64 - cpu_stats.sub_triangles as i64).unsigned_abs();
+        assert!(
+            diff * 1000 <= cpu_stats.sub_triangles,
+            "sub-triangles GPU {} CPU {}",
+            s.sub_triangles,
+            cpu_stats.sub_triangles
+        );
+        // The PN patches moved the surface: many voxels differ from the flat triangles'.
+        assert!((cpu.count_not_in(&flat) + flat.count_not_in(&cpu)) * 10 > set);
+        assert!(take_render_errors().is_empty());
+    }
 }

@@ -4,7 +4,7 @@
 //! that the curved sub-triangles stay under a cell), and each sub-triangle's corners are moved onto the
 //! patch before its centroid is injected. A coarse mesh of a curved shape voxelizes curved.
 //!
-//! This is the CPU reference; the GPU voxelizer does not have it yet.
+//! The GPU voxelizer does the same for occluders marked [`crate::PnTriangles`]; this is its CPU twin.
 //!
 //! How close the patch comes to the shape depends on the mesh: for an icosphere with exact normals, the
 //! patch's radius lies within 5.9% of the sphere's at 20 triangles, 0.63% at 80, 0.05% at 320 (the flat
@@ -116,9 +116,10 @@ pub fn smooth_vertex_normals(mesh: &TriangleMesh) -> Vec<Vec3> {
 }
 
 /// Voxelizes one grid-space PN triangle (corners `v`, unit normals `n` in grid space) into the cells of
-/// `region` (see [`super::voxelize::voxelize_triangle_in_region`], the flat version). Corners with a zero
-/// or non-finite normal make the triangle flat. In conservative mode each curved sub-triangle is tested
-/// against the cells instead of the parent.
+/// `region` (see [`super::voxelize::voxelize_triangle_in_region`], the flat version). A corner whose normal
+/// is not a unit vector (zero, non-finite) makes the triangle flat: it is voxelized by the flat version. In
+/// conservative mode each curved sub-triangle is tested against the cells instead of the parent. WGSL: the
+/// PN branch of `classify_triangle` and `inject_pn_sub_triangle`.
 pub fn voxelize_pn_triangle_in_region(
     v: [Vec3; 3],
     n: [Vec3; 3],
@@ -135,8 +136,10 @@ pub fn voxelize_pn_triangle_in_region(
         stats.degenerate = 1;
         return stats;
     }
-    let flat = n.iter().any(|n| !n.is_finite() || n.length_squared() < 0.5);
-    let patch = PnPatch::new(v, if flat { [Vec3::ZERO; 3] } else { n });
+    if n.iter().any(|n| !n.is_finite() || n.length_squared() < 0.5) {
+        return super::voxelize::voxelize_triangle_in_region(v, settings, region, out);
+    }
+    let patch = PnPatch::new(v, n);
     let (lo, hi) = patch.bounds();
     let (box_min, box_max) = region.bounds();
     if lo.cmpgt(box_max).any() || hi.cmplt(box_min).any() {

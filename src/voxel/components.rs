@@ -28,6 +28,21 @@ pub struct DynamicOccluder;
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct NoVoxelOcclusion;
 
+/// Voxelizes an occluding mesh as PN triangles (Fei 2012 section 3.4): each triangle is curved by the
+/// mesh's vertex normals (`Mesh::ATTRIBUTE_NORMAL`, `Float32x3`) into the cubic patch of Vlachos et al.
+/// 2001, subdivided finer as the patch needs, and its sub-triangles' corners put on the patch, so that a
+/// coarse mesh of a curved shape voxelizes curved (a 320-triangle sphere voxelizes within a cell of the
+/// true sphere at 512^3). The patch follows the normals as given: hard edges (split normals) leave the
+/// patches apart there, as drawn PN triangles do.
+///
+/// Costs more points than the flat triangles (gamma is raised by up to
+/// [`cpu::pn::MAX_PN_GAMMA_SCALE`]) and is never clipped to the grid, so a huge PN triangle crossing a
+/// cascade is subdivided whole. A mesh without normals is voxelized flat, with a warning. Skinned and
+/// morphed meshes curve by their skinned and morphed normals. CPU twin: [`cpu::voxelize_mesh_pn`].
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[reflect(Component, Default, Debug, PartialEq)]
+pub struct PnTriangles;
+
 /// Added by the plugin to an unmarked `Mesh3d` entity the first time its transform changes after it was
 /// voxelized: from then on it is treated as a [`DynamicOccluder`].
 ///

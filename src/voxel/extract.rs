@@ -44,6 +44,8 @@ pub struct ExtractedOccluder {
     pub skin_joints: Option<u32>,
     /// Whether it has morph weights ([`MeshMorphWeights`]): its mesh's morph targets are applied with them.
     pub morphed: bool,
+    /// Marked [`PnTriangles`]: voxelized as PN triangles from its normals.
+    pub pn: bool,
 }
 
 /// This frame's occluders, split into static and dynamic.
@@ -102,6 +104,7 @@ pub fn extract_voxel_occluders(
                 Option<&SkinnedMesh>,
                 Has<DynamicSkinnedMeshBounds>,
                 Has<MeshMorphWeights>,
+                Has<PnTriangles>,
             ),
             Without<NoVoxelOcclusion>,
         >,
@@ -114,7 +117,7 @@ pub fn extract_voxel_occluders(
     extracted.statics.clear();
     extracted.dynamics.clear();
     extracted.rebuild_requests = requests.0;
-    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed) in &occluders {
+    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed, pn) in &occluders {
         if !visible.get() {
             continue;
         }
@@ -143,6 +146,7 @@ pub fn extract_voxel_occluders(
             marked_static: s,
             skin_joints,
             morphed,
+            pn,
         };
         // Skinned and morphed meshes move by themselves: dynamic unless marked static (then voxelized in the
         // pose they have when the static voxels are built).

@@ -70,6 +70,7 @@ impl Plugin for VoxelizationPlugin {
         app.register_type::<crate::voxel::components::StaticOccluder>()
             .register_type::<crate::voxel::components::DynamicOccluder>()
             .register_type::<crate::voxel::components::NoVoxelOcclusion>()
+            .register_type::<crate::voxel::components::PnTriangles>()
             .register_type::<crate::voxel::components::PromotedToDynamic>()
             .register_type::<crate::voxel::components::VoxelVolume>()
             .add_message::<extract::RebuildStaticVoxels>()

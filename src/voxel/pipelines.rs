@@ -50,10 +50,17 @@ pub struct GpuOccluderInstance {
     pub morph_targets_offset: u32,
     /// Vertices per morph target.
     pub morph_vertex_count: u32,
+    /// Offset of the normals (`Float32x3`) in a vertex, in words, for a PN instance ([`NO_NORMALS`]: flat).
+    pub normal_offset: u32,
+    pub _pad_a: u32,
+    pub _pad_b: u32,
+    pub _pad_c: u32,
 }
 
 /// [`GpuOccluderInstance::skin_index`] of an instance that is not skinned (WGSL `NO_SKIN`).
 pub const NO_SKIN: u32 = u32::MAX;
+/// [`GpuOccluderInstance::normal_offset`] of a flat instance (WGSL `NO_NORMALS`).
+pub const NO_NORMALS: u32 = u32::MAX;
 
 /// The instances of one classify dispatch (WGSL `SlabGroup`).
 #[repr(C)]
@@ -117,7 +124,7 @@ pub(crate) struct GpuLevelRegion {
 }
 
 /// Size of WGSL `BigTriangle` in bytes.
-pub const BIG_TRIANGLE_BYTES: u64 = 64;
+pub const BIG_TRIANGLE_BYTES: u64 = 112;
 /// Invocations per classify and expand workgroup.
 pub const VOXELIZE_WORKGROUP: u32 = 64;
 

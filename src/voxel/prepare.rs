@@ -415,6 +415,27 @@ fn resolve_occluder(
     if position.format != VertexFormat::Float32x3 || stride % 4 != 0 || position.offset % 4 != 0 {
         return skip(warned, "its positions are not 4-byte aligned Float32x3");
     }
+    // A PN occluder: its normals' place in the vertex; without usable normals it is voxelized flat.
+    let mut normal_offset = NO_NORMALS;
+    if o.pn {
+        let normal = mesh
+            .layout
+            .0
+            .attribute_ids()
+            .iter()
+            .position(|id| *id == Mesh::ATTRIBUTE_NORMAL.id)
+            .map(|i| layout.attributes[i]);
+        match normal {
+            Some(n) if n.format == VertexFormat::Float32x3 && n.offset % 4 == 0 => {
+                normal_offset = (n.offset / 4) as u32
+            }
+            _ => {
+                if warned.insert(o.mesh) {
+                    warn!("bevy_hao: mesh {:?} has PnTriangles but no Float32x3 normals: it is voxelized flat", o.mesh);
+                }
+            }
+        }
+    }
     // A skinned mesh: its joint data in the vertex layout, and its skin's place in Bevy's joint matrices
     // (allocated only while the mesh is visible to a view). Without joint data it is voxelized unskinned
     // (extraction warned); where the device cannot skin, skipped.
@@ -473,6 +494,10 @@ fn resolve_occluder(
             morph_weight_count: morph[1],
             morph_targets_offset: morph[2],
             morph_vertex_count: morph[3],
+            normal_offset,
+            _pad_a: 0,
+            _pad_b: 0,
+            _pad_c: 0,
         },
     })
 }
@@ -628,6 +653,7 @@ fn instances_in(
 fn fingerprint(o: &ExtractedOccluder, r: &ResolvedInstance) -> u64 {
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     o.mesh.hash(&mut hasher);
+    o.pn.hash(&mut hasher);
     r.ranges.hash(&mut hasher);
     r.slabs.hash(&mut hasher);
     for v in o.world_from_local.to_cols_array() {

@@ -7,7 +7,8 @@
 #import bevy_hao::voxelize_common::{
     BigTriangle, LatticeRange, SubTriangle, sub_triangle, grid_space_position, is_finite3,
     triangle_is_degenerate, subdivision, rotate_to_apex, pack_strips, grid_placement, clipped_lattice_range, sub_triangle_count,
-    PLACEMENT_INSIDE, PLACEMENT_OUTSIDE, MAX_SUBDIVISION, MAX_SUB_TRIANGLES_PER_TRIANGLE, INLINE_SUB_TRIANGLES,
+    PLACEMENT_INSIDE, PLACEMENT_OUTSIDE, PLACEMENT_CROSSING, MAX_SUBDIVISION, pn_patch, pn_gamma_scale,
+    pn_bounds_min, pn_bounds_max, MAX_SUB_TRIANGLES_PER_TRIANGLE, INLINE_SUB_TRIANGLES,
     COUNTER_TRIANGLES, COUNTER_INVALID, COUNTER_DEGENERATE, COUNTER_OUTSIDE, COUNTER_OVERSIZE,
     COUNTER_SMALL, COUNTER_BIG_TRIANGLES, COUNTER_POINTS_REQUESTED, COUNTER_POINTS_DISPATCHED,
     COUNTER_BUDGET_EXCEEDED, FRAME_POINTS_USED,
@@ -39,6 +40,11 @@ struct OccluderInstance {
     morph_weight_count: u32,
     morph_targets_offset: u32,
     morph_vertex_count: u32,
+    // PN instances: the word offset of the normals (Float32x3) in a vertex (NO_NORMALS: a flat instance).
+    normal_offset: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 }
 
 // The instances of this dispatch: those whose meshes live in the bound pair of slabs.
@@ -81,6 +87,7 @@ struct MorphTarget {
 const INDEX_NONE: u32 = 0u;
 const NO_SKIN: u32 = #{NO_SKIN}u;
 const INDEX_U16: u32 = 1u;
+const NO_NORMALS: u32 = #{NO_NORMALS}u;
 
 fn read_index(format: u32, element: u32) -> u32 {
     if format == INDEX_U16 {
@@ -155,6 +162,62 @@ fn vertex_position(inst: OccluderInstance, vertex: u32, p: ptr<function, vec3<f3
     return true;
 }
 
+fn read_normal(inst: OccluderInstance, vertex: u32) -> vec3<f32> {
+    let base = (inst.vertex_start + vertex) * inst.vertex_stride + inst.normal_offset;
+    return vec3<f32>(bitcast<f32>(vertices[base]), bitcast<f32>(vertices[base + 1u]), bitcast<f32>(vertices[base + 2u]));
+}
+
+// The inverse transpose of m times n, up to a positive factor: m's cofactors, signed by its determinant
+// (pn.rs normalizes `m.inverse().transpose() * n`).
+fn normal_transform(m0: vec3<f32>, m1: vec3<f32>, m2: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let c0 = cross(m1, m2);
+    let c1 = cross(m2, m0);
+    let c2 = cross(m0, m1);
+    let det = dot(m0, c0);
+    return (c0 * n.x + c1 * n.y + c2 * n.z) * sign(det);
+}
+
+// n / |n|, or zero where that is not finite (glam's normalize_or_zero).
+fn normalize_or_zero(n: vec3<f32>) -> vec3<f32> {
+    let l = length(n);
+    let u = n / l;
+    if l > 0.0 && is_finite3(u) {
+        return u;
+    }
+    return vec3<f32>(0.0);
+}
+
+// A PN instance's vertex normal in grid space: morphed by the targets' normal displacements, skinned by the
+// vertex's skin matrix, then through the instance's grid_from_local. Zero if it cannot be had.
+fn vertex_normal(inst: OccluderInstance, vertex: u32) -> vec3<f32> {
+    var n = read_normal(inst, vertex);
+#ifdef VOXELIZE_MORPH
+    for (var i = 0u; i < inst.morph_weight_count; i++) {
+        let w = inst.morph_weights_offset + i;
+        let t = inst.morph_targets_offset + i * inst.morph_vertex_count + vertex;
+        if w >= arrayLength(&morph_weights) || t >= arrayLength(&morph_targets) {
+            return vec3<f32>(0.0);
+        }
+        let weight = morph_weights[w];
+        if weight == 0.0 {
+            continue;
+        }
+        n += weight * morph_targets[t].normal;
+    }
+#endif
+#ifdef VOXELIZE_SKINNING
+    if inst.skin_index != NO_SKIN {
+        var m: mat4x4<f32>;
+        if !skin_matrix(inst, vertex, &m) {
+            return vec3<f32>(0.0);
+        }
+        n = normal_transform(m[0].xyz, m[1].xyz, m[2].xyz, n);
+    }
+#endif
+    let g = inst.grid_from_local;
+    return normalize_or_zero(normal_transform(g[0], g[1], g[2], n));
+}
+
 // The instance holding triangle `t` of this dispatch: the last whose first_triangle <= t.
 fn find_instance(t: u32) -> u32 {
     var lo = slab_group.first_instance;
@@ -175,6 +238,9 @@ struct InlineJob {
     v0: vec3<f32>,
     v1: vec3<f32>,
     v2: vec3<f32>,
+    n0: vec3<f32>,
+    n1: vec3<f32>,
+    n2: vec3<f32>,
     apex: u32,
     range: LatticeRange,
     count: u32,
@@ -197,7 +263,8 @@ fn classify(
     }
     workgroupBarrier();
     let t = gid.x + gid.y * groups.x * 64u;
-    var job = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
+    let zero = vec3<f32>(0.0);
+    var job = InlineJob(zero, zero, zero, zero, zero, zero, 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
     if t < slab_group.triangle_count {
         job = classify_triangle(t);
     }
@@ -219,7 +286,7 @@ fn classify(
         if start <= params.point_budget && job.count <= params.point_budget - start {
             atomicAdd(&inline_accepted, job.count);
             for (var s = 0u; s < job.count; s++) {
-                inject_sub_triangle(job.v0, job.v1, job.v2, job.apex, job.range, sub_triangle(job.range, s));
+                inject_sub_triangle(job.v0, job.v1, job.v2, job.n0, job.n1, job.n2, job.apex, job.range, sub_triangle(job.range, s));
             }
         } else {
             atomicStore(&counters[params.counter_base + COUNTER_BUDGET_EXCEEDED], 1u);
@@ -233,7 +300,8 @@ fn classify(
 }
 
 fn classify_triangle(t: u32) -> InlineJob {
-    var none = InlineJob(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
+    let zero = vec3<f32>(0.0);
+    var none = InlineJob(zero, zero, zero, zero, zero, zero, 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
     add_counter(COUNTER_TRIANGLES, 1u);
     let inst = instances[find_instance(t)];
     let local = t - inst.first_triangle;
@@ -267,12 +335,45 @@ fn classify_triangle(t: u32) -> InlineJob {
     }
     let box_min = vec3<f32>(params.region_min);
     let box_max = vec3<f32>(params.region_max);
-    let placement = grid_placement(v0, v1, v2, box_min, box_max);
+    // A PN triangle (pn.rs: voxelize_pn_triangle_in_region): its patch's control box is placed against the
+    // region, gamma is raised by the patch, and its lattice is never clipped (the patch may bulge out of the
+    // flat triangle's clip). Normals that cannot be had make it flat.
+    var n0 = zero;
+    var n1 = zero;
+    var n2 = zero;
+    if inst.normal_offset != NO_NORMALS {
+        n0 = vertex_normal(inst, i0);
+        n1 = vertex_normal(inst, i1);
+        n2 = vertex_normal(inst, i2);
+        if dot(n0, n0) < 0.5 || dot(n1, n1) < 0.5 || dot(n2, n2) < 0.5 {
+            n0 = zero;
+            n1 = zero;
+            n2 = zero;
+        }
+    }
+    let pn = any(n0 != zero);
+    var gamma = params.gamma;
+    var placement: u32;
+    if pn {
+        let curved = pn_patch(v0, v1, v2, n0, n1, n2);
+        let lo = pn_bounds_min(curved);
+        let hi = pn_bounds_max(curved);
+        if any(lo > box_max) || any(hi < box_min) {
+            placement = PLACEMENT_OUTSIDE;
+        } else if all(lo >= box_min) && all(hi <= box_max) {
+            placement = PLACEMENT_INSIDE;
+        } else {
+            placement = PLACEMENT_CROSSING;
+        }
+        gamma = gamma * pn_gamma_scale(curved);
+    } else {
+        placement = grid_placement(v0, v1, v2, box_min, box_max);
+    }
     if placement == PLACEMENT_OUTSIDE {
         add_counter(COUNTER_OUTSIDE, 1u);
         return none;
     }
-    let sub = subdivision(v0, v1, v2, params.gamma, params.pattern);
+    let sub = subdivision(v0, v1, v2, gamma, params.pattern);
     let n = sub.n;
     if n > MAX_SUBDIVISION {
         add_counter(COUNTER_OVERSIZE, 1u);
@@ -283,7 +384,7 @@ fn classify_triangle(t: u32) -> InlineJob {
     var r2 = v2;
     rotate_to_apex(&r0, &r1, &r2, sub.apex);
     var range = LatticeRange(n, sub.strips, sub.diagonal, 0u, 0u, 0u, 0u, true);
-    if placement != PLACEMENT_INSIDE {
+    if placement != PLACEMENT_INSIDE && !pn {
         range = clipped_lattice_range(r0, r1 - r0, r2 - r0, n, box_min, box_max);
         if !range.valid {
             add_counter(COUNTER_OUTSIDE, 1u);
@@ -300,11 +401,14 @@ fn classify_triangle(t: u32) -> InlineJob {
     if placement == PLACEMENT_INSIDE && count <= INLINE_SUB_TRIANGLES {
         // The common case: a triangle near a voxel in size (n <= 4); inject its few sub-triangles here.
         add_counter(COUNTER_SMALL, 1u);
-        return InlineJob(v0, v1, v2, sub.apex, range, count);
+        return InlineJob(v0, v1, v2, n0, n1, n2, sub.apex, range, count);
     }
     let slot = atomicAdd(&counters[params.counter_base + COUNTER_BIG_TRIANGLES], 1u);
     if slot < arrayLength(&big_triangles) {
-        big_triangles[slot] = BigTriangle(v0, n, v1, range.u_start, v2, range.v_start, range.width, range.height, count, pack_strips(sub));
+        big_triangles[slot] = BigTriangle(
+            v0, n, v1, range.u_start, v2, range.v_start, range.width, range.height, count, pack_strips(sub),
+            n0, 0u, n1, 0u, n2, 0u,
+        );
     }
     return none;
 }

@@ -16,6 +16,8 @@ const CONSERVATIVE_PAD: f32 = 0.00390625;
 const CLIP_MAX_VERTICES: u32 = 9u;
 // tessellation.rs: STRIPS_MAX_COARSE
 const STRIPS_MAX_COARSE: u32 = #{STRIPS_MAX_COARSE}u;
+// pn.rs: MAX_PN_GAMMA_SCALE
+const MAX_PN_GAMMA_SCALE: f32 = 4.0;
 
 // tessellation.rs: SubdivisionPattern (VoxelizeParams::pattern)
 const PATTERN_UNIFORM: u32 = 0u;
@@ -91,7 +93,8 @@ struct LevelRegion {
 
 // A triangle that needs more than one point or crosses the grid boundary, queued by the classify pass for
 // the expand pass (src/voxel/pipelines.rs: `BIG_TRIANGLE_BYTES`): its vertices in their own order, its
-// coarse lattice range, and `strips` packed with the diagonal (bit 29) and the apex (bits 30-31).
+// coarse lattice range, `strips` packed with the diagonal (bit 29) and the apex (bits 30-31), and its
+// grid-space vertex normals for a PN triangle (zero for a flat one).
 struct BigTriangle {
     a: vec3<f32>,
     n: u32,
@@ -103,6 +106,96 @@ struct BigTriangle {
     height: u32,
     sub_triangle_count: u32,
     strips: u32,
+    normal_a: vec3<f32>,
+    pad_a: u32,
+    normal_b: vec3<f32>,
+    pad_b: u32,
+    normal_c: vec3<f32>,
+    pad_c: u32,
+}
+
+// pn.rs: PnPatch. The ten control points of a PN triangle: b300, b030, b003, b210, b120, b021, b012, b102,
+// b201, b111.
+struct PnPatch {
+    b: array<vec3<f32>, 10>,
+}
+
+// pn.rs: PnPatch::new (corners p, unit normals n)
+fn pn_edge(pi: vec3<f32>, pj: vec3<f32>, ni: vec3<f32>) -> vec3<f32> {
+    return (2.0 * pi + pj - dot(pj - pi, ni) * ni) / 3.0;
+}
+
+fn pn_patch(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32>) -> PnPatch {
+    let b210 = pn_edge(p0, p1, n0);
+    let b120 = pn_edge(p1, p0, n1);
+    let b021 = pn_edge(p1, p2, n1);
+    let b012 = pn_edge(p2, p1, n2);
+    let b102 = pn_edge(p2, p0, n2);
+    let b201 = pn_edge(p0, p2, n0);
+    let e = (b210 + b120 + b021 + b012 + b102 + b201) / 6.0;
+    let v = (p0 + p1 + p2) / 3.0;
+    let b111 = e + (e - v) / 2.0;
+    return PnPatch(array<vec3<f32>, 10>(p0, p1, p2, b210, b120, b021, b012, b102, b201, b111));
+}
+
+// pn.rs: PnPatch::point (barycentric weights w of corners 0, 1, 2)
+fn pn_point(pn: PnPatch, w: vec3<f32>) -> vec3<f32> {
+    let b = pn.b;
+    let w0 = w.x;
+    let w1 = w.y;
+    let w2 = w.z;
+    return b[0] * (w0 * w0 * w0)
+        + b[1] * (w1 * w1 * w1)
+        + b[2] * (w2 * w2 * w2)
+        + b[3] * (3.0 * w0 * w0 * w1)
+        + b[4] * (3.0 * w0 * w1 * w1)
+        + b[8] * (3.0 * w0 * w0 * w2)
+        + b[5] * (3.0 * w1 * w1 * w2)
+        + b[7] * (3.0 * w0 * w2 * w2)
+        + b[6] * (3.0 * w1 * w2 * w2)
+        + b[9] * (6.0 * w0 * w1 * w2);
+}
+
+// pn.rs: PnPatch::gamma_scale. One edge direction: three times the largest net step along it over the
+// chord, on the largest axis.
+fn pn_direction(chord: vec3<f32>, s0: vec3<f32>, s1: vec3<f32>, s2: vec3<f32>, s3: vec3<f32>, s4: vec3<f32>, s5: vec3<f32>) -> f32 {
+    let step = max(max(max(abs(s0), abs(s1)), max(abs(s2), abs(s3))), max(abs(s4), abs(s5)));
+    let c = max3(abs(chord));
+    if c > 0.0 {
+        return 3.0 * max3(step) / c;
+    }
+    return 1.0;
+}
+
+fn pn_gamma_scale(pn: PnPatch) -> f32 {
+    let b = pn.b;
+    // b300 b030 b003 b210 b120 b021 b012 b102 b201 b111 = b[0..10]
+    let r01 = pn_direction(b[1] - b[0], b[3] - b[0], b[4] - b[3], b[1] - b[4], b[9] - b[8], b[5] - b[9], b[6] - b[7]);
+    let r02 = pn_direction(b[2] - b[0], b[8] - b[0], b[7] - b[8], b[2] - b[7], b[9] - b[3], b[6] - b[9], b[5] - b[4]);
+    let r12 = pn_direction(b[2] - b[1], b[5] - b[1], b[6] - b[5], b[2] - b[6], b[9] - b[4], b[7] - b[9], b[8] - b[3]);
+    let r = max(max(r01, r02), r12);
+    // NaN or infinite: the most.
+    if !(r <= MAX_PN_GAMMA_SCALE) {
+        return MAX_PN_GAMMA_SCALE;
+    }
+    return max(r, 1.0);
+}
+
+// pn.rs: PnPatch::bounds
+fn pn_bounds_min(pn: PnPatch) -> vec3<f32> {
+    var lo = pn.b[0];
+    for (var k = 1u; k < 10u; k++) {
+        lo = min(lo, pn.b[k]);
+    }
+    return lo;
+}
+
+fn pn_bounds_max(pn: PnPatch) -> vec3<f32> {
+    var hi = pn.b[0];
+    for (var k = 1u; k < 10u; k++) {
+        hi = max(hi, pn.b[k]);
+    }
+    return hi;
 }
 
 fn pack_strips(sub: Subdivision) -> u32 {

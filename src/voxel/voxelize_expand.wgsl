@@ -56,7 +56,7 @@ fn expand(
         let range = LatticeRange(t.n, strips, diagonal, t.u_start, t.v_start, t.width, t.height, true);
         let sub = sub_triangle(range, g - offsets[lo]);
         if sub.valid {
-            inject_sub_triangle(t.a, t.b, t.c, apex, range, sub);
+            inject_sub_triangle(t.a, t.b, t.c, t.normal_a, t.normal_b, t.normal_c, apex, range, sub);
         }
     }
     workgroupBarrier();

@@ -6,7 +6,7 @@
 
 #import bevy_hao::voxelize_common::{
     VoxelizeParams, BigTriangle, LatticeRange, SubTriangle, sub_triangle_centroid, sub_triangle_corners,
-    lattice_point, rotate_to_apex,
+    lattice_point, rotate_to_apex, PnPatch, pn_patch, pn_point,
     lattice_cell, storage_index, triangle_box_overlap, MODE_CENTROID, CONSERVATIVE_PAD,
     COUNTER_SUB_TRIANGLES, COUNTER_INJECTED, COUNTER_OVERLAP_TESTS, COUNTER_COUNT,
 }
@@ -56,8 +56,16 @@ fn inject_voxel(index: u32) {
 }
 
 // One sub-triangle of the grid-space triangle v0 v1 v2 (in its own vertex order), subdivided as `range` says
-// after rotating vertex `apex` first.
-fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, apex: u32, range: LatticeRange, sub: SubTriangle) {
+// after rotating vertex `apex` first: flat, or on the PN patch of the vertex normals n0 n1 n2 (zero for a
+// flat triangle).
+fn inject_sub_triangle(
+    v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32>,
+    apex: u32, range: LatticeRange, sub: SubTriangle,
+) {
+    if any(n0 != vec3<f32>(0.0)) {
+        inject_pn_sub_triangle(pn_patch(v0, v1, v2, n0, n1, n2), apex, range, sub);
+        return;
+    }
     add_counter(COUNTER_SUB_TRIANGLES, 1u);
     var r0 = v0;
     var r1 = v1;
@@ -94,6 +102,55 @@ fn inject_sub_triangle(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, apex: u32, r
                 let cell = vec3<i32>(x, y, z);
                 tests += 1u;
                 if triangle_box_overlap(v0, v1, v2, cell) {
+                    inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
+                    hits += 1u;
+                }
+            }
+        }
+    }
+    add_counter(COUNTER_OVERLAP_TESTS, tests);
+    add_counter(COUNTER_INJECTED, hits);
+}
+
+// pn.rs: the corner of a sub-triangle on the patch: lattice point (a, b) of `range.n * range.strips`
+// segments, along the edges from corner `apex`, as weights of corners 0, 1, 2.
+fn pn_corner(pn: PnPatch, apex: u32, c: vec2<u32>, inv_n: f32) -> vec3<f32> {
+    let a = f32(c.x) * inv_n;
+    let b = f32(c.y) * inv_n;
+    var w = array<f32, 3>(0.0, 0.0, 0.0);
+    w[apex % 3u] = 1.0 - a - b;
+    w[(apex + 1u) % 3u] = a;
+    w[(apex + 2u) % 3u] = b;
+    return pn_point(pn, vec3<f32>(w[0], w[1], w[2]));
+}
+
+// pn.rs: the loop of voxelize_pn_triangle_in_region. The sub-triangle's corners moved onto the patch; its
+// centroid injected, or (conservative) the cells its curved piece overlaps.
+fn inject_pn_sub_triangle(pn: PnPatch, apex: u32, range: LatticeRange, sub: SubTriangle) {
+    add_counter(COUNTER_SUB_TRIANGLES, 1u);
+    let inv_n = 1.0 / f32(range.n * range.strips);
+    let corners = sub_triangle_corners(range, sub);
+    let a = pn_corner(pn, apex, corners[0], inv_n);
+    let b = pn_corner(pn, apex, corners[1], inv_n);
+    let c = pn_corner(pn, apex, corners[2], inv_n);
+    if params.mode == MODE_CENTROID {
+        var cell: vec3<i32>;
+        if lattice_cell((a + b + c) / 3.0, params.region_min, params.region_max, params.closed_max, &cell) {
+            inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
+            add_counter(COUNTER_INJECTED, 1u);
+        }
+        return;
+    }
+    let lo = max(vec3<i32>(floor(min(min(a, b), c) - vec3<f32>(CONSERVATIVE_PAD))), params.region_min);
+    let hi = min(vec3<i32>(floor(max(max(a, b), c) + vec3<f32>(CONSERVATIVE_PAD))), params.region_max - vec3<i32>(1));
+    var tests = 0u;
+    var hits = 0u;
+    for (var z = lo.z; z <= hi.z; z++) {
+        for (var y = lo.y; y <= hi.y; y++) {
+            for (var x = lo.x; x <= hi.x; x++) {
+                let cell = vec3<i32>(x, y, z);
+                tests += 1u;
+                if triangle_box_overlap(a, b, c, cell) {
                     inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
                     hits += 1u;
                 }
