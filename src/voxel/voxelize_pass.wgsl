@@ -91,7 +91,13 @@ fn inject_sub_triangle(
     let a = lattice_point(r0, e1, e2, inv_n, corners[0].x, corners[0].y);
     let b = lattice_point(r0, e1, e2, inv_n, corners[1].x, corners[1].y);
     let c = lattice_point(r0, e1, e2, inv_n, corners[2].x, corners[2].y);
-    // voxelize.rs: conservative_candidate_cells
+    inject_overlapped_cells(a, b, c, v0, v1, v2);
+}
+
+// Conservative injection: the cells of the piece a b c's padded bounds (voxelize.rs:
+// conservative_candidate_cells) that the triangle t0 t1 t2 overlaps (the parent, for a flat triangle; the
+// piece itself, for a PN one).
+fn inject_overlapped_cells(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, t0: vec3<f32>, t1: vec3<f32>, t2: vec3<f32>) {
     let lo = max(vec3<i32>(floor(min(min(a, b), c) - vec3<f32>(CONSERVATIVE_PAD))), params.region_min);
     let hi = min(vec3<i32>(floor(max(max(a, b), c) + vec3<f32>(CONSERVATIVE_PAD))), params.region_max - vec3<i32>(1));
     var tests = 0u;
@@ -101,7 +107,7 @@ fn inject_sub_triangle(
             for (var x = lo.x; x <= hi.x; x++) {
                 let cell = vec3<i32>(x, y, z);
                 tests += 1u;
-                if triangle_box_overlap(v0, v1, v2, cell) {
+                if triangle_box_overlap(t0, t1, t2, cell) {
                     inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
                     hits += 1u;
                 }
@@ -141,22 +147,5 @@ fn inject_pn_sub_triangle(pn: PnPatch, apex: u32, range: LatticeRange, sub: SubT
         }
         return;
     }
-    let lo = max(vec3<i32>(floor(min(min(a, b), c) - vec3<f32>(CONSERVATIVE_PAD))), params.region_min);
-    let hi = min(vec3<i32>(floor(max(max(a, b), c) + vec3<f32>(CONSERVATIVE_PAD))), params.region_max - vec3<i32>(1));
-    var tests = 0u;
-    var hits = 0u;
-    for (var z = lo.z; z <= hi.z; z++) {
-        for (var y = lo.y; y <= hi.y; y++) {
-            for (var x = lo.x; x <= hi.x; x++) {
-                let cell = vec3<i32>(x, y, z);
-                tests += 1u;
-                if triangle_box_overlap(a, b, c, cell) {
-                    inject_voxel(storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base));
-                    hits += 1u;
-                }
-            }
-        }
-    }
-    add_counter(COUNTER_OVERLAP_TESTS, tests);
-    add_counter(COUNTER_INJECTED, hits);
+    inject_overlapped_cells(a, b, c, a, b, c);
 }
