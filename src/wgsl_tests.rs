@@ -10,6 +10,7 @@ use std::path::Path;
 const MODULES: &[&str] = &[
     "src/voxel/voxelize_common.wgsl",
     "src/voxel/voxelize_pass.wgsl",
+    "src/voxel/voxelize_vertices.wgsl",
     "src/voxel/voxel_grid.wgsl",
     "src/ao/hao_common.wgsl",
 ];

@@ -4,7 +4,8 @@
 //! (any mode) plus the inside is the solid.
 //!
 //! A crossing is counted once where a line meets two triangles at their shared edge or vertex: the
-//! projected triangles own their edges by the top-left rule, in `f64` from the `f32` grid-space corners.
+//! projected triangles own their edges by the top-left rule, and an edge's function is computed the same
+//! way from both of its triangles ([`edge_function`]), so in `f32` too the two agree exactly.
 //! Triangles seen edge-on from above (zero projected area) cross no line.
 //!
 //! A mesh that is not closed ([`open_edge_count`]) leaves some columns with an odd number of crossings:
@@ -18,7 +19,7 @@
 use super::grid::VoxelOccupancy;
 use super::mesh::TriangleMesh;
 use super::voxelize::grid_space_position;
-use glam::{Affine3A, DVec2, UVec3, Vec3};
+use glam::{Affine3A, UVec3, Vec2, Vec3};
 use std::collections::HashMap;
 
 /// What [`fill_solid`] did.
@@ -49,57 +50,64 @@ pub fn open_edge_count(mesh: &TriangleMesh) -> u64 {
     edges.iter().filter(|&(&(a, b), &n)| n != 1 || edges.get(&(b, a)) != Some(&1)).count() as u64
 }
 
+/// Twice the signed area of `a b c` projected onto xy, computed the same way whichever way round the edge
+/// `a b` is given (from its lexicographically smaller end, negated if need be), so that two triangles
+/// sharing an edge get exactly opposite values for a point. WGSL: `edge_function`.
+#[inline]
+pub fn edge_function(a: Vec2, b: Vec2, c: Vec2) -> f32 {
+    let raw = |a: Vec2, b: Vec2| (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    if (b.x, b.y) < (a.x, a.y) { -raw(b, a) } else { raw(a, b) }
+}
+
 /// Whether a point exactly on the edge `a -> b` of a counter-clockwise triangle belongs to it (top-left
 /// rule, y up: edges that go down, and horizontal edges that go left).
-fn owns_edge(a: DVec2, b: DVec2) -> bool {
+#[inline]
+fn owns_edge(a: Vec2, b: Vec2) -> bool {
     let d = b - a;
     d.y < 0.0 || (d.y == 0.0 && d.x < 0.0)
+}
+
+/// Where the vertical line through `c` (a column's centre) crosses the grid-space triangle `v`, if it
+/// does (see the module docs for shared edges). WGSL: `column_crossing`.
+#[inline]
+pub fn column_crossing(v: [Vec3; 3], c: Vec2) -> Option<f32> {
+    // Counter-clockwise in the projection.
+    let [a, mut b, mut e] = v;
+    if edge_function(a.truncate(), b.truncate(), e.truncate()) < 0.0 {
+        std::mem::swap(&mut b, &mut e);
+    }
+    let (p0, p1, p2) = (a.truncate(), b.truncate(), e.truncate());
+    let w = [edge_function(p1, p2, c), edge_function(p2, p0, c), edge_function(p0, p1, c)];
+    let owns = [owns_edge(p1, p2), owns_edge(p2, p0), owns_edge(p0, p1)];
+    let area = w[0] + w[1] + w[2];
+    ((0..3).all(|k| w[k] > 0.0 || (w[k] == 0.0 && owns[k])) && area > 0.0)
+        .then(|| (w[0] * a.z + w[1] * b.z + w[2] * e.z) / area)
 }
 
 /// Fills the inside of `mesh` (transformed to grid space by `grid_from_local`) into `out`, which should
 /// already hold its surface. Cells are inside by their centres; see the module docs.
 pub fn fill_solid(mesh: &TriangleMesh, grid_from_local: Affine3A, out: &VoxelOccupancy) -> SolidFill {
     let dims = out.grid().dims;
-    let mut columns: Vec<Vec<f64>> = vec![Vec::new(); dims.x as usize * dims.y as usize];
+    let mut columns: Vec<Vec<f32>> = vec![Vec::new(); dims.x as usize * dims.y as usize];
     let mut fill = SolidFill::default();
     for t in 0..mesh.triangle_count() {
         let Some(v) = mesh.triangle(t) else { continue };
-        let v = v.map(|p| grid_space_position(&grid_from_local, p).as_dvec3());
+        let v = v.map(|p| grid_space_position(&grid_from_local, p));
         if !v.iter().all(|p| p.is_finite()) {
             continue;
         }
-        let mut p = v.map(|p| p.truncate());
-        let mut z = v.map(|p| p.z);
-        let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
-        if area == 0.0 {
-            continue;
-        }
-        if area < 0.0 {
-            p.swap(1, 2);
-            z.swap(1, 2);
-        }
-        let area = area.abs();
-        let lo = p[0].min(p[1]).min(p[2]);
-        let hi = p[0].max(p[1]).max(p[2]);
+        let lo = v[0].min(v[1]).min(v[2]).truncate();
+        let hi = v[0].max(v[1]).max(v[2]).truncate();
         // Columns whose centres (i + 0.5, j + 0.5) lie in the box.
-        let first = (lo - 0.5).ceil().max(DVec2::ZERO);
-        let last = (hi - 0.5).floor().min(DVec2::new(dims.x as f64 - 1.0, dims.y as f64 - 1.0));
-        if first.x > last.x || first.y > last.y {
+        let first = (lo - 0.5).ceil().max(Vec2::ZERO);
+        let last = (hi - 0.5).floor().min(dims.truncate().as_vec2() - 1.0);
+        if !(first.x <= last.x && first.y <= last.y) {
             continue;
         }
-        let owns = [owns_edge(p[1], p[2]), owns_edge(p[2], p[0]), owns_edge(p[0], p[1])];
         for j in first.y as u32..=last.y as u32 {
             for i in first.x as u32..=last.x as u32 {
-                let c = DVec2::new(i as f64 + 0.5, j as f64 + 0.5);
-                // Edge functions: w[k] is twice the area of the triangle c makes with the edge opposite k.
-                let w = [
-                    (p[2] - p[1]).perp_dot(c - p[1]),
-                    (p[0] - p[2]).perp_dot(c - p[2]),
-                    (p[1] - p[0]).perp_dot(c - p[0]),
-                ];
-                if (0..3).all(|k| w[k] > 0.0 || (w[k] == 0.0 && owns[k])) {
-                    let zc = (w[0] * z[0] + w[1] * z[1] + w[2] * z[2]) / area;
-                    columns[(i + dims.x * j) as usize].push(zc);
+                if let Some(z) = column_crossing(v, Vec2::new(i as f32 + 0.5, j as f32 + 0.5)) {
+                    columns[(i + dims.x * j) as usize].push(z);
                     fill.crossings += 1;
                 }
             }
@@ -113,12 +121,12 @@ pub fn fill_solid(mesh: &TriangleMesh, grid_from_local: Affine3A, out: &VoxelOcc
             fill.odd_columns += 1;
             continue;
         }
-        crossings.sort_by(f64::total_cmp);
+        crossings.sort_by(f32::total_cmp);
         let (i, j) = (index as u32 % dims.x, index as u32 / dims.x);
         for pair in crossings.chunks_exact(2) {
             // Cells k with centre k + 0.5 in (enter, leave].
-            let from = (pair[0] - 0.5).floor() as i64 + 1;
-            let to = (pair[1] - 0.5).floor() as i64;
+            let from = crossing_cell(pair[0]) as i64;
+            let to = crossing_cell(pair[1]) as i64 - 1;
             for k in from.max(0)..=to.min(dims.z as i64 - 1) {
                 let cell = UVec3::new(i, j, k as u32);
                 if !out.is_set(cell) {
@@ -129,6 +137,12 @@ pub fn fill_solid(mesh: &TriangleMesh, grid_from_local: Affine3A, out: &VoxelOcc
         }
     }
     fill
+}
+
+/// The first cell whose centre lies above a crossing at `z`: `floor(z - 0.5) + 1`. WGSL: `crossing_cell`.
+#[inline]
+pub fn crossing_cell(z: f32) -> i32 {
+    (z - 0.5).floor() as i32 + 1
 }
 
 #[cfg(test)]

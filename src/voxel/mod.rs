@@ -60,6 +60,7 @@ impl Plugin for VoxelizationPlugin {
     fn build(&self, app: &mut App) {
         load_shader_library!(app, "voxelize_common.wgsl");
         load_shader_library!(app, "voxelize_pass.wgsl");
+        load_shader_library!(app, "voxelize_vertices.wgsl");
         load_shader_library!(app, "voxel_grid.wgsl");
         embedded_asset!(app, "voxel_clear.wgsl");
         embedded_asset!(app, "voxelize_classify.wgsl");
