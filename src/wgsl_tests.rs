@@ -42,6 +42,17 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxelize_classify.wgsl", vec![vec![]]),
         ("src/voxel/voxelize_scan.wgsl", vec![vec![]]),
         ("src/voxel/voxelize_expand.wgsl", vec![vec![]]),
+        (
+            "src/voxel/voxelize_solid.wgsl",
+            vec![
+                vec![],
+                vec![
+                    ("VOXELIZE_PARAMS_IN_STORAGE", ShaderDefValue::Bool(true)),
+                    ("VOXELIZE_SKINNING", ShaderDefValue::Bool(true)),
+                    ("VOXELIZE_MORPH", ShaderDefValue::Bool(true)),
+                ],
+            ],
+        ),
         ("src/voxel/voxel_clear.wgsl", vec![vec![]]),
         ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
         ("src/voxel/voxel_mip.wgsl", texture_variants),
@@ -193,7 +204,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 morph_targets_offset,
                 morph_vertex_count,
                 normal_offset,
-                _pad_a,
+                solid,
                 _pad_b,
                 _pad_c,
             ]

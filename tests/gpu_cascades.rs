@@ -72,16 +72,32 @@ fn move_camera(app: &mut App, to: Vec3) {
 /// Every level's static occupancy, against a fresh CPU voxelization of the level's window (which must not
 /// be empty). Returns the set voxels per level.
 fn assert_levels_equal_cpu(app: &mut App, parts: &[TriangleMesh]) -> Vec<u64> {
+    assert_levels_equal_cpu_with_solids(app, parts, &[]).0
+}
+
+/// The same, with `solids` voxelized and then filled (`VoxelFill::Solid`); also returns the voxels the CPU
+/// filled, per level.
+fn assert_levels_equal_cpu_with_solids(
+    app: &mut App,
+    parts: &[TriangleMesh],
+    solids: &[TriangleMesh],
+) -> (Vec<u64>, Vec<u64>) {
     let settings = grid_assets(app).unwrap().settings;
     let levels = read_cascades(app, true);
     assert_eq!(levels.len(), LEVELS as usize);
     let mut counts = Vec::new();
+    let mut filled = Vec::new();
     for (l, r) in levels.iter().enumerate() {
         let level = cpu::CascadeLevel { cell_size: r.level.cell_size, cells: CELLS, window_min: r.level.window_min };
         let cpu = VoxelOccupancy::new(r.grid, false);
-        for mesh in parts {
+        for mesh in parts.iter().chain(solids) {
             voxelize_mesh_in_region(mesh, level.grid_from_world(), &settings, &level.region(), &cpu);
         }
+        let mut level_filled = 0;
+        for mesh in solids {
+            level_filled += cpu::fill_solid_in_region(mesh, level.grid_from_world(), &level.region(), &cpu).filled;
+        }
+        filled.push(level_filled);
         let (only_gpu, only_cpu) = (r.occupancy.count_not_in(&cpu), cpu.count_not_in(&r.occupancy));
         let set = cpu.set_voxel_count();
         println!(
@@ -93,7 +109,7 @@ fn assert_levels_equal_cpu(app: &mut App, parts: &[TriangleMesh]) -> Vec<u64> {
         assert!((only_gpu + only_cpu) * 10_000 <= set.max(1000), "level {l}: {only_gpu} + {only_cpu} of {set} differ");
         counts.push(set);
     }
-    counts
+    (counts, filled)
 }
 
 #[test]
@@ -200,5 +216,55 @@ fn a_far_static_entity_waits_for_its_region_and_a_teleport_rebuilds_once() {
     let far = parts.pop().unwrap();
     parts.push(TriangleMesh::new(far.positions.iter().map(|p| *p + Vec3::Z).collect(), far.triangles));
     assert_levels_equal_cpu(&mut app, &parts);
+    assert!(take_render_errors().is_empty());
+}
+
+/// `VoxelFill::Solid` occluders in cascades: filled when their levels are built, and filled again slab by
+/// slab as the camera walks across them (the slabs cut them in every direction, so crossings below a slab
+/// count at its bottom), equal to the CPU twin's fill of each window.
+#[test]
+fn solid_occluders_fill_slab_by_slab_as_the_camera_walks() {
+    let _gpu = gpu_lock();
+    let parts = corridor();
+    let solids: Vec<TriangleMesh> = (0..4)
+        .map(|k| {
+            let m = builtin::icosphere(1.1, 2);
+            let at = Vec3::new(-2.5 + 2.8 * k as f32, 1.1 + 0.3 * k as f32, -0.9 + 0.6 * k as f32);
+            TriangleMesh::new(m.positions.iter().map(|p| *p + at).collect(), m.triangles)
+        })
+        .collect();
+    let (spawn_parts, spawn_solids) = (parts.clone(), solids.clone());
+    let mut app = headless_app(move |app| {
+        app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(cascades());
+            for mesh in &spawn_parts {
+                commands.spawn((Mesh3d(meshes.add(bevy_mesh(mesh, Layout::U32))), StaticOccluder));
+            }
+            for mesh in &spawn_solids {
+                commands.spawn((Mesh3d(meshes.add(bevy_mesh(mesh, Layout::U32))), StaticOccluder, VoxelFill::Solid));
+            }
+            commands.spawn((
+                Camera3d::default(),
+                HybridAmbientOcclusion::default(),
+                Transform::from_xyz(0.0, 1.6, 0.0).looking_to(Vec3::X, Vec3::Y),
+                TheCamera,
+            ));
+        });
+    });
+    run(&mut app, 6);
+    let (_, built) = assert_levels_equal_cpu_with_solids(&mut app, &parts, &solids);
+    assert!(built[0] > 300, "filled at the build: {built:?}");
+    // Walk diagonally (x, y and z scroll) in steps of a quarter metre.
+    for step in 1..=24 {
+        let s = step as f32 * 0.25;
+        move_camera(&mut app, Vec3::new(s, 1.6 + 0.5 * s, -0.6 * s));
+        app.update();
+    }
+    run(&mut app, 2);
+    let s = stats(&app);
+    assert!(s.cascades[0].scrolls >= 2 && s.cascades.iter().all(|c| c.rebuilds == 1), "{:?}", s.cascades);
+    let (_, walked) = assert_levels_equal_cpu_with_solids(&mut app, &parts, &solids);
+    println!("voxels filled per level: {built:?} when built, {walked:?} after the walk");
+    assert!(walked.iter().sum::<u64>() > 0);
     assert!(take_render_errors().is_empty());
 }

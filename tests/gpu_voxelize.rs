@@ -663,3 +663,68 @@ fn pn_triangles_on_the_gpu_equal_their_cpu_twin() {
         assert!(take_render_errors().is_empty());
     }
 }
+
+/// `VoxelFill::Solid` occluders are filled on the GPU as their CPU twin `fill_solid` fills them: a turned
+/// icosphere and a torus (whose hole stays empty), beside a closed box left as a surface, in both modes.
+#[test]
+fn solid_occluders_on_the_gpu_equal_their_cpu_twin() {
+    let _gpu = gpu_lock();
+    let solids = [
+        (
+            builtin::icosphere(1.0, 2),
+            Transform::from_xyz(-1.6, 0.3, -0.2).with_rotation(Quat::from_euler(EulerRot::XYZ, 0.3, 0.5, -0.2)),
+        ),
+        (
+            builtin::builtin("torus").unwrap(),
+            Transform::from_xyz(1.5, -0.2, 0.4).with_rotation(Quat::from_euler(EulerRot::XYZ, 1.1, 0.2, 0.4)),
+        ),
+    ];
+    let surface =
+        (builtin::builtin("chamfer-box").unwrap(), Transform::from_xyz(0.1, 2.2, 1.9).with_scale(Vec3::splat(0.8)));
+    for injection in [VoxelInjection::Centroid, VoxelInjection::Conservative] {
+        let (spawn_solids, spawn_surface) = (solids.clone(), surface.clone());
+        let mut app = headless_app(move |app| {
+            app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                commands.spawn(volume(4.0, 64, injection));
+                for (mesh, transform) in &spawn_solids {
+                    commands.spawn((
+                        Mesh3d(meshes.add(bevy_mesh(mesh, Layout::U32))),
+                        *transform,
+                        StaticOccluder,
+                        VoxelFill::Solid,
+                    ));
+                }
+                let (mesh, transform) = &spawn_surface;
+                commands.spawn((
+                    Mesh3d(meshes.add(bevy_mesh(mesh, Layout::U16WithAttributes))),
+                    *transform,
+                    StaticOccluder,
+                ));
+            });
+        });
+        run(&mut app, 6);
+        let gpu = read_occupancy(&mut app);
+        let assets = grid_assets(&app).unwrap();
+        let grid = assets.grid;
+        let cpu = VoxelOccupancy::new(grid, false);
+        let to_grid = |t: &Transform| grid.grid_from_world() * GlobalTransform::from(*t).affine();
+        for (mesh, transform) in solids.iter().chain([&surface]) {
+            voxelize_mesh(mesh, to_grid(transform), &assets.settings, &cpu);
+        }
+        let surface_only = cpu.set_voxel_count();
+        let mut filled = 0;
+        for (mesh, transform) in &solids {
+            let f = cpu::fill_solid(mesh, to_grid(transform), &cpu);
+            assert_eq!(f.odd_columns, 0);
+            filled += f.filled;
+        }
+        let (only_gpu, only_cpu) = (gpu.count_not_in(&cpu), cpu.count_not_in(&gpu));
+        let set = cpu.set_voxel_count();
+        println!(
+            "{injection:?}: {set} voxels on the CPU ({surface_only} surface, {filled} filled); {only_gpu} only on the GPU, {only_cpu} only on the CPU"
+        );
+        assert!(filled > 2_000, "{filled}");
+        assert!((only_gpu + only_cpu) * 10_000 <= set, "{injection:?}: {only_gpu} + {only_cpu} of {set} differ");
+        assert!(take_render_errors().is_empty());
+    }
+}

@@ -53,7 +53,7 @@ pub use mesh::{MeshStats, TriangleMesh};
 pub use overlap::{OverlapKind, OverlapTriangle, triangle_box_overlap};
 pub use pn::{PnPatch, smooth_vertex_normals, voxelize_mesh_pn, voxelize_pn_triangle_in_region};
 pub use skinning::{VertexSkin, morph_position, morphed_mesh, skin_matrix, skin_position, skinned_mesh};
-pub use solid::{SolidFill, fill_solid, open_edge_count};
+pub use solid::{SolidFill, fill_solid, fill_solid_in_region, open_edge_count};
 pub use tessellation::{
     LatticeRange, SubTriangle, Subdivision, SubdivisionPattern, TessellationFactors, TriangleSizes,
     expected_point_count, rotate_to_apex, sub_triangle, sub_triangle_centroid, sub_triangle_corners, subdivision,

@@ -18,8 +18,8 @@
 
 use super::grid::VoxelOccupancy;
 use super::mesh::TriangleMesh;
-use super::voxelize::grid_space_position;
-use glam::{Affine3A, UVec3, Vec2, Vec3};
+use super::voxelize::{InjectionRegion, grid_space_position, storage_index};
+use glam::{Affine3A, IVec3, Vec2, Vec3};
 use std::collections::HashMap;
 
 /// What [`fill_solid`] did.
@@ -87,8 +87,22 @@ pub fn column_crossing(v: [Vec3; 3], c: Vec2) -> Option<f32> {
 /// Fills the inside of `mesh` (transformed to grid space by `grid_from_local`) into `out`, which should
 /// already hold its surface. Cells are inside by their centres; see the module docs.
 pub fn fill_solid(mesh: &TriangleMesh, grid_from_local: Affine3A, out: &VoxelOccupancy) -> SolidFill {
-    let dims = out.grid().dims;
-    let mut columns: Vec<Vec<f32>> = vec![Vec::new(); dims.x as usize * dims.y as usize];
+    fill_solid_in_region(mesh, grid_from_local, &InjectionRegion::whole(out.grid().dims), out)
+}
+
+/// [`fill_solid`] into the cells of `region` of `out`, stored relative to the region's window (as
+/// [`super::voxelize::voxelize_mesh_in_region`] stores them): a column of the region is filled from its
+/// crossings at any height (those below the region count, those above end nothing in it), and left alone
+/// if it has an odd number of crossings in all. WGSL: voxelize_solid.wgsl.
+pub fn fill_solid_in_region(
+    mesh: &TriangleMesh,
+    grid_from_local: Affine3A,
+    region: &InjectionRegion,
+    out: &VoxelOccupancy,
+) -> SolidFill {
+    let grid = *out.grid();
+    let size = (region.max - region.min).max(IVec3::ZERO);
+    let mut columns: Vec<Vec<f32>> = vec![Vec::new(); size.x as usize * size.y as usize];
     let mut fill = SolidFill::default();
     for t in 0..mesh.triangle_count() {
         let Some(v) = mesh.triangle(t) else { continue };
@@ -98,16 +112,16 @@ pub fn fill_solid(mesh: &TriangleMesh, grid_from_local: Affine3A, out: &VoxelOcc
         }
         let lo = v[0].min(v[1]).min(v[2]).truncate();
         let hi = v[0].max(v[1]).max(v[2]).truncate();
-        // Columns whose centres (i + 0.5, j + 0.5) lie in the box.
-        let first = (lo - 0.5).ceil().max(Vec2::ZERO);
-        let last = (hi - 0.5).floor().min(dims.truncate().as_vec2() - 1.0);
+        // The region's columns whose centres (i + 0.5, j + 0.5) lie in the box.
+        let first = (lo - 0.5).ceil().max(region.min.truncate().as_vec2());
+        let last = (hi - 0.5).floor().min((region.max.truncate() - 1).as_vec2());
         if !(first.x <= last.x && first.y <= last.y) {
             continue;
         }
-        for j in first.y as u32..=last.y as u32 {
-            for i in first.x as u32..=last.x as u32 {
+        for j in first.y as i32..=last.y as i32 {
+            for i in first.x as i32..=last.x as i32 {
                 if let Some(z) = column_crossing(v, Vec2::new(i as f32 + 0.5, j as f32 + 0.5)) {
-                    columns[(i + dims.x * j) as usize].push(z);
+                    columns[((i - region.min.x) + size.x * (j - region.min.y)) as usize].push(z);
                     fill.crossings += 1;
                 }
             }
@@ -122,13 +136,14 @@ pub fn fill_solid(mesh: &TriangleMesh, grid_from_local: Affine3A, out: &VoxelOcc
             continue;
         }
         crossings.sort_by(f32::total_cmp);
-        let (i, j) = (index as u32 % dims.x, index as u32 / dims.x);
+        let i = region.min.x + index as i32 % size.x;
+        let j = region.min.y + index as i32 / size.x;
         for pair in crossings.chunks_exact(2) {
             // Cells k with centre k + 0.5 in (enter, leave].
-            let from = crossing_cell(pair[0]) as i64;
-            let to = crossing_cell(pair[1]) as i64 - 1;
-            for k in from.max(0)..=to.min(dims.z as i64 - 1) {
-                let cell = UVec3::new(i, j, k as u32);
+            let from = crossing_cell(pair[0]).max(region.min.z);
+            let to = (crossing_cell(pair[1]) - 1).min(region.max.z - 1);
+            for k in from..=to {
+                let cell = grid.cell_of_index(storage_index(IVec3::new(i, j, k), region, grid.dims));
                 if !out.is_set(cell) {
                     out.set(cell);
                     fill.filled += 1;
@@ -149,6 +164,7 @@ pub fn crossing_cell(z: f32) -> i32 {
 mod tests {
     use super::*;
     use crate::cpu::VoxelGrid;
+    use glam::UVec3;
 
     /// A closed box from `lo` to `hi` (12 triangles, outward).
     fn cuboid(lo: Vec3, hi: Vec3) -> TriangleMesh {

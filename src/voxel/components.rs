@@ -43,6 +43,25 @@ pub struct NoVoxelOcclusion;
 #[reflect(Component, Default, Debug, PartialEq)]
 pub struct PnTriangles;
 
+/// Whether an occluder is voxelized as a surface (the default) or filled solid.
+///
+/// `Solid` fills the inside of a closed mesh (Dong et al. 2004: the parity of the crossings of the
+/// vertical lines through the cell centres), so that a thick wall or a pillar is solid rather than a
+/// shell and rays do not pass through its inside. Only for closed meshes: where a mesh is not closed, a
+/// column it crosses an odd number of times is left as its surface (the `voxelize` tool's `--solid` warns
+/// about open meshes). The solid occluders voxelized together (in one pass of a cascade level) are filled
+/// together: where two overlap, the shared part is left out, so keep solids apart. CPU twin:
+/// [`cpu::fill_solid`].
+#[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[reflect(Component, Default, Debug, PartialEq, Hash)]
+pub enum VoxelFill {
+    /// The surface only.
+    #[default]
+    Surface,
+    /// The surface and the inside.
+    Solid,
+}
+
 /// Added by the plugin to an unmarked `Mesh3d` entity the first time its transform changes after it was
 /// voxelized: from then on it is treated as a [`DynamicOccluder`].
 ///

@@ -46,6 +46,8 @@ pub struct ExtractedOccluder {
     pub morphed: bool,
     /// Marked [`PnTriangles`]: voxelized as PN triangles from its normals.
     pub pn: bool,
+    /// [`VoxelFill::Solid`]: its inside is filled.
+    pub solid: bool,
 }
 
 /// This frame's occluders, split into static and dynamic.
@@ -105,6 +107,7 @@ pub fn extract_voxel_occluders(
                 Has<DynamicSkinnedMeshBounds>,
                 Has<MeshMorphWeights>,
                 Has<PnTriangles>,
+                Option<&VoxelFill>,
             ),
             Without<NoVoxelOcclusion>,
         >,
@@ -117,7 +120,7 @@ pub fn extract_voxel_occluders(
     extracted.statics.clear();
     extracted.dynamics.clear();
     extracted.rebuild_requests = requests.0;
-    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed, pn) in &occluders {
+    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed, pn, fill) in &occluders {
         if !visible.get() {
             continue;
         }
@@ -147,6 +150,7 @@ pub fn extract_voxel_occluders(
             skin_joints,
             morphed,
             pn,
+            solid: fill == Some(&VoxelFill::Solid),
         };
         // Skinned and morphed meshes move by themselves: dynamic unless marked static (then voxelized in the
         // pose they have when the static voxels are built).

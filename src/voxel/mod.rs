@@ -66,12 +66,14 @@ impl Plugin for VoxelizationPlugin {
         embedded_asset!(app, "voxelize_classify.wgsl");
         embedded_asset!(app, "voxelize_scan.wgsl");
         embedded_asset!(app, "voxelize_expand.wgsl");
+        embedded_asset!(app, "voxelize_solid.wgsl");
         embedded_asset!(app, "voxel_resolve.wgsl");
         embedded_asset!(app, "voxel_mip.wgsl");
         app.register_type::<crate::voxel::components::StaticOccluder>()
             .register_type::<crate::voxel::components::DynamicOccluder>()
             .register_type::<crate::voxel::components::NoVoxelOcclusion>()
             .register_type::<crate::voxel::components::PnTriangles>()
+            .register_type::<crate::voxel::components::VoxelFill>()
             .register_type::<crate::voxel::components::PromotedToDynamic>()
             .register_type::<crate::voxel::components::VoxelVolume>()
             .add_message::<extract::RebuildStaticVoxels>()

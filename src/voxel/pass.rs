@@ -14,6 +14,7 @@ fn record_pass(
     pass: &VoxelizePass,
     frame: &VoxelizeFrame,
     pipelines: [&ComputePipeline; 3],
+    solid: Option<[&ComputePipeline; 2]>,
     label: &'static str,
 ) {
     let [classify, scan, expand] = pipelines;
@@ -44,6 +45,30 @@ fn record_pass(
         cpass.set_bind_group(1, &pass.bind_group, &[]);
         cpass.dispatch_workgroups_indirect(&frame.dispatch_args, 0);
     }
+    // The inside of the solid occluders, once their surface is in.
+    if let (Some(fill), Some([crossings, solid_fill])) = (&pass.solid, solid) {
+        encoder.clear_buffer(&fill.crossings, 0, None);
+        {
+            let mut cpass = encoder.begin_compute_pass(&ComputePassDescriptor {
+                label: Some("hao_voxelize_solid_crossings"),
+                timestamp_writes: None,
+            });
+            cpass.set_pipeline(crossings);
+            cpass.set_bind_group(1, &fill.bind_group, &[]);
+            for slab in &pass.slabs {
+                cpass.set_bind_group(0, &slab.bind_group, &[]);
+                cpass.dispatch_workgroups(slab.workgroups.0, slab.workgroups.1, 1);
+            }
+        }
+        let mut cpass = encoder.begin_compute_pass(&ComputePassDescriptor {
+            label: Some("hao_voxelize_solid_fill"),
+            timestamp_writes: None,
+        });
+        cpass.set_pipeline(solid_fill);
+        cpass.set_bind_group(0, &frame.empty_bind_group, &[]);
+        cpass.set_bind_group(1, &fill.bind_group, &[]);
+        cpass.dispatch_workgroups(fill.columns.x.max(1), fill.columns.y.max(1), 1);
+    }
 }
 
 /// Voxelizes: the static regions that changed (cleared, then voxelized again), then this frame's copy of
@@ -65,6 +90,11 @@ pub fn voxelize(
     ) else {
         return;
     };
+    // The solid fill waits for its own pipelines; the surface does not.
+    let solid = cache
+        .get_compute_pipeline(pipelines.solid_crossings)
+        .zip(cache.get_compute_pipeline(pipelines.solid_fill))
+        .map(|(a, b)| [a, b]);
     let diagnostics = ctx.diagnostic_recorder();
     let diagnostics = diagnostics.as_deref();
     let encoder = ctx.command_encoder();
@@ -95,7 +125,7 @@ pub fn voxelize(
                     cpass.dispatch_workgroups(w.x.max(1), w.y.max(1), w.z.max(1));
                 }
             }
-            record_pass(encoder, &s.pass, &frame, [classify, scan, expand], "hao_voxelize_static");
+            record_pass(encoder, &s.pass, &frame, [classify, scan, expand], solid, "hao_voxelize_static");
         }
         span.end(ctx.command_encoder());
     }
@@ -107,7 +137,7 @@ pub fn voxelize(
         encoder.copy_buffer_to_buffer(static_counts, 0, counts, 0, counts.size());
     }
     for pass in &frame.dynamic_passes {
-        record_pass(encoder, pass, &frame, [classify, scan, expand], "hao_voxelize_dynamic");
+        record_pass(encoder, pass, &frame, [classify, scan, expand], solid, "hao_voxelize_dynamic");
     }
     span.end(ctx.command_encoder());
 

@@ -52,7 +52,8 @@ pub struct GpuOccluderInstance {
     pub morph_vertex_count: u32,
     /// Offset of the normals (`Float32x3`) in a vertex, in words, for a PN instance ([`NO_NORMALS`]: flat).
     pub normal_offset: u32,
-    pub _pad_a: u32,
+    /// 1 to fill the instance's inside (`VoxelFill::Solid`; voxelize_solid.wgsl).
+    pub solid: u32,
     pub _pad_b: u32,
     pub _pad_c: u32,
 }
@@ -153,6 +154,8 @@ pub struct VoxelizePipelines {
     pub resolve_layout: BindGroupLayoutDescriptor,
     /// The mip pass's group.
     pub mip_layout: BindGroupLayoutDescriptor,
+    /// The solid pass's group 1: settings, the crossings scratch and the occupancy.
+    pub solid_layout: BindGroupLayoutDescriptor,
     /// Pass 1.
     pub classify: CachedComputePipelineId,
     /// Pass 2.
@@ -165,6 +168,10 @@ pub struct VoxelizePipelines {
     pub resolve: CachedComputePipelineId,
     /// Texture mips.
     pub mip: CachedComputePipelineId,
+    /// The solid pass's crossings (one invocation per triangle).
+    pub solid_crossings: CachedComputePipelineId,
+    /// The solid pass's fill (one invocation per column).
+    pub solid_fill: CachedComputePipelineId,
     /// Whether classify skins skinned meshes (WGSL `VOXELIZE_SKINNING`, group 0 binding 4: Bevy's joint
     /// matrices): wherever the device has [`SKINNING_STORAGE_BUFFERS`]. Elsewhere skinned meshes are skipped
     /// with a warning.
@@ -252,6 +259,17 @@ impl FromWorld for VoxelizePipelines {
                 ),
             ),
         );
+        let solid_layout = BindGroupLayoutDescriptor::new(
+            "hao_voxelize_solid_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    params_binding::<GpuVoxelizeParams>(params_in_storage),
+                    storage_buffer_sized(false, None),
+                    storage_buffer_sized(false, None),
+                ),
+            ),
+        );
         let dispatch_layout = BindGroupLayoutDescriptor::new(
             "hao_voxelize_dispatch_layout",
             &BindGroupLayoutEntries::single(ShaderStages::COMPUTE, storage_buffer_sized(false, None)),
@@ -299,7 +317,7 @@ impl FromWorld for VoxelizePipelines {
             vec![slab_layout.clone(), pass_layout.clone()],
             load_embedded_asset!(world, "voxelize_classify.wgsl"),
             "classify",
-            classify_defs,
+            classify_defs.clone(),
         );
         let scan = queue(
             "hao_voxelize_scan",
@@ -313,6 +331,20 @@ impl FromWorld for VoxelizePipelines {
             vec![empty_layout.clone(), pass_layout.clone()],
             load_embedded_asset!(world, "voxelize_expand.wgsl"),
             "expand",
+            pass_defs.clone(),
+        );
+        let solid_crossings = queue(
+            "hao_voxelize_solid_crossings",
+            vec![slab_layout.clone(), solid_layout.clone()],
+            load_embedded_asset!(world, "voxelize_solid.wgsl"),
+            "crossings_pass",
+            classify_defs.clone(),
+        );
+        let solid_fill = queue(
+            "hao_voxelize_solid_fill",
+            vec![empty_layout.clone(), solid_layout.clone()],
+            load_embedded_asset!(world, "voxelize_solid.wgsl"),
+            "fill",
             pass_defs.clone(),
         );
         let clear = queue(
@@ -343,12 +375,15 @@ impl FromWorld for VoxelizePipelines {
             dispatch_layout,
             resolve_layout,
             mip_layout,
+            solid_layout,
             classify,
             scan,
             expand,
             clear,
             resolve,
             mip,
+            solid_crossings,
+            solid_fill,
             skinning,
             morph,
             dummy,

@@ -184,6 +184,8 @@ pub struct VoxelizeState {
     rebuild_requests: u64,
     big: Option<BigBuffers>,
     warned_capacity: bool,
+    /// The solid pass's scratch (a level's cells, then one bit per column), as long as it is big enough.
+    crossings: Option<Buffer>,
 }
 
 impl VoxelizeState {
@@ -220,6 +222,18 @@ pub struct VoxelizePass {
     pub slabs: Vec<SlabDispatch>,
     /// Group 1.
     pub bind_group: BindGroup,
+    /// The solid fill, when an instance of the pass is [`crate::VoxelFill::Solid`].
+    pub solid: Option<SolidPass>,
+}
+
+/// The solid fill of a pass (voxelize_solid.wgsl): its crossings over the pass's slabs, then its fill.
+pub struct SolidPass {
+    /// Group 1 of both.
+    pub bind_group: BindGroup,
+    /// The scratch buffer, cleared before the crossings.
+    pub crossings: Buffer,
+    /// Workgroups of the fill (8x8 columns each).
+    pub columns: UVec2,
 }
 
 /// How a static region is cleared before it is voxelized again.
@@ -495,7 +509,7 @@ fn resolve_occluder(
             morph_targets_offset: morph[2],
             morph_vertex_count: morph[3],
             normal_offset,
-            _pad_a: 0,
+            solid: o.solid as u32,
             _pad_b: 0,
             _pad_c: 0,
         },
@@ -654,6 +668,7 @@ fn fingerprint(o: &ExtractedOccluder, r: &ResolvedInstance) -> u64 {
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     o.mesh.hash(&mut hasher);
     o.pn.hash(&mut hasher);
+    o.solid.hash(&mut hasher);
     r.ranges.hash(&mut hasher);
     r.slabs.hash(&mut hasher);
     for v in o.world_from_local.to_cols_array() {
@@ -971,6 +986,20 @@ pub fn prepare_voxelize(
             dispatch: storage("hao_expand_dispatch", 16, BufferUsages::INDIRECT),
         });
     }
+    // The solid passes' scratch: a level's cells and a bit per column, in words (levels share their dims).
+    if pending.iter().any(|p| p.instances.iter().any(|r| r.gpu.solid != 0)) {
+        let most = levels.iter().map(|l| level_voxels + (l.dims.x * l.dims.y) as u64).max().unwrap_or(0);
+        let bytes = most.div_ceil(32).max(1) * 4;
+        if state.crossings.as_ref().is_none_or(|b| b.size() < bytes) {
+            state.crossings = Some(device.create_buffer(&BufferDescriptor {
+                label: Some("hao_voxelize_crossings"),
+                size: bytes,
+                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+    }
+    let crossings = state.crossings.clone();
     let big = state.big.as_ref().expect("allocated above");
 
     let pass_layout = cache.get_bind_group_layout(&pipelines.pass_layout);
@@ -984,6 +1013,7 @@ pub fn prepare_voxelize(
         let level = &levels[p.level];
         let is_static = p.clear.is_some();
         let label = if is_static { "hao_static_instances" } else { "hao_dynamic_instances" };
+        let any_solid = p.instances.iter().any(|r| r.gpu.solid != 0);
         let (slabs, _) = build_slab_dispatches(&device, &pipelines, &cache, p.instances, joints, morph_weights, label);
         let region = level.region(p.region);
         let params = GpuVoxelizeParams {
@@ -1022,7 +1052,22 @@ pub fn prepare_voxelize(
                 big.offsets.as_entire_binding(),
             )),
         );
-        let pass = VoxelizePass { slabs, bind_group };
+        let solid = any_solid.then(|| {
+            let crossings = crossings.clone().expect("allocated when a pass has solid instances");
+            let bind_group = device.create_bind_group(
+                "hao_voxelize_solid_bind_group",
+                &cache.get_bind_group_layout(&pipelines.solid_layout),
+                &BindGroupEntries::sequential((
+                    params.as_entire_binding(),
+                    crossings.as_entire_binding(),
+                    occ.as_entire_binding(),
+                )),
+            );
+            let size = (region.max - region.min).max(IVec3::ZERO).as_uvec3();
+            let w = crate::gpu::SCREEN_WORKGROUP;
+            SolidPass { bind_group, crossings, columns: UVec2::new(size.x.div_ceil(w), size.y.div_ceil(w)) }
+        });
+        let pass = VoxelizePass { slabs, bind_group, solid };
         match p.clear {
             Some(clear) => static_passes.push(StaticPass { clear, pass }),
             None => dynamic_passes.push(pass),

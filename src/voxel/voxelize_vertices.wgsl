@@ -32,7 +32,8 @@ struct OccluderInstance {
     morph_vertex_count: u32,
     // PN instances: the word offset of the normals (Float32x3) in a vertex (NO_NORMALS: a flat instance).
     normal_offset: u32,
-    pad_a: u32,
+    // 1: filled solid (voxelize_solid.wgsl).
+    solid: u32,
     pad_b: u32,
     pad_c: u32,
 }

@@ -100,11 +100,11 @@ struct Cli {
     #[arg(long)]
     gamma_sweep: bool,
     /// Voxelize PN triangles (Fei 2012 section 3.4): each triangle curved by the vertex normals of the
-    /// welded mesh (smooth everywhere, hard edges included). CPU only. Bias, excess and the watertight
+    /// welded mesh (smooth everywhere, hard edges included), by the CPU twin. Bias, excess and the watertight
     /// test still compare with the flat mesh's ground truth.
     #[arg(long)]
     pn: bool,
-    /// Fill the inside of closed meshes (Dong et al. 2004: parity of crossings along z). CPU only. A mesh
+    /// Fill the inside of closed meshes (Dong et al. 2004: parity of crossings along z), by the CPU twin. A mesh
     /// that is not closed gets a warning, and its columns with an odd number of crossings stay hollow. The
     /// voxels-set, points-per-voxel and excess columns then count the inside; `--export` writes the solid.
     #[arg(long)]
