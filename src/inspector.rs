@@ -249,7 +249,23 @@ fn inspector_window(
                         volume.resolution = VolumeResolution::Cells(cells);
                     }
                 }
-                ui.add(egui::Slider::new(&mut volume.gamma, 0.25..=8.0).logarithmic(true).text("gamma"));
+                // Gamma by hand, or chosen for a target bias (equation 3).
+                let mut by_target = volume.target_bias.is_some();
+                if ui.checkbox(&mut by_target, "gamma for a target bias").changed() {
+                    volume.target_bias = by_target.then_some(0.02);
+                }
+                match &mut volume.target_bias {
+                    Some(p) => {
+                        ui.add(egui::Slider::new(p, 0.002..=0.2).logarithmic(true).text("target bias"));
+                        match stats.get().gamma_for_target {
+                            Some((_, g)) => ui.label(format!("gamma {g:.2}, measured on the static occluders")),
+                            None => ui.label("gamma: not measured yet"),
+                        };
+                    }
+                    None => {
+                        ui.add(egui::Slider::new(&mut volume.gamma, 0.25..=8.0).logarithmic(true).text("gamma"));
+                    }
+                }
                 ui.horizontal(|ui| {
                     ui.selectable_value(&mut volume.injection, VoxelInjection::Centroid, "centroid");
                     ui.selectable_value(&mut volume.injection, VoxelInjection::Conservative, "conservative");

@@ -728,3 +728,42 @@ fn solid_occluders_on_the_gpu_equal_their_cpu_twin() {
         assert!(take_render_errors().is_empty());
     }
 }
+
+/// `VoxelVolume::target_bias` sets gamma from equation 3 measured on the static occluders (the CPU's
+/// `calibrate` on the same world triangles), shows it in the stats, and is ignored in conservative mode.
+#[test]
+fn a_target_bias_chooses_gamma_from_the_static_occluders() {
+    let _gpu = gpu_lock();
+    let sphere = builtin::builtin("sphere").unwrap();
+    let transform = Transform::from_xyz(0.2, -0.1, 0.3).with_scale(Vec3::splat(2.5));
+    for injection in [VoxelInjection::Centroid, VoxelInjection::Conservative] {
+        let mesh = sphere.clone();
+        let mut app = headless_app(move |app| {
+            app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                commands.spawn(VoxelVolume { target_bias: Some(0.03), ..volume(4.0, 64, injection) });
+                commands.spawn((Mesh3d(meshes.add(bevy_mesh(&mesh, Layout::U32))), transform, StaticOccluder));
+            });
+        });
+        run(&mut app, 6);
+        let assets = grid_assets(&app).unwrap();
+        let chosen = stats(&app).gamma_for_target;
+        if injection == VoxelInjection::Conservative {
+            assert_eq!(chosen, None);
+            assert_eq!(assets.settings.gamma, 1.0);
+            continue;
+        }
+        let affine = GlobalTransform::from(transform).affine();
+        let triangles: Vec<[Vec3; 3]> = (0..sphere.triangle_count())
+            .filter_map(|t| sphere.triangle(t))
+            .map(|t| t.map(|p| affine.transform_point3(p)))
+            .collect();
+        let expected = cpu::calibrate(&triangles, assets.grid.cell_size, cpu::SubdivisionPattern::Strips)
+            .unwrap()
+            .gamma_for_bias(0.03, 16.0);
+        println!("target 0.03: gamma {expected:.2}, stats {chosen:?}");
+        assert!(expected > 1.5, "{expected}");
+        assert_eq!(chosen, Some((0.03, expected)));
+        assert_eq!(assets.settings.gamma, expected);
+        assert!(take_render_errors().is_empty());
+    }
+}

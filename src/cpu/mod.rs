@@ -46,7 +46,7 @@ pub mod temporal;
 pub mod tessellation;
 pub mod voxelize;
 
-pub use bias_model::BiasModel;
+pub use bias_model::{BiasModel, Calibration, calibrate};
 pub use cascade::{CascadeError, CascadeLevel, CascadeShape, cascade_window, entered_regions};
 pub use grid::{GridError, VoxelGrid, VoxelOccupancy, cell_of_point};
 pub use mesh::{MeshStats, TriangleMesh};

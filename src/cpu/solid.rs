@@ -14,7 +14,8 @@
 //! if they are filled separately: in one call the crossings of both pair up, and the shared part is
 //! left out.
 //!
-//! This is the CPU reference; the GPU voxelizer does not have it yet.
+//! The GPU voxelizer does the same for occluders with `VoxelFill::Solid` (voxelize_solid.wgsl); this is its
+//! CPU twin.
 
 use super::grid::VoxelOccupancy;
 use super::mesh::TriangleMesh;
@@ -141,7 +142,7 @@ pub fn fill_solid_in_region(
         for pair in crossings.chunks_exact(2) {
             // Cells k with centre k + 0.5 in (enter, leave].
             let from = crossing_cell(pair[0]).max(region.min.z);
-            let to = (crossing_cell(pair[1]) - 1).min(region.max.z - 1);
+            let to = crossing_cell(pair[1]).saturating_sub(1).min(region.max.z - 1);
             for k in from..=to {
                 let cell = grid.cell_of_index(storage_index(IVec3::new(i, j, k), region, grid.dims));
                 if !out.is_set(cell) {
@@ -154,10 +155,11 @@ pub fn fill_solid_in_region(
     fill
 }
 
-/// The first cell whose centre lies above a crossing at `z`: `floor(z - 0.5) + 1`. WGSL: `crossing_cell`.
+/// The first cell whose centre lies above a crossing at `z`: `floor(z - 0.5) + 1`, saturating at the ends
+/// of `i32`. WGSL: `crossing_cell` (which clamps to the region first).
 #[inline]
 pub fn crossing_cell(z: f32) -> i32 {
-    (z - 0.5).floor() as i32 + 1
+    ((z - 0.5).floor() + 1.0) as i32
 }
 
 #[cfg(test)]

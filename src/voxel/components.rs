@@ -50,8 +50,8 @@ pub struct PnTriangles;
 /// shell and rays do not pass through its inside. Only for closed meshes: where a mesh is not closed, a
 /// column it crosses an odd number of times is left as its surface (the `voxelize` tool's `--solid` warns
 /// about open meshes). The solid occluders voxelized together (in one pass of a cascade level) are filled
-/// together: where two overlap, the shared part is left out, so keep solids apart. CPU twin:
-/// [`cpu::fill_solid`].
+/// together: where two overlap, the shared part is left out, so keep solids apart. With [`PnTriangles`] the
+/// inside filled is the flat mesh's, under the curved surface. CPU twin: [`cpu::fill_solid`].
 #[derive(Component, Reflect, Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[reflect(Component, Default, Debug, PartialEq, Hash)]
 pub enum VoxelFill {
@@ -202,6 +202,12 @@ pub struct VoxelVolume {
     /// axis; higher values subdivide more, miss fewer voxels and cost `gamma^2` more points. Clamped to
     /// 1/16..16 (at least 1 in conservative mode).
     pub gamma: f32,
+    /// Choose gamma for this bias instead of `gamma` (equation 3): the share of the cells the static
+    /// surface touches that centroid injection may miss, e.g. `Some(0.02)`. Gamma is measured for it on
+    /// patches of the static occluders (at the finest cell size, by [`cpu::calibrate`], when the static set
+    /// or the volume changes; the chosen gamma is in the stats and the inspector). Conservative injection
+    /// misses nothing and ignores it. Replaced by `None`, with a warning, unless in (0, 1).
+    pub target_bias: Option<f32>,
     /// Centroid or conservative injection.
     pub injection: VoxelInjection,
     /// How triangles are cut into sub-triangles: `Strips` (the default) or the old `Uniform` pattern.
@@ -221,6 +227,7 @@ impl Default for VoxelVolume {
             bounds: VolumeBounds::default(),
             resolution: VolumeResolution::Cells(128),
             gamma: 1.0,
+            target_bias: None,
             injection: VoxelInjection::Centroid,
             subdivision: VoxelSubdivision::Strips,
             point_budget: 32 << 20,
@@ -253,6 +260,12 @@ impl VoxelVolume {
             let g = v.gamma.clamp(lo, hi);
             fix("gamma", format!("{}", v.gamma), format!("{g}"));
             v.gamma = g;
+        }
+        if let Some(p) = v.target_bias
+            && !(p > 0.0 && p < 1.0)
+        {
+            fix("target_bias", format!("Some({p})"), "None".into());
+            v.target_bias = None;
         }
         if v.point_budget == 0 {
             let d = VoxelVolume::default().point_budget;

@@ -25,6 +25,7 @@
 
 pub(crate) mod bindings;
 mod budget;
+mod calibration;
 pub mod components;
 pub(crate) mod extract;
 mod occluders;
@@ -115,18 +116,22 @@ impl Plugin for VoxelizationPlugin {
             s.large_threshold = s.large_threshold.min(max_binding);
         }
         let stats = stats::VoxelizationStats::default();
-        app.insert_resource(stats.clone()).init_resource::<volume::VoxelVolumeFocus>().add_systems(
-            PostUpdate,
-            (
-                occluders::promote_moved_occluders,
-                volume::update_voxel_focus,
-                volume::update_voxel_volume,
-                budget::estimate_point_budget,
-            )
-                .chain()
-                .after(bevy::transform::TransformSystems::Propagate)
-                .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds),
-        );
+        app.insert_resource(stats.clone())
+            .init_resource::<volume::VoxelVolumeFocus>()
+            .init_resource::<calibration::GammaForTarget>()
+            .add_systems(
+                PostUpdate,
+                (
+                    occluders::promote_moved_occluders,
+                    volume::update_voxel_focus,
+                    calibration::choose_gamma_for_target,
+                    volume::update_voxel_volume,
+                    budget::estimate_point_budget,
+                )
+                    .chain()
+                    .after(bevy::transform::TransformSystems::Propagate)
+                    .after(bevy::camera::visibility::VisibilitySystems::CalculateBounds),
+            );
         let render_app = app.sub_app_mut(RenderApp);
         render_app
             .insert_resource(stats)

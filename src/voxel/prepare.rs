@@ -186,6 +186,7 @@ pub struct VoxelizeState {
     warned_capacity: bool,
     /// The solid pass's scratch (a level's cells, then one bit per column), as long as it is big enough.
     crossings: Option<Buffer>,
+    warned_crossings: bool,
 }
 
 impl VoxelizeState {
@@ -725,8 +726,13 @@ pub fn prepare_voxelize(
         },
         _ => None,
     };
+    // The solid pipelines too once a solid occluder exists: a static level built without its fill would stay
+    // hollow until it is rebuilt.
+    let solid_wanted = occluders.statics.iter().chain(&occluders.dynamics).any(|o| o.solid);
+    let solid_ids = [pipelines.solid_crossings, pipelines.solid_fill];
     if [pipelines.classify, pipelines.scan, pipelines.expand, pipelines.clear, pipelines.resolve, pipelines.mip]
         .iter()
+        .chain(if solid_wanted { &solid_ids[..] } else { &[] })
         .any(|id| cache.get_compute_pipeline(*id).is_none())
     {
         return invalidate(&mut state);
@@ -990,7 +996,16 @@ pub fn prepare_voxelize(
     if pending.iter().any(|p| p.instances.iter().any(|r| r.gpu.solid != 0)) {
         let most = levels.iter().map(|l| level_voxels + (l.dims.x * l.dims.y) as u64).max().unwrap_or(0);
         let bytes = most.div_ceil(32).max(1) * 4;
-        if state.crossings.as_ref().is_none_or(|b| b.size() < bytes) {
+        if bytes > device.limits().max_storage_buffer_binding_size {
+            if !state.warned_crossings {
+                warn!(
+                    "bevy_hao: filling solid occluders needs a {bytes}-byte scratch buffer, over the device's \
+                     Limits::max_storage_buffer_binding_size; VoxelFill::Solid occluders are voxelized as surfaces"
+                );
+                state.warned_crossings = true;
+            }
+            state.crossings = None;
+        } else if state.crossings.as_ref().is_none_or(|b| b.size() < bytes) {
             state.crossings = Some(device.create_buffer(&BufferDescriptor {
                 label: Some("hao_voxelize_crossings"),
                 size: bytes,
@@ -1052,7 +1067,7 @@ pub fn prepare_voxelize(
                 big.offsets.as_entire_binding(),
             )),
         );
-        let solid = any_solid.then(|| {
+        let solid = (any_solid && crossings.is_some()).then(|| {
             let crossings = crossings.clone().expect("allocated when a pass has solid instances");
             let bind_group = device.create_bind_group(
                 "hao_voxelize_solid_bind_group",

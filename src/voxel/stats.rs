@@ -193,6 +193,8 @@ pub struct VoxelizationStatsData {
     pub estimated_static_points: u64,
     /// The estimate of the dynamic occluders' points per frame.
     pub estimated_dynamic_points: u64,
+    /// `VoxelVolume::target_bias` and the gamma chosen for it, once measured.
+    pub gamma_for_target: Option<(f32, f32)>,
 }
 
 impl VoxelizationStats {

@@ -138,6 +138,7 @@ pub(crate) fn update_voxel_volume(
     mut images: ResMut<Assets<Image>>,
     readbacks: Query<Entity, With<VoxelCountersReadback>>,
     stats: Res<VoxelizationStats>,
+    gamma_for_target: Res<super::calibration::GammaForTarget>,
     mut reported: Local<ReportedVolume>,
     mut warned: Local<bevy::platform::collections::HashSet<String>>,
     mut generation: Local<u64>,
@@ -273,7 +274,11 @@ pub(crate) fn update_voxel_volume(
         );
         point_counts = false;
     }
-    let settings = volume.voxelize_settings();
+    let mut settings = volume.voxelize_settings();
+    // A target bias sets gamma once it has been measured (until then, `gamma` is used).
+    if let (Some(_), Some(gamma)) = (volume.target_bias, gamma_for_target.gamma) {
+        settings.gamma = gamma;
+    }
     let texture_format = voxel_texture_format(&adapter);
     if let Some(cur) = &current
         && cur.grid == grid

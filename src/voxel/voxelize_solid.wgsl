@@ -1,6 +1,6 @@
 // Solid voxelization (Dong et al. 2004), after a pass has voxelized the surface: the inside of the
 // occluders marked `VoxelFill::Solid` filled by the parity of crossings along z. CPU twin:
-// `bevy_hao::cpu::solid::fill_solid`.
+// `bevy_hao::cpu::solid::fill_solid_in_region`.
 //
 // `crossings` (one invocation per triangle of the pass's solid instances): every vertical line through a
 // column centre of the region that the triangle crosses flips a bit at the first cell above the crossing
@@ -60,9 +60,9 @@ fn column_crossing(v0: vec3<f32>, v1_in: vec3<f32>, v2_in: vec3<f32>, c: vec2<f3
     return true;
 }
 
-// solid.rs: crossing_cell
-fn crossing_cell(z: f32) -> i32 {
-    return i32(floor(z - 0.5)) + 1;
+// solid.rs: crossing_cell, clamped to [lo, hi] before it becomes an integer (a huge z would overflow).
+fn crossing_cell(z: f32, lo: i32, hi: i32) -> i32 {
+    return i32(clamp(floor(z - 0.5) + 1.0, f32(lo), f32(hi)));
 }
 
 fn flip(index: u32) {
@@ -106,7 +106,7 @@ fn crossings_pass(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wo
             var z: f32;
             if column_crossing(v0, v1, v2, vec2<f32>(f32(i) + 0.5, f32(j) + 0.5), &z) {
                 flip(column_bit(i, j));
-                let k = max(crossing_cell(z), solid.region_min.z);
+                let k = crossing_cell(z, solid.region_min.z, solid.region_max.z);
                 if k < solid.region_max.z {
                     flip(storage_index(vec3<i32>(i, j, k), solid.window_min, solid.wrap, solid.dims, 0u));
                 }

@@ -294,6 +294,7 @@ fn gpu_volume(bounds: (Vec3, Vec3), res: u32, settings: &VoxelizeSettings) -> Vo
         bounds: VolumeBounds::World { min: bounds.0, max: bounds.1 },
         resolution: VolumeResolution::Cells(res),
         gamma: settings.gamma,
+        target_bias: None,
         injection: match settings.mode {
             InjectionMode::Centroid => VoxelInjection::Centroid,
             InjectionMode::Conservative => VoxelInjection::Conservative,
