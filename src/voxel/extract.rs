@@ -20,7 +20,6 @@ use bevy::render::Extract;
 /// The grid's assets (`None` while there is no valid grid) and the cascades' focus, extracted each frame.
 #[derive(Resource, Default)]
 pub struct ExtractedVoxelGrid {
-    /// The assets.
     pub assets: Option<VoxelGridAssets>,
     /// Where the cascades are centred.
     pub focus: Option<Vec3>,
@@ -31,7 +30,6 @@ pub struct ExtractedVoxelGrid {
 pub struct ExtractedOccluder {
     /// The main-world entity.
     pub entity: Entity,
-    /// Its mesh.
     pub mesh: AssetId<Mesh>,
     /// Its world transform.
     pub world_from_local: Affine3A,

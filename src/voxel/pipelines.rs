@@ -73,7 +73,6 @@ pub struct GpuSlabGroup {
     pub instance_count: u32,
     /// Triangles in the dispatch.
     pub triangle_count: u32,
-    /// Padding.
     pub _pad: u32,
 }
 

@@ -211,7 +211,6 @@ struct BigBuffers {
 
 /// One classify dispatch: the instances whose meshes live in one pair of vertex and index slabs.
 pub struct SlabDispatch {
-    /// Group 0.
     pub bind_group: BindGroup,
     /// Workgroups (x, y).
     pub workgroups: (u32, u32),
@@ -221,7 +220,6 @@ pub struct SlabDispatch {
 pub struct VoxelizePass {
     /// The classify dispatches.
     pub slabs: Vec<SlabDispatch>,
-    /// Group 1.
     pub bind_group: BindGroup,
     /// The solid fill, when an instance of the pass is [`crate::VoxelFill::Solid`].
     pub solid: Option<SolidPass>,
@@ -283,7 +281,6 @@ pub struct VoxelizeFrame {
     pub dispatch_bind_group: BindGroup,
     /// The expand pass's indirect arguments.
     pub dispatch_args: Buffer,
-    /// The counters.
     pub counters: Buffer,
     /// Static occupancy.
     pub static_occupancy: Buffer,
