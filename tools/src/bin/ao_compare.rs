@@ -159,7 +159,10 @@ fn main() {
         eprintln!("error: {e}");
         std::process::exit(1)
     });
-    let bounds = triangles.bounds().expect("a scene with triangles");
+    let Some(bounds) = triangles.bounds() else {
+        eprintln!("error: {}: no triangles to render", args.scene);
+        std::process::exit(1)
+    };
     let world_parts = if args.world { bevy_hao_tools::scene::big_world(bounds, 1000.0) } else { Vec::new() };
     for p in &world_parts {
         triangles.append(p, Default::default());

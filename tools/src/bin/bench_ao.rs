@@ -2,7 +2,7 @@
 //! same frames.
 //!
 //! ```text
-//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--res 128]
+//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--res N]
 //! ```
 //!
 //! One headless camera renders the scene in two kinds of phase of one run, each measured over `--frames`
@@ -43,9 +43,10 @@ struct Args {
     /// Frames measured per phase (medians are printed).
     #[arg(long, default_value_t = 20)]
     frames: usize,
-    /// Cells on the longest axis of the voxel volume's levels.
-    #[arg(long, default_value_t = 128)]
-    res: u32,
+    /// A single grid fitted to the scene with this many cells on its longest axis (default: the plugin's
+    /// default volume, camera-following cascades).
+    #[arg(long)]
+    res: Option<u32>,
 }
 
 fn main() {
@@ -54,7 +55,14 @@ fn main() {
         eprintln!("error: {e}");
         std::process::exit(1)
     });
-    let bounds = source.triangles().ok().and_then(|t| t.bounds()).expect("a scene with triangles");
+    let triangles = source.triangles().unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(1)
+    });
+    let Some(bounds) = triangles.bounds() else {
+        eprintln!("error: {scene}: no triangles to render");
+        std::process::exit(1)
+    };
     bevy_hao_tools::harness::set_asset_root(source.asset_root());
     let camera = default_camera(bounds, true);
     let setup_source = source.clone();
@@ -68,7 +76,13 @@ fn main() {
                   mut images: ResMut<Assets<Image>>,
                   server: Res<AssetServer>| {
                 spawn_scene(&source, &mut commands, &mut meshes, &mut materials, &server).expect("scene");
-                commands.spawn(VoxelVolume { resolution: VolumeResolution::Cells(res), ..default() });
+                if let Some(res) = res {
+                    commands.spawn(VoxelVolume {
+                        bounds: VolumeBounds::FitStaticScene { margin: 0.0 },
+                        resolution: VolumeResolution::Cells(res),
+                        ..default()
+                    });
+                }
                 let target = bevy_hao_tools::harness::target_image(&mut images, size);
                 commands.spawn((
                     Camera3d::default(),

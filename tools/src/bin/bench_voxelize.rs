@@ -280,7 +280,11 @@ fn main() {
     let bar = bevy_hao_tools::harness::progress_bar((args.inputs.len() * runs) as u64, "bench_voxelize");
     for input in &args.inputs {
         let loaded = match load_mesh(input) {
-            Ok(l) => l,
+            Ok(l) if l.mesh.bounds().is_some() => l,
+            Ok(l) => {
+                eprintln!("error: {}: no triangles to voxelize", l.name);
+                std::process::exit(1);
+            }
             Err(e) => {
                 eprintln!("error: {e}");
                 std::process::exit(1);

@@ -93,20 +93,24 @@ struct Cli {
     /// Choose gamma for this centroid bias, a percentage in (0, 100) (equation 3).
     #[arg(long)]
     target_bias: Option<f64>,
-    /// Write the grid to this binvox file (one mesh and resolution at a time).
+    /// Write the grid to this binvox file (with several meshes or resolutions, OUT-<mesh>-<res>.binvox).
+    /// One pattern at a time.
     #[arg(long)]
     export: Option<String>,
     /// Bias and points over a sweep of gamma.
     #[arg(long)]
     gamma_sweep: bool,
     /// Voxelize PN triangles (Fei 2012 section 3.4): each triangle curved by the vertex normals of the
-    /// welded mesh (smooth everywhere, hard edges included), by the CPU twin. Bias, excess and the watertight
+    /// welded mesh (smooth everywhere: hard edges are rounded, a box balloons), by the CPU twin; the grid is
+    /// fitted to the patches' control points. Bias, excess and the watertight
     /// test still compare with the flat mesh's ground truth.
     #[arg(long)]
     pn: bool,
     /// Fill the inside of closed meshes (Dong et al. 2004: parity of crossings along z), by the CPU twin. A mesh
     /// that is not closed gets a warning, and its columns with an odd number of crossings stay hollow. The
-    /// voxels-set, points-per-voxel and excess columns then count the inside; `--export` writes the solid.
+    /// voxels-set, points-per-voxel and excess columns then count the inside, and the bias falls where the
+    /// fill covers surface voxels that centroid injection missed; `--export` writes the solid. Not with
+    /// `--gamma-sweep` or `--target-bias`.
     #[arg(long)]
     solid: bool,
     /// Timed runs per measurement (the median is printed).
@@ -175,6 +179,9 @@ fn parse_args() -> Result<Args, String> {
     if used != a.gamma {
         eprintln!("warning: --gamma {} is out of range for {} mode; using {used}", a.gamma, a.mode);
         a.gamma = used;
+    }
+    if a.solid && (a.gamma_sweep || a.target_bias.is_some()) {
+        return Err("--solid fills one grid: leave out --gamma-sweep and --target-bias".into());
     }
     if a.gpu && a.solid {
         return Err(
@@ -485,11 +492,25 @@ fn main() {
             }
         }
         let stats = mesh.stats();
-        let Some((lo, hi)) = stats.bounds else {
+        let Some((mut lo, mut hi)) = stats.bounds else {
             note!("warning: {}: no triangles with finite vertices; skipped", loaded.name);
             bar.inc(args.resolutions.len() as u64);
             continue;
         };
+        // PN patches bulge out of the flat mesh: the grid holds their control points (which hold them).
+        if let Some(normals) = &pn_normals {
+            for (t, tri) in mesh.triangles.iter().enumerate() {
+                if let Some(v) = mesh.triangle(t) {
+                    let n = tri.map(|i| normals[i as usize]);
+                    if n.iter().all(|n| n.length_squared() > 0.5) {
+                        let (plo, phi) = PnPatch::new(v, n).bounds();
+                        if plo.is_finite() && phi.is_finite() {
+                            (lo, hi) = (lo.min(plo), hi.max(phi));
+                        }
+                    }
+                }
+            }
+        }
         for &res in &args.resolutions {
             let _tick = Tick(&bar);
             let grid = match VoxelGrid::fit_to_bounds(lo, hi, res) {
