@@ -38,6 +38,14 @@ fn buffer_file(dir: &Path, uri: &str) -> Result<std::path::PathBuf, String> {
     Ok(dir.join(rel))
 }
 
+/// A mesh as messages name it: its index, and its name if it has one.
+fn mesh_label(m: &gltf::Mesh) -> String {
+    match m.name() {
+        Some(name) => format!("{} ({name:?})", m.index()),
+        None => m.index().to_string(),
+    }
+}
+
 /// Adds a warning unless the same one is already there: a file whose node graph reaches one broken mesh
 /// 65,536 times gets one line, not 65,536.
 fn push_once(warnings: &mut Vec<String>, warning: String) {
@@ -255,15 +263,15 @@ fn emit_node(
             };
             if let Some(count) = accessors().map(|a| a.count()).find(|&c| c > MAX_ACCESSOR_COUNT) {
                 return Err(format!(
-                    "mesh {:?} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
-                    m.name()
+                    "mesh {} has an accessor of {count} elements, over the limit of {MAX_ACCESSOR_COUNT}",
+                    mesh_label(&m)
                 ));
             }
             let declared = accessors().map(|a| a.count() as u64 * a.size() as u64).max().unwrap_or(0);
             if declared > buffer_bytes {
                 return Err(format!(
-                    "mesh {:?} has an accessor of {declared} bytes, but the file's buffers hold only {buffer_bytes}",
-                    m.name()
+                    "mesh {} has an accessor of {declared} bytes, but the file's buffers hold only {buffer_bytes}",
+                    mesh_label(&m)
                 ));
             }
             let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
@@ -271,9 +279,9 @@ fn emit_node(
                 push_once(
                     warnings,
                     format!(
-                        "a primitive of mesh {:?} has no positions, or its position accessor does not fit its buffer; \
+                        "a primitive of mesh {} has no positions, or its position accessor does not fit its buffer; \
                      skipped",
-                        m.name()
+                        mesh_label(&m)
                     ),
                 );
                 continue;
@@ -309,7 +317,7 @@ fn emit_node(
                 other => {
                     push_once(
                         warnings,
-                        format!("a {other:?} primitive of mesh {:?} skipped (not triangles)", m.name()),
+                        format!("a {other:?} primitive of mesh {} skipped (not triangles)", mesh_label(&m)),
                     );
                     continue;
                 }
@@ -329,8 +337,8 @@ fn emit_node(
                         push_once(
                             warnings,
                             format!(
-                                "a primitive of skinned mesh {:?} has no JOINTS_0/WEIGHTS_0; placed unskinned",
-                                m.name()
+                                "a primitive of skinned mesh {} has no JOINTS_0/WEIGHTS_0; placed unskinned",
+                                mesh_label(&m)
                             ),
                         );
                     }
