@@ -93,7 +93,7 @@ struct Cli {
     /// Choose gamma for this centroid bias, a percentage in (0, 100) (equation 3).
     #[arg(long)]
     target_bias: Option<f64>,
-    /// Write the grid to this binvox file (with several meshes or resolutions, OUT-<mesh>-<res>.binvox).
+    /// Write the grid to this binvox file (with several meshes or resolutions, `OUT-<mesh>-<res>.binvox`).
     /// One pattern at a time.
     #[arg(long)]
     export: Option<String>,
