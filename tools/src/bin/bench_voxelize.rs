@@ -65,6 +65,10 @@ struct Cli {
     /// Also measure the default cascades with a moving camera (walking, running, teleporting).
     #[arg(long)]
     cascades: bool,
+    /// Also measure the static voxelization with `VoxelFill::Solid` and with `PnTriangles` (on the welded
+    /// mesh's smooth normals).
+    #[arg(long)]
+    fills: bool,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -81,6 +85,7 @@ struct Args {
     injection: VoxelInjection,
     patterns: Vec<VoxelSubdivision>,
     cascades: bool,
+    fills: bool,
 }
 
 fn parse_args() -> Args {
@@ -96,6 +101,7 @@ fn parse_args() -> Args {
         },
         patterns: cli.pattern.into_iter().map(VoxelSubdivision::from).collect(),
         cascades: cli.cascades,
+        fills: cli.fills,
     }
 }
 
@@ -355,6 +361,40 @@ fn main() {
                 let a = measure(&mut app, args.frames, true, &["hao/voxelize_static", "hao/resolve", prepass]);
                 let counters = bevy_hao_tools::harness::stats(&app).static_counters;
                 let e = app.world_mut().query_filtered::<Entity, With<Subject>>().single(app.world()).unwrap();
+                // The same static mesh filled solid, then as PN triangles.
+                let mut fills = Vec::new();
+                if args.fills {
+                    let spans = ["hao/voxelize_static", "hao/resolve", prepass];
+                    app.world_mut().entity_mut(e).insert(VoxelFill::Solid);
+                    let s = measure(&mut app, args.frames, true, &spans);
+                    let points = bevy_hao_tools::harness::stats(&app).static_counters.sub_triangles as u64;
+                    fills.push(("voxelize_static (VoxelFill::Solid)", s[0], s[2], points));
+                    app.world_mut().entity_mut(e).remove::<VoxelFill>();
+                    let welded = bevy_hao_tools::meshes::builtin::weld(loaded.mesh.clone());
+                    let normals = bevy_hao::cpu::smooth_vertex_normals(&welded);
+                    let smooth = Mesh::new(
+                        bevy::mesh::PrimitiveTopology::TriangleList,
+                        bevy::asset::RenderAssetUsages::RENDER_WORLD,
+                    )
+                    .with_inserted_attribute(
+                        Mesh::ATTRIBUTE_POSITION,
+                        welded.positions.iter().map(|p| p.to_array()).collect::<Vec<_>>(),
+                    )
+                    .with_inserted_attribute(
+                        Mesh::ATTRIBUTE_NORMAL,
+                        normals.iter().map(|n| n.to_array()).collect::<Vec<_>>(),
+                    )
+                    .with_inserted_indices(bevy::mesh::Indices::U32(
+                        welded.triangles.iter().flatten().copied().collect(),
+                    ));
+                    let original = app.world().get::<Mesh3d>(e).unwrap().clone();
+                    let handle = app.world_mut().resource_mut::<Assets<Mesh>>().add(smooth);
+                    app.world_mut().entity_mut(e).insert((Mesh3d(handle), PnTriangles));
+                    let p = measure(&mut app, args.frames, true, &spans);
+                    let points = bevy_hao_tools::harness::stats(&app).static_counters.sub_triangles as u64;
+                    fills.push(("voxelize_static (PnTriangles, smooth normals)", p[0], p[2], points));
+                    app.world_mut().entity_mut(e).remove::<PnTriangles>().insert(original);
+                }
                 app.world_mut().entity_mut(e).remove::<StaticOccluder>().insert(DynamicOccluder);
                 let b = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
                 // The same mesh skinned (four joints a vertex), voxelized in its pose every frame.
@@ -374,13 +414,16 @@ fn main() {
                 let name = &loaded.name;
                 let tris = loaded.mesh.triangle_count();
                 let points = counters.sub_triangles as u64;
-                for (pass, t, p) in [
-                    ("voxelize_static (whole mesh)", a[0], a[2]),
-                    ("resolve (full grid)", a[1], a[2]),
-                    ("voxelize_dynamic (whole mesh, with the copy)", b[0], b[2]),
-                    ("resolve (dynamic region)", b[1], b[2]),
-                    ("voxelize_dynamic (whole mesh skinned, 4 joints a vertex)", c[0], c[2]),
-                ] {
+                for (pass, t, p, points) in [
+                    ("voxelize_static (whole mesh)", a[0], a[2], points),
+                    ("resolve (full grid)", a[1], a[2], points),
+                    ("voxelize_dynamic (whole mesh, with the copy)", b[0], b[2], points),
+                    ("resolve (dynamic region)", b[1], b[2], points),
+                    ("voxelize_dynamic (whole mesh skinned, 4 joints a vertex)", c[0], c[2], points),
+                ]
+                .into_iter()
+                .chain(fills)
+                {
                     rows.push(format!(
                         "| {name} | {res} | {}x{}x{} | {tris} | {pattern:?} | {points} | {pass} | {} | {} | {} |",
                         grid.x,
