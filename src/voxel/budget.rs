@@ -16,8 +16,9 @@ use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-/// The triangle sizes of a mesh in its local space, if its data is in the main world.
-fn mesh_triangle_sizes(mesh: &Mesh) -> Option<TriangleSizes> {
+/// A mesh's triangles in its local space, if its data is in the main world: the number of triangles its
+/// indices name, and the corners of those whose indices are in range (finite or not).
+pub(super) fn mesh_triangles(mesh: &Mesh) -> Option<(u64, Vec<[Vec3; 3]>)> {
     // A mesh kept only in the render world has no data here (the `try_` accessors say so; the others panic).
     let Ok(Some(VertexAttributeValues::Float32x3(positions))) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION)
     else {
@@ -28,14 +29,20 @@ fn mesh_triangle_sizes(mesh: &Mesh) -> Option<TriangleSizes> {
         Some(Indices::U32(i)) => i.iter().map(|&i| i as usize).collect(),
         None => (0..positions.len()).collect(),
     };
-    let valid = index.chunks_exact(3).filter_map(|t| {
-        let p = [t[0], t[1], t[2]].map(|i| positions.get(i).map(|p| Vec3::from(*p)));
-        match p {
-            [Some(a), Some(b), Some(c)] if a.is_finite() && b.is_finite() && c.is_finite() => Some([a, b, c]),
+    let triangles = index
+        .chunks_exact(3)
+        .filter_map(|t| match [t[0], t[1], t[2]].map(|i| positions.get(i).map(|p| Vec3::from(*p))) {
+            [Some(a), Some(b), Some(c)] => Some([a, b, c]),
             _ => None,
-        }
-    });
-    Some(TriangleSizes::of((index.len() / 3) as u64, valid))
+        })
+        .collect();
+    Some(((index.len() / 3) as u64, triangles))
+}
+
+/// The triangle sizes of a mesh in its local space, if its data is in the main world.
+fn mesh_triangle_sizes(mesh: &Mesh) -> Option<TriangleSizes> {
+    let (count, triangles) = mesh_triangles(mesh)?;
+    Some(TriangleSizes::of(count, triangles.into_iter().filter(|t| t.iter().all(|p| p.is_finite()))))
 }
 
 /// Estimates the static and per-frame dynamic point counts and warns (once per episode)

@@ -1,11 +1,11 @@
 //! Main world: gamma for `VoxelVolume::target_bias` (equation 3), measured on patches of the static
 //! occluders by [`crate::cpu::calibrate`] whenever the static set, the target or the cell size changes.
 
+use super::budget::mesh_triangles;
 use super::components::*;
 use super::occluders::occluder_is_dynamic;
 use super::stats::VoxelizationStats;
 use crate::cpu::{self, SubdivisionPattern};
-use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::prelude::*;
 use std::hash::{Hash, Hasher};
 
@@ -16,27 +16,6 @@ pub(crate) struct GammaForTarget {
     key: u64,
     /// The gamma to use (`None`: no target, or nothing to measure yet).
     pub(crate) gamma: Option<f32>,
-}
-
-/// The triangles of a mesh in world space, if its data is in the main world.
-fn world_triangles(mesh: &Mesh, transform: &GlobalTransform, out: &mut Vec<[Vec3; 3]>) {
-    let Ok(Some(VertexAttributeValues::Float32x3(positions))) = mesh.try_attribute_option(Mesh::ATTRIBUTE_POSITION)
-    else {
-        return;
-    };
-    let affine = transform.affine();
-    let corner = |i: usize| positions.get(i).map(|p| affine.transform_point3(Vec3::from(*p)));
-    let mut push = |a: usize, b: usize, c: usize| {
-        if let (Some(a), Some(b), Some(c)) = (corner(a), corner(b), corner(c)) {
-            out.push([a, b, c]);
-        }
-    };
-    match mesh.try_indices_option() {
-        Ok(Some(Indices::U16(i))) => i.chunks_exact(3).for_each(|t| push(t[0] as usize, t[1] as usize, t[2] as usize)),
-        Ok(Some(Indices::U32(i))) => i.chunks_exact(3).for_each(|t| push(t[0] as usize, t[1] as usize, t[2] as usize)),
-        Ok(None) => (0..positions.len() / 3).for_each(|t| push(3 * t, 3 * t + 1, 3 * t + 2)),
-        Err(_) => {}
-    }
 }
 
 /// Measures gamma for the target bias when what it depends on changed.
@@ -94,8 +73,9 @@ pub(crate) fn choose_gamma_for_target(
     chosen.key = key;
     let mut triangles = Vec::new();
     for (_, mesh, transform, ..) in &statics {
-        if let Some(m) = meshes.get(mesh.id()) {
-            world_triangles(m, transform, &mut triangles);
+        if let Some((_, local)) = meshes.get(mesh.id()).and_then(mesh_triangles) {
+            let affine = transform.affine();
+            triangles.extend(local.into_iter().map(|t| t.map(|p| affine.transform_point3(p))));
         }
     }
     let (lo, hi) = cpu::voxelize::GAMMA_RANGE;

@@ -119,14 +119,11 @@ fn skin_matrix(inst: OccluderInstance, vertex: u32, m: ptr<function, mat4x4<f32>
 }
 #endif
 
-// skinning.rs: morph_position then skin_position, as Bevy draws the vertex: morphed, then for a skinned
-// instance skinned from bind pose to world space. False if a joint or target is out of range (the triangle
-// is then invalid).
-fn vertex_position(inst: OccluderInstance, vertex: u32, p: ptr<function, vec3<f32>>) -> bool {
-    var local = read_position(inst, vertex);
 #ifdef VOXELIZE_MORPH
-    // skinning.rs: morph_position (Bevy's `morph_vertex`, before skinning): each target's displacement
-    // times its weight, added in target order, zero weights skipped.
+// skinning.rs: morph_position (Bevy's `morph_vertex`, before skinning): each target's displacement of the
+// position (or, for a PN instance, of the normal) times its weight, added in target order, zero weights
+// skipped. False if a weight or a target is out of range.
+fn add_morph_targets(inst: OccluderInstance, vertex: u32, normal: bool, v: ptr<function, vec3<f32>>) -> bool {
     for (var i = 0u; i < inst.morph_weight_count; i++) {
         let w = inst.morph_weights_offset + i;
         let t = inst.morph_targets_offset + i * inst.morph_vertex_count + vertex;
@@ -137,7 +134,24 @@ fn vertex_position(inst: OccluderInstance, vertex: u32, p: ptr<function, vec3<f3
         if weight == 0.0 {
             continue;
         }
-        local += weight * morph_targets[t].position;
+        if normal {
+            *v += weight * morph_targets[t].normal;
+        } else {
+            *v += weight * morph_targets[t].position;
+        }
+    }
+    return true;
+}
+#endif
+
+// skinning.rs: morph_position then skin_position, as Bevy draws the vertex: morphed, then for a skinned
+// instance skinned from bind pose to world space. False if a joint or target is out of range (the triangle
+// is then invalid).
+fn vertex_position(inst: OccluderInstance, vertex: u32, p: ptr<function, vec3<f32>>) -> bool {
+    var local = read_position(inst, vertex);
+#ifdef VOXELIZE_MORPH
+    if !add_morph_targets(inst, vertex, false, &local) {
+        return false;
     }
 #endif
     *p = local;
@@ -183,17 +197,8 @@ fn normalize_or_zero(n: vec3<f32>) -> vec3<f32> {
 fn vertex_normal(inst: OccluderInstance, vertex: u32) -> vec3<f32> {
     var n = read_normal(inst, vertex);
 #ifdef VOXELIZE_MORPH
-    for (var i = 0u; i < inst.morph_weight_count; i++) {
-        let w = inst.morph_weights_offset + i;
-        let t = inst.morph_targets_offset + i * inst.morph_vertex_count + vertex;
-        if w >= arrayLength(&morph_weights) || t >= arrayLength(&morph_targets) {
-            return vec3<f32>(0.0);
-        }
-        let weight = morph_weights[w];
-        if weight == 0.0 {
-            continue;
-        }
-        n += weight * morph_targets[t].normal;
+    if !add_morph_targets(inst, vertex, true, &n) {
+        return vec3<f32>(0.0);
     }
 #endif
 #ifdef VOXELIZE_SKINNING
