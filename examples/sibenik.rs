@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release --example sibenik -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
-//!     [--ao hao|ssao|both|off] [--view final|ao|voxels|counts|static-dynamic|cascades] [--res N]
+//!     [--ao hao|ssao|both|off] [--view final|ao|voxels|counts|static-dynamic|cascades|albedo|normals] [--res N]
 //!     [--camera X,Y,Z --look X,Y,Z] [--headless --frames 30 --screenshot OUT.png [--size 960x540]]
 //! ```
 //!
@@ -114,12 +114,20 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                     std::process::exit(1);
                 }
                 // The default volume (cascades that follow the camera), or with --res one grid fitted to the
-                // scene. Point counts for the heat map.
+                // scene. Point counts for the heat map; the albedo and normal views need the voxels'
+                // attributes, which cost 64 bytes a voxel: 3 cascades of 128^3 rather than 4 of 192^3.
+                let attributes = matches!(args.view, HaoDebugView::Albedo | HaoDebugView::Normals);
                 commands.spawn(match args.res {
                     Some(n) => VoxelVolume {
                         bounds: VolumeBounds::FitStaticScene { margin: 0.5 },
                         resolution: VolumeResolution::Cells(n),
                         point_counts: true,
+                        attributes,
+                        ..default()
+                    },
+                    None if attributes => VoxelVolume {
+                        bounds: VolumeBounds::FollowCamera { cascades: 3, cells: 128, finest_cell_size: 0.125 },
+                        attributes,
                         ..default()
                     },
                     None => VoxelVolume { point_counts: true, ..default() },

@@ -30,6 +30,9 @@ pub(crate) fn shader_defs() -> Vec<ShaderDefVal> {
         u("FRAME_POINTS_USED", stats::FRAME_POINTS_USED),
         u("NO_SKIN", pipelines::NO_SKIN),
         u("NO_NORMALS", pipelines::NO_NORMALS),
+        u("NO_COLORS", pipelines::NO_COLORS),
+        u("SAMPLE_WORDS", crate::cpu::attributes::SAMPLE_WORDS),
+        u("MIRRORED_BIT", crate::cpu::attributes::MIRRORED_BIT),
         u("VOXELIZE_WORKGROUP", pipelines::VOXELIZE_WORKGROUP),
         u("SCREEN_WORKGROUP", SCREEN_WORKGROUP),
     ]

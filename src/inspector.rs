@@ -282,6 +282,7 @@ fn inspector_window(
                     volume.point_budget = (budget_m * (1 << 20) as f64) as u32;
                 }
                 ui.checkbox(&mut volume.point_counts, "per-voxel point counts");
+                ui.checkbox(&mut volume.attributes, "per-voxel albedo and normal");
             }
             None => {
                 ui.label("default volume (4 cascades of 192^3 following the camera)");

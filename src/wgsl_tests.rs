@@ -180,7 +180,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 pad,
             ]
         ),
-        layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, has_counts, has_ao, _pad]),
+        layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),
         layout!(
             "src/voxel/voxelize_classify.wgsl",
             "OccluderInstance",
@@ -205,8 +205,8 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 morph_vertex_count,
                 normal_offset,
                 solid,
-                _pad_b,
-                _pad_c,
+                color_offset,
+                albedo,
             ]
         ),
         layout!(
@@ -227,7 +227,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 window_min,
                 point_budget,
                 closed_max,
-                store_counts,
+                sample_words,
                 wrap,
                 counter_base,
                 dims,
@@ -242,7 +242,20 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
             "src/voxel/voxel_resolve.wgsl",
             "LevelRegion",
             GpuLevelRegion,
-            [region_min, texture_z, region_max, voxel_base, window_min, _pad0, wrap, _pad1, dims, _pad2, size, _pad3,]
+            [
+                region_min,
+                texture_z,
+                region_max,
+                voxel_base,
+                window_min,
+                _pad0,
+                wrap,
+                sample_words,
+                dims,
+                _pad2,
+                size,
+                _pad3,
+            ]
         ),
     ]
 }
@@ -330,7 +343,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 10] = [
+    let pairs: [(&str, &str, f64); 12] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -341,6 +354,8 @@ fn shared_constants_agree() {
         (hao, "CLAMPED_COUNT", temporal::CLAMPED_COUNT as f64),
         (hao, "CHANGED_COUNT", temporal::CHANGED_COUNT as f64),
         (common, "MAX_PN_GAMMA_SCALE", crate::cpu::pn::MAX_PN_GAMMA_SCALE as f64),
+        (common, "ALBEDO_SCALE", crate::cpu::attributes::ALBEDO_SCALE as f64),
+        (common, "NORMAL_SCALE", crate::cpu::attributes::NORMAL_SCALE as f64),
     ];
     for (path, name, rust) in pairs {
         let wgsl = wgsl_const(path, name);

@@ -724,7 +724,8 @@ fn the_gpu_trace_matches_its_cpu_twin_across_cascades() {
 fn debug_views_show_ao_voxels_point_counts_and_the_static_dynamic_split() {
     let _gpu = gpu_lock();
     let camera = Transform::from_xyz(1.5, 6.0, 7.5).looking_at(Vec3::new(0.5, 0.5, 0.0), Vec3::Y);
-    let mut app = scene_app(camera, Ao::Hao(hao_settings()), |c, m, mat| {
+    let volume = VoxelVolume { attributes: true, ..volume() };
+    let mut app = scene_app_in(camera, Ao::Hao(hao_settings()), false, volume, |c, m, mat| {
         walls(c, m, mat.clone());
         c.spawn((
             box_at(m, Vec3::new(1.5, 1.5, 1.5)),
@@ -756,6 +757,25 @@ fn debug_views_show_ao_voxels_point_counts_and_the_static_dynamic_split() {
     assert!(orange > 20 && blue > 200, "dynamic voxels orange ({orange}) and static ones blue ({blue})");
     let counts = pixels(&mut app, HaoDebugView::PointCounts);
     assert!(counts.iter().filter(|p| !gray(p)).count() * 2 > counts.len(), "the heat map is colored");
+    // Every surface has the one material, sRGB 0.8 grey: the albedo view is grey, darker than the voxel view's
+    // pale boxes (linear 0.6 against 0.9), shaded by face.
+    let albedo = pixels(&mut app, HaoDebugView::Albedo);
+    let lit = |p: &&[u8; 3]| p[0] > 40;
+    assert!(albedo.iter().filter(lit).all(gray), "the albedo view is grey");
+    let mean =
+        |v: &[[u8; 3]]| v.iter().filter(lit).map(|p| p[0] as f32).sum::<f32>() / v.iter().filter(lit).count() as f32;
+    assert!(mean(&albedo) < mean(&voxels) - 30.0, "albedo {} voxels {}", mean(&albedo), mean(&voxels));
+    // The normals view (n * 0.5 + 0.5, into an sRGB target): the boxes' tops face up (green), the walls
+    // toward the camera (+z, blue) and to the side (+x, red); the floor, 0.2 thick in 0.25 cells, has its
+    // top and bottom in one voxel layer: their normals cancel (grey).
+    let normals = pixels(&mut app, HaoDebugView::Normals);
+    let c = |p: &[u8; 3]| p.map(i32::from);
+    let facing =
+        |axis: usize| normals.iter().map(c).filter(|p| (0..3).all(|k| k == axis || p[axis] > p[k] + 30)).count();
+    let cancelled = normals.iter().map(c).filter(|p| gray(&p.map(|x| x as u8)) && (150..200).contains(&p[0])).count();
+    let (x, y, z) = (facing(0), facing(1), facing(2));
+    println!("normals view: {x} +x, {y} +y, {z} +z, {cancelled} cancelled of {} pixels", normals.len());
+    assert!(x > 200 && y > 30 && z > 400 && cancelled > 600, "{x} +x, {y} +y, {z} +z, {cancelled} cancelled");
     assert!(take_render_errors().is_empty());
 }
 

@@ -767,3 +767,220 @@ fn a_target_bias_chooses_gamma_from_the_static_occluders() {
         assert!(take_render_errors().is_empty());
     }
 }
+
+/// A mesh for the multi-valued test: positions, the given vertex normals and, if any, vertex colours.
+fn mesh_with_colors(mesh: &TriangleMesh, normals: &[Vec3], colors: Option<&[Vec4]>) -> Mesh {
+    let m = mesh_with_normals(mesh, normals);
+    match colors {
+        Some(c) => m.with_inserted_attribute(Mesh::ATTRIBUTE_COLOR, c.iter().map(|c| c.to_array()).collect::<Vec<_>>()),
+        None => m,
+    }
+}
+
+/// Multi-valued voxels (`VoxelVolume::attributes`): the GPU's per-voxel point counts and albedo and normal
+/// sums equal the CPU twin's up to the rounding of each point's value, in both modes: a torus with a base
+/// colour, a dynamic sphere with vertex colours over a white material, a box mirrored by its transform,
+/// a PN icosphere, a huge triangle crossing the grid without a material (white: clipped, queued for the
+/// expand pass); the resolved textures hold the averages; each mesh's voxels have its colour, and the
+/// normals point out of the convex meshes, the mirrored one included.
+#[test]
+fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
+    use bevy_hao::cpu::attributes::{MeshAlbedo, pack_albedo, resolve_sample};
+    let _gpu = gpu_lock();
+    let linear = |c: Color| {
+        let l = c.to_linear();
+        Vec3::new(l.red, l.green, l.blue)
+    };
+    let torus = builtin("torus").unwrap();
+    let sphere = builtin("sphere").unwrap();
+    let cube = builtin("chamfer-box").unwrap();
+    let ico = builtin::icosphere(1.0, 1);
+    let sphere_colors: Vec<Vec4> = sphere.positions.iter().map(|p| (p.normalize() * 0.5 + 0.5).extend(1.0)).collect();
+    let outward = |m: &TriangleMesh| {
+        let c = m.bounds().map_or(Vec3::ZERO, |(lo, hi)| (lo + hi) * 0.5);
+        m.positions.iter().map(|p| (*p - c).normalize_or_zero()).collect::<Vec<_>>()
+    };
+    // (mesh, transform, base colour, vertex colours, PN, dynamic)
+    type Item = (TriangleMesh, Transform, Option<Color>, Option<Vec<Vec4>>, bool, bool);
+    let scene: Vec<Item> = vec![
+        (
+            torus.clone(),
+            Transform::from_xyz(-1.5, 0.5, 0.3).with_rotation(Quat::from_euler(EulerRot::XYZ, 0.4, 0.9, -0.2)),
+            Some(Color::srgb(0.8, 0.3, 0.1)),
+            None,
+            false,
+            false,
+        ),
+        (sphere.clone(), Transform::from_xyz(1.6, -1.2, 0.9), Some(Color::WHITE), Some(sphere_colors), false, true),
+        (
+            cube.clone(),
+            Transform::from_xyz(1.8, 1.5, 2.0).with_scale(Vec3::new(-0.6, 0.6, 0.6)),
+            Some(Color::srgb(0.1, 0.2, 0.9)),
+            None,
+            false,
+            false,
+        ),
+        (ico.clone(), Transform::from_xyz(-1.2, -1.8, -1.5), Some(Color::srgb(0.2, 0.7, 0.2)), None, true, false),
+        (
+            TriangleMesh::new(
+                vec![Vec3::new(-40.0, -40.0, -3.5), Vec3::new(60.0, -40.0, -3.6), Vec3::new(-40.0, 60.0, -3.55)],
+                vec![[0, 1, 2]],
+            ),
+            Transform::IDENTITY,
+            None,
+            None,
+            false,
+            false,
+        ),
+    ];
+    for injection in [VoxelInjection::Centroid, VoxelInjection::Conservative] {
+        let spawned = scene.clone();
+        let mut app = headless_app(move |app| {
+            app.add_systems(
+                Startup,
+                move |mut commands: Commands,
+                      mut meshes: ResMut<Assets<Mesh>>,
+                      mut materials: ResMut<Assets<StandardMaterial>>| {
+                    commands.spawn(VoxelVolume { attributes: true, ..volume(4.0, 64, injection) });
+                    for (mesh, transform, color, colors, pn, dynamic) in &spawned {
+                        let m = mesh_with_colors(mesh, &outward(mesh), colors.as_deref());
+                        let mut e = commands.spawn((Mesh3d(meshes.add(m)), *transform));
+                        if let Some(c) = color {
+                            e.insert(MeshMaterial3d(materials.add(StandardMaterial { base_color: *c, ..default() })));
+                        }
+                        if *pn {
+                            e.insert(PnTriangles);
+                        }
+                        if *dynamic {
+                            e.insert(DynamicOccluder);
+                        } else {
+                            e.insert(StaticOccluder);
+                        }
+                    }
+                },
+            );
+        });
+        run(&mut app, 8);
+        let assets = grid_assets(&app).unwrap();
+        assert_eq!(assets.sample_words, cpu::attributes::SAMPLE_WORDS);
+        let gpu = read_records(&mut app);
+        let grid = assets.grid;
+        let cpu = VoxelOccupancy::with_attributes(grid);
+        let region = cpu::InjectionRegion::whole(grid.dims);
+        for (mesh, transform, color, colors, pn, _) in &scene {
+            let to_grid = grid.grid_from_world() * GlobalTransform::from(*transform).affine();
+            let albedo = MeshAlbedo {
+                base: color.map_or(0x00ff_ffff, |c| pack_albedo(linear(c))),
+                vertex_colors: colors.as_deref(),
+            };
+            if *pn {
+                cpu::voxelize_sampled_mesh_pn_in_region(
+                    mesh,
+                    &outward(mesh),
+                    &albedo,
+                    to_grid,
+                    &assets.settings,
+                    &region,
+                    &cpu,
+                );
+            } else {
+                cpu::voxelize_sampled_mesh_in_region(mesh, &albedo, to_grid, &assets.settings, &region, &cpu);
+            }
+        }
+        // Voxel by voxel: the same count, and sums within one unit per point (a point's value may round the
+        // other way after the GPU's fused multiply-adds).
+        let (mut same, mut exact, mut within, mut voxels) = (0u64, 0u64, 0u64, 0u64);
+        let mut worst = 0i64;
+        for i in 0..grid.voxel_count() as u32 {
+            let (g, c) = (gpu.record(i), cpu.record(i));
+            if g[0] == 0 && c[0] == 0 {
+                continue;
+            }
+            voxels += 1;
+            if g[0] != c[0] {
+                continue;
+            }
+            same += 1;
+            exact += (g == c) as u64;
+            let d = (1..7).map(|k| (g[k] as i32 as i64 - c[k] as i32 as i64).abs()).max().unwrap();
+            worst = worst.max(d);
+            within += (d <= g[0] as i64) as u64;
+        }
+        println!(
+            "{injection:?}: {voxels} voxels with points; {same} with the same count, {exact} of them with equal sums, \
+             {within} within a unit per point (largest difference {worst})"
+        );
+        assert!(voxels > 3_000, "{voxels}");
+        assert!(same * 1000 >= voxels * 995, "{same} of {voxels} voxels have the same count");
+        assert_eq!(within, same, "sums beyond the rounding of a point (largest difference {worst})");
+        assert!(exact * 10 >= same * 9, "{exact} of {same} equal");
+
+        // Each mesh's voxels carry its albedo, and its normals point out of it (the torus's inner side does
+        // not point away from its centre: colour only).
+        let cell_world = |i: u32| grid.cell_center_world(grid.cell_of_index(i));
+        for (k, (mesh, transform, color, colors, _, _)) in scene.iter().enumerate().take(4) {
+            let (lo, hi) = mesh.bounds().unwrap();
+            let center = transform.transform_point((lo + hi) * 0.5);
+            let radius = 0.25 * (hi - lo).min_element() * transform.scale.abs().min_element();
+            let (mut n, mut out, mut colour_ok) = (0u32, 0u32, 0u32);
+            for i in 0..grid.voxel_count() as u32 {
+                let Some(v) = resolve_sample(&gpu.record(i)) else { continue };
+                let p = cell_world(i);
+                // Voxels near this mesh's surface, away from the others.
+                let mine = scene.iter().enumerate().all(|(j, (m, t, ..))| {
+                    let (a, b) = m.bounds().unwrap();
+                    let c = t.transform_point((a + b) * 0.5);
+                    j == k || p.distance(c) > p.distance(center) + 0.5
+                });
+                if !mine || p.distance(center) < radius || p.distance(center) > 1.6 {
+                    continue;
+                }
+                n += 1;
+                out += (v.normal.dot(p - center) > 0.0) as u32;
+                // The material's colour, or for the sphere its vertex colours (its direction from the centre)
+                // near the voxel's direction.
+                let (expected, tolerance) = match colors {
+                    None => (linear(color.unwrap()), 0.02),
+                    Some(_) => ((p - center).normalize() * 0.5 + 0.5, 0.12),
+                };
+                colour_ok += (v.albedo.distance(expected) < tolerance) as u32;
+            }
+            println!("mesh {k}: {n} voxels, {out} with outward normals, {colour_ok} with the material's colour");
+            assert!(n > 50, "mesh {k}: {n}");
+            assert!(k == 0 || out * 10 >= n * 9, "mesh {k}: {out} of {n} normals point out");
+            assert_eq!(colour_ok, n, "mesh {k}: albedo");
+        }
+
+        // The resolved textures: each voxel's averages (single grid: texel = cell).
+        let [albedo_image, normal_image] = assets.attributes.clone().unwrap();
+        let (w, h, texel, albedo_bytes) = read_image(&mut app, albedo_image, 3);
+        let (_, _, _, normal_bytes) = read_image(&mut app, normal_image, 3);
+        assert_eq!(texel, 4);
+        let gpu = read_records(&mut app);
+        let mut checked = 0;
+        for i in (0..grid.voxel_count() as u32).step_by(7) {
+            let c = grid.cell_of_index(i);
+            let t = ((c.z * h + c.y) * w + c.x) as usize * 4;
+            let a = &albedo_bytes[t..t + 4];
+            let nb = &normal_bytes[t..t + 4];
+            match resolve_sample(&gpu.record(i)) {
+                Some(v) => {
+                    checked += 1;
+                    assert_eq!(a[3], 255, "{c}: alpha");
+                    for k in 0..3 {
+                        assert!(
+                            (a[k] as f32 / 255.0 - v.albedo[k]).abs() <= 0.6 / 255.0,
+                            "{c}: albedo {a:?} {}",
+                            v.albedo
+                        );
+                        let s = (nb[k] as i8).max(-127) as f32 / 127.0;
+                        assert!((s - v.normal[k]).abs() <= 0.6 / 127.0, "{c}: normal {nb:?} {}", v.normal);
+                    }
+                }
+                None => assert_eq!(a, [0, 0, 0, 0], "{c}: empty"),
+            }
+        }
+        assert!(checked > 300, "{checked}");
+        assert!(take_render_errors().is_empty());
+    }
+}

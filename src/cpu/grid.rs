@@ -4,6 +4,7 @@
 //! side 1: cell `(x, y, z)` covers `[x, x+1] x [y, y+1] x [z, z+1]` in grid space. The WGSL side uses the same
 //! space (`grid_from_local` matrices are composed on the CPU and uploaded).
 
+use super::attributes::{SAMPLE_WORDS, VoxelAttributes, resolve_sample};
 use glam::{Affine3A, UVec3, Vec3};
 use std::sync::atomic::{AtomicU32, Ordering};
 
@@ -181,7 +182,8 @@ pub fn cell_of_point(p: Vec3, dims: UVec3) -> Option<UVec3> {
 }
 
 /// A bit-packed occupancy grid (one bit per voxel, 32 voxels per `u32` word in linear-index order) plus an
-/// optional per-voxel point count: the multi-valued result of point-tessellated voxelization.
+/// optional per-voxel point count and, optionally with it, per-voxel albedo and normal sums (see
+/// [`super::attributes`]): the multi-valued result of point-tessellated voxelization.
 ///
 /// Words and counts are atomics so that several threads inject into one grid, as GPU invocations do with
 /// `atomicOr` and `atomicAdd`; read them once the writers are done.
@@ -190,6 +192,18 @@ pub struct VoxelOccupancy {
     grid: VoxelGrid,
     words: Vec<AtomicU32>,
     counts: Option<Vec<AtomicU32>>,
+    /// Albedo and normal sums, `SAMPLE_WORDS - 1` words per voxel (kept with counts only).
+    attributes: Option<Vec<AtomicU32>>,
+}
+
+const ATTRIBUTE_WORDS: usize = SAMPLE_WORDS as usize - 1;
+
+fn snapshot(v: &[AtomicU32]) -> Vec<u32> {
+    v.iter().map(|w| w.load(Ordering::Relaxed)).collect()
+}
+
+fn atomics(v: impl IntoIterator<Item = u32>) -> Vec<AtomicU32> {
+    v.into_iter().map(AtomicU32::new).collect()
 }
 
 impl Clone for VoxelOccupancy {
@@ -197,7 +211,8 @@ impl Clone for VoxelOccupancy {
         Self {
             grid: self.grid,
             words: self.words.iter().map(|w| AtomicU32::new(w.load(Ordering::Relaxed))).collect(),
-            counts: self.counts.as_ref().map(|c| c.iter().map(|w| AtomicU32::new(w.load(Ordering::Relaxed))).collect()),
+            counts: self.counts.as_ref().map(|c| atomics(snapshot(c))),
+            attributes: self.attributes.as_ref().map(|c| atomics(snapshot(c))),
         }
     }
 }
@@ -207,9 +222,32 @@ impl VoxelOccupancy {
     pub fn new(grid: VoxelGrid, with_counts: bool) -> Self {
         let words = (0..grid.occupancy_word_count()).map(|_| AtomicU32::new(0)).collect();
         let counts = with_counts.then(|| (0..grid.voxel_count()).map(|_| AtomicU32::new(0)).collect());
-        Self { grid, words, counts }
+        Self { grid, words, counts, attributes: None }
     }
 
+    /// An empty occupancy grid with point counts and albedo and normal sums per voxel.
+    pub fn with_attributes(grid: VoxelGrid) -> Self {
+        let attributes = Some(atomics(std::iter::repeat_n(0, grid.voxel_count() as usize * ATTRIBUTE_WORDS)));
+        Self { attributes, ..Self::new(grid, true) }
+    }
+
+    /// An occupancy grid from bit-packed words and the GPU's per-voxel records (`sample_words` words per
+    /// voxel: 1 for point counts, [`SAMPLE_WORDS`] for counts and attribute sums). `None` if a slice is too
+    /// short or `sample_words` is neither.
+    pub fn from_records(grid: VoxelGrid, words: &[u32], records: &[u32], sample_words: u32) -> Option<Self> {
+        let n = grid.voxel_count() as usize;
+        let stride = sample_words as usize;
+        if !(stride == 1 || stride == SAMPLE_WORDS as usize) || records.len() < n * stride {
+            return None;
+        }
+        let counts: Vec<u32> = records[..n * stride].iter().step_by(stride).copied().collect();
+        let mut occ = Self::from_words(grid, words, Some(&counts))?;
+        if stride > 1 {
+            let sums = records[..n * stride].chunks_exact(stride).flat_map(|r| r[1..].iter().copied());
+            occ.attributes = Some(atomics(sums));
+        }
+        Some(occ)
+    }
     /// An occupancy grid from bit-packed words (e.g. read back from the GPU). Bits past the last voxel are
     /// ignored. Returns `None` if `words` is too short.
     pub fn from_words(grid: VoxelGrid, words: &[u32], counts: Option<&[u32]>) -> Option<Self> {
@@ -221,6 +259,7 @@ impl VoxelOccupancy {
             grid,
             words: words[..n].iter().map(|&w| AtomicU32::new(w)).collect(),
             counts: counts.map(|c| c[..grid.voxel_count() as usize].iter().map(|&w| AtomicU32::new(w)).collect()),
+            attributes: None,
         };
         occ.mask_tail();
         Some(occ)
@@ -244,14 +283,54 @@ impl VoxelOccupancy {
         self.counts.is_some()
     }
 
+    /// Whether per-voxel albedo and normal sums are kept.
+    pub fn has_attributes(&self) -> bool {
+        self.attributes.is_some()
+    }
+
     /// Sets the voxel with linear index `index` and, if counts are kept, adds 1 to its count
-    /// (WGSL: `inject_voxel`).
+    /// (WGSL: `inject_voxel`, for a grid without attribute sums).
     #[inline]
     pub fn inject_voxel(&self, index: u32) {
         self.words[(index >> 5) as usize].fetch_or(1u32 << (index & 31), Ordering::Relaxed);
         if let Some(counts) = &self.counts {
             counts[index as usize].fetch_add(1, Ordering::Relaxed);
         }
+    }
+
+    /// Injects a point: [`Self::inject_voxel`], and if attribute sums are kept, adds the point's sample
+    /// (`sample` is called only then; see [`super::attributes::point_sample`]). WGSL: `inject_voxel`.
+    #[inline]
+    pub fn inject_point(&self, index: u32, sample: impl FnOnce() -> [u32; 6]) {
+        self.inject_voxel(index);
+        if let Some(sums) = &self.attributes {
+            let base = index as usize * ATTRIBUTE_WORDS;
+            for (k, v) in sample().into_iter().enumerate() {
+                sums[base + k].fetch_add(v, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// The record of the voxel with linear index `index` as the GPU keeps it: its point count and attribute
+    /// sums ([`SAMPLE_WORDS`] words; zeros where not kept).
+    pub fn record(&self, index: u32) -> [u32; SAMPLE_WORDS as usize] {
+        let mut r = [0; SAMPLE_WORDS as usize];
+        if let Some(c) = &self.counts {
+            r[0] = c[index as usize].load(Ordering::Relaxed);
+        }
+        if let Some(a) = &self.attributes {
+            let base = index as usize * ATTRIBUTE_WORDS;
+            for (k, w) in r[1..].iter_mut().enumerate() {
+                *w = a[base + k].load(Ordering::Relaxed);
+            }
+        }
+        r
+    }
+
+    /// A voxel's average albedo and normal (`None` without attribute sums or points).
+    pub fn attributes(&self, cell: UVec3) -> Option<VoxelAttributes> {
+        self.attributes.as_ref()?;
+        resolve_sample(&self.record(self.grid.linear_index(cell)))
     }
 
     /// Sets one voxel (no count change).
@@ -298,13 +377,13 @@ impl VoxelOccupancy {
 
     /// A snapshot of the per-voxel counts, if kept.
     pub fn counts(&self) -> Option<Vec<u32>> {
-        self.counts.as_ref().map(|c| c.iter().map(|w| w.load(Ordering::Relaxed)).collect())
+        self.counts.as_ref().map(|c| snapshot(c))
     }
 
-    /// Clears all bits and counts.
+    /// Clears all bits, counts and sums.
     pub fn clear(&mut self) {
         self.words.iter_mut().for_each(|w| *w.get_mut() = 0);
-        if let Some(c) = &mut self.counts {
+        for c in [&mut self.counts, &mut self.attributes].into_iter().flatten() {
             c.iter_mut().for_each(|w| *w.get_mut() = 0);
         }
     }

@@ -3,6 +3,7 @@
 //!
 //! * [`grid`]: the voxel grid ([`VoxelGrid`]: world bounds to cubic cells, per-axis dimensions, world/grid
 //!   transforms) and its bit-packed occupancy with per-voxel point counts ([`VoxelOccupancy`]).
+//! * [`attributes`]: multi-valued voxels, the per-voxel albedo and normal accumulated from the points.
 //! * [`tessellation`]: equation 1 ([`tessellation_factors`]), the subdivision patterns ([`subdivision`])
 //!   and their indexing ([`sub_triangle`]), the centroids of equation 2 ([`sub_triangle_centroid`]),
 //!   equation 5 ([`expected_point_count`]) and the clipping of triangles that cross the grid boundary.
@@ -33,6 +34,7 @@
 //! ```
 
 pub mod ao;
+pub mod attributes;
 pub mod bias_model;
 pub mod cascade;
 pub mod denoise;
@@ -46,12 +48,16 @@ pub mod temporal;
 pub mod tessellation;
 pub mod voxelize;
 
+pub use attributes::{MeshAlbedo, TriangleAttributes, VoxelAttributes};
 pub use bias_model::{BiasModel, Calibration, calibrate};
 pub use cascade::{CascadeError, CascadeLevel, CascadeShape, cascade_window, entered_regions};
 pub use grid::{GridError, VoxelGrid, VoxelOccupancy, cell_of_point};
 pub use mesh::{MeshStats, TriangleMesh};
 pub use overlap::{OverlapKind, OverlapTriangle, triangle_box_overlap};
-pub use pn::{PnPatch, smooth_vertex_normals, voxelize_mesh_pn, voxelize_pn_triangle_in_region};
+pub use pn::{
+    PnPatch, smooth_vertex_normals, voxelize_mesh_pn, voxelize_pn_triangle_in_region,
+    voxelize_sampled_mesh_pn_in_region, voxelize_sampled_pn_triangle_in_region,
+};
 pub use skinning::{VertexSkin, morph_position, morphed_mesh, skin_matrix, skin_position, skinned_mesh};
 pub use solid::{SolidFill, fill_solid, fill_solid_in_region, open_edge_count};
 pub use tessellation::{
@@ -61,6 +67,7 @@ pub use tessellation::{
 };
 pub use voxelize::{
     InjectionMode, InjectionRegion, VoxelizeSettings, VoxelizeStats, for_each_grid_triangle, grid_space_position,
-    lattice_cell, triangle_is_degenerate, voxelize, voxelize_mesh, voxelize_mesh_in_region, voxelize_triangle,
+    lattice_cell, triangle_is_degenerate, voxelize, voxelize_mesh, voxelize_mesh_in_region,
+    voxelize_sampled_mesh_in_region, voxelize_sampled_triangle_in_region, voxelize_triangle,
     voxelize_triangle_in_region,
 };

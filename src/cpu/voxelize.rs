@@ -19,6 +19,7 @@
 //! [`MAX_SUB_TRIANGLES_PER_TRIANGLE`] sub-triangles. Parts of a triangle outside the grid are clipped away
 //! before enumeration ([`clipped_lattice_range`]), so a huge triangle costs only what lies inside.
 
+use super::attributes::{MeshAlbedo, TriangleAttributes, centroid_weights, face_normal, point_sample};
 use super::grid::{VoxelGrid, VoxelOccupancy};
 use super::mesh::TriangleMesh;
 use super::overlap::OverlapTriangle;
@@ -213,9 +214,21 @@ pub fn voxelize_triangle(v: [Vec3; 3], settings: &VoxelizeSettings, out: &VoxelO
 }
 
 /// Voxelizes one grid-space triangle into the cells of `region`, stored in `out` relative to the region's
-/// window. Returns what it did.
+/// window. Returns what it did. Its points sample white (see [`voxelize_sampled_triangle_in_region`]).
 pub fn voxelize_triangle_in_region(
     v: [Vec3; 3],
+    settings: &VoxelizeSettings,
+    region: &InjectionRegion,
+    out: &VoxelOccupancy,
+) -> VoxelizeStats {
+    voxelize_sampled_triangle_in_region(v, &TriangleAttributes::WHITE, settings, region, out)
+}
+
+/// [`voxelize_triangle_in_region`] for a triangle with attributes: where `out` keeps attribute sums, each
+/// point adds its albedo and normal ([`super::attributes`]).
+pub fn voxelize_sampled_triangle_in_region(
+    v: [Vec3; 3],
+    attributes: &TriangleAttributes,
     settings: &VoxelizeSettings,
     region: &InjectionRegion,
     out: &VoxelOccupancy,
@@ -243,6 +256,7 @@ pub fn voxelize_triangle_in_region(
         stats.oversize = 1;
         return stats;
     }
+    let sub_apex = sub.apex;
     let [v0, v1, v2] = rotate_to_apex(v, sub.apex);
     let (e1, e2) = (v1 - v0, v2 - v0);
     let range = match placement {
@@ -263,15 +277,17 @@ pub fn voxelize_triangle_in_region(
     if placement == GridPlacement::Inside && count <= INLINE_SUB_TRIANGLES {
         stats.small = 1;
     }
+    let normal = face_normal(v, attributes);
+    let inv_3n = 1.0 / (3.0 * range.fine() as f32);
+    let sample = |sub| point_sample(attributes, centroid_weights(&range, sub, sub_apex, inv_3n), normal);
     match settings.mode {
         InjectionMode::Centroid => {
-            let inv_3n = 1.0 / (3.0 * range.fine() as f32);
             for s in 0..count as u32 {
                 let Some(sub) = sub_triangle(&range, s) else { continue };
                 stats.sub_triangles += 1;
                 let p = sub_triangle_centroid(v0, e1, e2, inv_3n, &range, sub);
                 if let Some(cell) = lattice_cell(p, region) {
-                    out.inject_voxel(storage_index(cell, region, dims));
+                    out.inject_point(storage_index(cell, region, dims), || sample(sub));
                     stats.injected += 1;
                 }
             }
@@ -291,7 +307,7 @@ pub fn voxelize_triangle_in_region(
                             let cell = IVec3::new(x, y, z);
                             stats.overlap_tests += 1;
                             if parent.overlaps_lattice_cell(cell) {
-                                out.inject_voxel(storage_index(cell, region, dims));
+                                out.inject_point(storage_index(cell, region, dims), || sample(sub));
                                 stats.injected += 1;
                             }
                         }
@@ -328,6 +344,15 @@ pub fn for_each_grid_triangle<S: Default + AddAssign + Send>(
     grid_from_local: Affine3A,
     per_triangle: impl Fn(Option<[Vec3; 3]>) -> S + Sync,
 ) -> S {
+    for_each_indexed_grid_triangle(mesh, grid_from_local, |_, v| per_triangle(v))
+}
+
+/// [`for_each_grid_triangle`], with each triangle's index.
+fn for_each_indexed_grid_triangle<S: Default + AddAssign + Send>(
+    mesh: &TriangleMesh,
+    grid_from_local: Affine3A,
+    per_triangle: impl Fn(usize, Option<[Vec3; 3]>) -> S + Sync,
+) -> S {
     let next = AtomicUsize::new(0);
     let total = mesh.triangles.len();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(total.div_ceil(CHUNK)).max(1);
@@ -340,7 +365,7 @@ pub fn for_each_grid_triangle<S: Default + AddAssign + Send>(
             }
             for t in start..(start + CHUNK).min(total) {
                 let v = mesh.triangle(t).map(|v| v.map(|p| grid_space_position(&grid_from_local, p)));
-                stats += per_triangle(v);
+                stats += per_triangle(t, v);
             }
         }
         stats
@@ -382,6 +407,25 @@ pub fn voxelize_mesh_in_region(
 ) -> VoxelizeStats {
     for_each_grid_triangle(mesh, grid_from_local, |v| match v {
         Some(v) => voxelize_triangle_in_region(v, settings, region, out),
+        None => VoxelizeStats { triangles: 1, invalid: 1, ..Default::default() },
+    })
+}
+
+/// [`voxelize_mesh_in_region`] with the mesh's albedo: where `out` keeps attribute sums
+/// ([`VoxelOccupancy::with_attributes`]), each point adds its albedo and normal. On all cores.
+pub fn voxelize_sampled_mesh_in_region(
+    mesh: &TriangleMesh,
+    albedo: &MeshAlbedo,
+    grid_from_local: Affine3A,
+    settings: &VoxelizeSettings,
+    region: &InjectionRegion,
+    out: &VoxelOccupancy,
+) -> VoxelizeStats {
+    for_each_indexed_grid_triangle(mesh, grid_from_local, |t, v| match v {
+        Some(v) => {
+            let attributes = albedo.triangle(mesh.triangles[t], &grid_from_local);
+            voxelize_sampled_triangle_in_region(v, &attributes, settings, region, out)
+        }
         None => VoxelizeStats { triangles: 1, invalid: 1, ..Default::default() },
     })
 }

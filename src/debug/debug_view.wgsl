@@ -1,12 +1,15 @@
 // Debug views of a camera (src/debug/mod.rs: `HaoDebugView`), drawn over its final image: the ambient
 // occlusion alone, or the voxel grid ray-marched from the camera (voxels as shaded boxes, their point counts
-// as a heat map, or static and dynamic voxels in two colors).
+// as a heat map, static and dynamic voxels in two colors, their cascade, or their average albedo or normal).
 #import bevy_render::view::View
-#import bevy_hao::voxel_grid::{voxel_grid, finest_level_containing, march_cascades, level_position}
+#import bevy_hao::voxel_grid::{
+    voxel_grid, finest_level_containing, march_cascades, level_position, voxel_albedo_at, voxel_normal_at,
+}
 
 struct DebugSettings {
     mode: u32,
-    has_counts: u32,
+    // Words of a voxel's record in `point_counts` (0: none).
+    sample_words: u32,
     has_ao: u32,
     _pad: u32,
 }
@@ -16,6 +19,8 @@ const MODE_VOXELS: u32 = 2u;
 const MODE_POINT_COUNTS: u32 = 3u;
 const MODE_STATIC_DYNAMIC: u32 = 4u;
 const MODE_CASCADES: u32 = 5u;
+const MODE_ALBEDO: u32 = 6u;
+const MODE_NORMALS: u32 = 7u;
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> occupancy: array<u32>;
@@ -94,8 +99,8 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     let index = level * l.dims.x * l.dims.y * l.dims.z + physical.x + l.dims.x * (physical.y + l.dims.y * physical.z);
     var color = vec3<f32>(0.92, 0.9, 0.85);
     if settings.mode == MODE_POINT_COUNTS {
-        if settings.has_counts != 0u {
-            let n = f32(point_counts[index]);
+        if settings.sample_words != 0u {
+            let n = f32(point_counts[index * settings.sample_words]);
             color = heat(log2(n + 1.0) / 8.0);
         } else {
             color = vec3<f32>(0.5);
@@ -104,6 +109,20 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
         color = select(vec3<f32>(1.0, 0.55, 0.15), vec3<f32>(0.35, 0.6, 1.0), bit(true, index));
     } else if settings.mode == MODE_CASCADES {
         color = heat(f32(level) / 4.0) * 0.7 + vec3<f32>(0.3);
+    } else if settings.mode == MODE_ALBEDO || settings.mode == MODE_NORMALS {
+        // Grey without attributes; magenta for a voxel without points (a solid's inside).
+        color = vec3<f32>(0.5);
+        if voxel_grid.attributes != 0u {
+            let albedo = voxel_albedo_at(level, vec3<i32>(cell));
+            if albedo.a == 0.0 {
+                color = vec3<f32>(0.8, 0.2, 0.8);
+            } else if settings.mode == MODE_ALBEDO {
+                color = albedo.rgb;
+            } else {
+                // Unshaded: the normal's components as colors.
+                return vec4<f32>((voxel_normal_at(level, vec3<i32>(cell)) * 0.5 + 0.5) * edge, 1.0);
+            }
+        }
     }
     return vec4<f32>(color * shade * edge, 1.0);
 }

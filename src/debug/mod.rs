@@ -46,12 +46,26 @@ pub enum HaoDebugView {
     StaticDynamic,
     /// Voxels tinted by the cascade level that holds them (finest violet, then cyan, green, yellow).
     Cascades,
+    /// Voxels colored by their average albedo (multi-valued voxels; grey without
+    /// `VoxelVolume::attributes`, magenta for a voxel without points, as inside a solid).
+    Albedo,
+    /// Voxels colored by their average normal (`n * 0.5 + 0.5`, unshaded; darker where the points' normals
+    /// cancel). Needs `VoxelVolume::attributes`.
+    Normals,
 }
 
 impl HaoDebugView {
     /// All views, in the inspector's order.
-    pub const ALL: [HaoDebugView; 6] =
-        [Self::Final, Self::AmbientOcclusion, Self::Voxels, Self::PointCounts, Self::StaticDynamic, Self::Cascades];
+    pub const ALL: [HaoDebugView; 8] = [
+        Self::Final,
+        Self::AmbientOcclusion,
+        Self::Voxels,
+        Self::PointCounts,
+        Self::StaticDynamic,
+        Self::Cascades,
+        Self::Albedo,
+        Self::Normals,
+    ];
 
     fn mode(self) -> u32 {
         match self {
@@ -61,6 +75,8 @@ impl HaoDebugView {
             Self::PointCounts => 3,
             Self::StaticDynamic => 4,
             Self::Cascades => 5,
+            Self::Albedo => 6,
+            Self::Normals => 7,
         }
     }
 }
@@ -91,7 +107,7 @@ impl Plugin for HaoDebugViewPlugin {
 #[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub(crate) struct GpuDebugSettings {
     pub(crate) mode: u32,
-    pub(crate) has_counts: u32,
+    pub(crate) sample_words: u32,
     pub(crate) has_ao: u32,
     pub(crate) _pad: u32,
 }
@@ -203,7 +219,7 @@ fn prepare_debug_views(
         let g = grid.as_ref().and_then(|g| g.assets.as_ref());
         let settings = GpuDebugSettings {
             mode: view.mode(),
-            has_counts: g.is_some_and(|g| g.point_counts.is_some()) as u32,
+            sample_words: g.filter(|g| g.point_counts.is_some()).map_or(0, |g| g.sample_words),
             has_ao: has_ao as u32,
             _pad: 0,
         };

@@ -65,8 +65,8 @@ pub struct GpuVoxelGrid {
     pub mip_levels: u32,
     /// How many of `changed` are valid.
     pub changed_count: u32,
-    #[doc(hidden)]
-    pub _pad1: u32,
+    /// 1 where the albedo and normal textures hold the voxels' attributes ([`crate::VoxelVolume::attributes`]).
+    pub attributes: u32,
     /// Where the voxels may have changed since last frame (dynamic occluders now and last frame): temporal
     /// passes keep less history near them.
     pub changed: [GpuWorldBox; MAX_CHANGED_BOXES],
@@ -140,7 +140,12 @@ pub fn voxel_grid_layout() -> BindGroupLayoutDescriptor {
         "hao_voxel_grid_layout",
         &BindGroupLayoutEntries::sequential(
             ShaderStages::COMPUTE | ShaderStages::FRAGMENT,
-            (texture_3d(TextureSampleType::Float { filterable: false }), uniform_buffer::<GpuVoxelGrid>(false)),
+            (
+                texture_3d(TextureSampleType::Float { filterable: false }),
+                uniform_buffer::<GpuVoxelGrid>(false),
+                texture_3d(TextureSampleType::Float { filterable: false }),
+                texture_3d(TextureSampleType::Float { filterable: false }),
+            ),
         ),
     )
 }
@@ -148,7 +153,8 @@ pub fn voxel_grid_layout() -> BindGroupLayoutDescriptor {
 /// The layout of the voxel grid's bind group and a placeholder texture for frames without a grid.
 #[derive(Resource)]
 pub struct VoxelGridLayout {
-    /// Binding 0: the 3D texture; binding 1: the [`GpuVoxelGrid`] uniform.
+    /// Binding 0: the 3D texture; binding 1: the [`GpuVoxelGrid`] uniform; bindings 2 and 3: the albedo and
+    /// normal textures.
     pub layout: BindGroupLayoutDescriptor,
     empty_texture: TextureView,
 }
@@ -200,11 +206,16 @@ pub fn prepare_voxel_grid_bindings(
     images: Res<RenderAssets<GpuImage>>,
 ) {
     let texture = extracted.assets.as_ref().and_then(|a| images.get(&a.texture).map(|i| (a, i)));
-    let (grid, view) = match texture {
+    let empty = &layout.empty_texture;
+    let (grid, view, [albedo, normal]) = match texture {
         Some((assets, image)) if !state.levels().is_empty() => {
-            (GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.changed_world_boxes()), &image.texture_view)
+            let mut grid = GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.changed_world_boxes());
+            let attributes = assets.attributes.as_ref().and_then(|[a, n]| Some([images.get(a)?, images.get(n)?]));
+            grid.attributes = attributes.is_some() as u32;
+            let views = attributes.map_or([empty, empty], |[a, n]| [&a.texture_view, &n.texture_view]);
+            (grid, &image.texture_view, views)
         }
-        _ => (GpuVoxelGrid::default(), &layout.empty_texture),
+        _ => (GpuVoxelGrid::default(), empty, [empty, empty]),
     };
     let mut uniform = UniformBuffer::from(grid);
     uniform.set_label(Some("hao_voxel_grid"));
@@ -213,7 +224,7 @@ pub fn prepare_voxel_grid_bindings(
     let bind_group = device.create_bind_group(
         "hao_voxel_grid_bind_group",
         &cache.get_bind_group_layout(&layout.layout),
-        &BindGroupEntries::sequential((view, binding)),
+        &BindGroupEntries::sequential((view, binding, albedo, normal)),
     );
     commands.insert_resource(VoxelGridBindings { bind_group, grid });
 }

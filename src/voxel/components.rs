@@ -219,6 +219,22 @@ pub struct VoxelVolume {
     /// since cascades have millions of voxels). Turned off with a warning if the count buffers would exceed
     /// the device's storage-binding limit.
     pub point_counts: bool,
+    /// Multi-valued voxels: every voxel also keeps the average albedo and the average normal of the points
+    /// injected into it, in two 3D textures beside occupancy ([`crate::VoxelGridBindings`], `voxel_albedo` and
+    /// `voxel_normal` in `voxel_grid.wgsl`), for the static and the dynamic geometry and in every cascade.
+    ///
+    /// A point's albedo is its mesh's `StandardMaterial::base_color` times the vertex colour
+    /// (`Mesh::ATTRIBUTE_COLOR`) where there is one; a `base_color_texture` counts by its mean colour (of
+    /// the image's first mip, where it is 8-bit RGBA in main-world memory; other materials count white).
+    /// A point's normal is its triangle's face normal (counter-clockwise front faces), or for
+    /// [`crate::PnTriangles`] the interpolated vertex normal. Voxels filled by [`crate::VoxelFill::Solid`]
+    /// have no points: no albedo and no normal.
+    ///
+    /// Costs 64 bytes per voxel besides occupancy (two copies, static and frame, of the point count and six
+    /// `u32` sums, and two 4-byte texels; includes [`Self::point_counts`]): 134 MB for one 128^3 grid, 403 MB
+    /// for 3 cascades of 128^3, 1.8 GB for the default 4 cascades of 192^3. Turned off with a warning where
+    /// one copy of the sums (28 bytes per voxel) exceeds the device's storage-binding limit.
+    pub attributes: bool,
 }
 
 impl Default for VoxelVolume {
@@ -232,6 +248,7 @@ impl Default for VoxelVolume {
             subdivision: VoxelSubdivision::Strips,
             point_budget: 32 << 20,
             point_counts: false,
+            attributes: false,
         }
     }
 }

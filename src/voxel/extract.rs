@@ -13,7 +13,7 @@ use bevy::math::Affine3A;
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::morph::MeshMorphWeights;
 use bevy::mesh::skinning::SkinnedMesh;
-use bevy::platform::collections::HashSet;
+use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::Extract;
 
@@ -46,6 +46,9 @@ pub struct ExtractedOccluder {
     pub pn: bool,
     /// [`VoxelFill::Solid`]: its inside is filled.
     pub solid: bool,
+    /// Its material's albedo, linear, packed ([`crate::cpu::attributes::pack_albedo`]): white unless the
+    /// volume keeps attributes (see [`material_albedo`]).
+    pub albedo: u32,
 }
 
 /// This frame's occluders, split into static and dynamic.
@@ -106,19 +109,29 @@ pub fn extract_voxel_occluders(
                 Has<MeshMorphWeights>,
                 Has<PnTriangles>,
                 Option<&VoxelFill>,
+                Option<&MeshMaterial3d<StandardMaterial>>,
             ),
             Without<NoVoxelOcclusion>,
         >,
     >,
     requests: Extract<Res<StaticRebuildRequests>>,
     meshes: Extract<Res<Assets<Mesh>>>,
+    (grid, materials, images): (
+        Extract<Option<Res<VoxelGridAssets>>>,
+        Extract<Res<Assets<StandardMaterial>>>,
+        Extract<Res<Assets<Image>>>,
+    ),
     mut checked: Local<HashSet<(AssetId<Mesh>, Option<u32>)>>,
     mut warned_morph: Local<bool>,
+    mut texture_means: Local<HashMap<AssetId<Image>, Vec3>>,
 ) {
+    let attributes = grid.as_ref().is_some_and(|g| g.attributes.is_some());
     extracted.statics.clear();
     extracted.dynamics.clear();
     extracted.rebuild_requests = requests.0;
-    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed, pn, fill) in &occluders {
+    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed, pn, fill, material) in
+        &occluders
+    {
         if !visible.get() {
             continue;
         }
@@ -149,6 +162,10 @@ pub fn extract_voxel_occluders(
             morphed,
             pn,
             solid: fill == Some(&VoxelFill::Solid),
+            albedo: match material {
+                Some(m) if attributes => material_albedo(m, &materials, &images, &mut texture_means),
+                _ => WHITE,
+            },
         };
         // Skinned and morphed meshes move by themselves: dynamic unless marked static (then voxelized in the
         // pose they have when the static voxels are built).
@@ -160,6 +177,70 @@ pub fn extract_voxel_occluders(
     }
     // A stable order, so that the static set's fingerprint does not depend on query order.
     extracted.statics.sort_by_key(|o| o.entity);
+}
+
+const WHITE: u32 = 0x00ff_ffff;
+
+/// Pixels of a base-colour texture averaged at most (evenly spaced).
+const TEXTURE_MEAN_SAMPLES: usize = 1 << 16;
+
+/// A material's albedo for multi-valued voxels, linear, packed: `base_color`, times the mean colour of
+/// `base_color_texture` where that image is 8-bit RGBA (sRGB or linear) with its data in the main world
+/// (otherwise the factor alone). Means are computed once per image, from at most
+/// [`TEXTURE_MEAN_SAMPLES`] pixels of its first mip.
+pub fn material_albedo(
+    material: &MeshMaterial3d<StandardMaterial>,
+    materials: &Assets<StandardMaterial>,
+    images: &Assets<Image>,
+    means: &mut HashMap<AssetId<Image>, Vec3>,
+) -> u32 {
+    let Some(m) = materials.get(material) else { return WHITE };
+    let base = m.base_color.to_linear();
+    let mut albedo = Vec3::new(base.red, base.green, base.blue);
+    if let Some(texture) = &m.base_color_texture {
+        let id = texture.id();
+        let mean = match means.get(&id) {
+            Some(mean) => Some(*mean),
+            None => {
+                let mean = images.get(id).and_then(texture_mean);
+                if let Some(mean) = mean {
+                    means.insert(id, mean);
+                }
+                mean
+            }
+        };
+        albedo *= mean.unwrap_or(Vec3::ONE);
+    }
+    crate::cpu::attributes::pack_albedo(albedo)
+}
+
+/// The mean linear colour of an 8-bit RGBA image's first mip, from evenly spaced pixels.
+fn texture_mean(image: &Image) -> Option<Vec3> {
+    use bevy::render::render_resource::TextureFormat;
+    let srgb = match image.texture_descriptor.format {
+        TextureFormat::Rgba8UnormSrgb => true,
+        TextureFormat::Rgba8Unorm => false,
+        _ => return None,
+    };
+    let data = image.data.as_ref()?;
+    let size = image.texture_descriptor.size;
+    let pixels = (size.width as usize * size.height as usize).min(data.len() / 4);
+    if pixels == 0 {
+        return None;
+    }
+    let step = pixels.div_ceil(TEXTURE_MEAN_SAMPLES);
+    let decode = |b: u8| {
+        let c = b as f32 / 255.0;
+        if srgb { Srgba::gamma_function(c) } else { c }
+    };
+    let mut sum = Vec3::ZERO;
+    let mut n = 0u32;
+    for p in (0..pixels).step_by(step) {
+        let px = &data[p * 4..p * 4 + 3];
+        sum += Vec3::new(decode(px[0]), decode(px[1]), decode(px[2]));
+        n += 1;
+    }
+    Some(sum / n as f32)
 }
 
 /// Warns (once per mesh and skin) about skin data that will not voxelize as the user may expect: joints
@@ -204,5 +285,53 @@ fn check_skin_data(entity: Entity, mesh: &Mesh, skin_joints: Option<u32>) {
             "bevy_hao: {entity}'s joint weights do not all sum to 1; they are used as given, as Bevy draws them \
              (the glTF loader normalizes them)"
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bevy::asset::RenderAssetUsages;
+    use bevy::render::render_resource::{Extent3d, TextureDimension, TextureFormat};
+
+    #[test]
+    fn a_material_albedo_is_its_base_colour_times_its_texture_mean() {
+        let size = Extent3d { width: 2, height: 1, depth_or_array_layers: 1 };
+        // sRGB 188 is linear 0.5 (to a byte), 0 is 0: the mean of red (188, 0, 0) and grey (188, 188, 188).
+        let pixels = vec![188, 0, 0, 255, 188, 188, 188, 255];
+        let image =
+            Image::new(size, TextureDimension::D2, pixels, TextureFormat::Rgba8UnormSrgb, RenderAssetUsages::default());
+        let mut images = Assets::<Image>::default();
+        let texture = images.add(image);
+        let mut materials = Assets::<StandardMaterial>::default();
+        let plain = materials.add(StandardMaterial { base_color: Color::linear_rgb(0.2, 0.4, 1.0), ..default() });
+        let textured = materials.add(StandardMaterial {
+            base_color: Color::WHITE,
+            base_color_texture: Some(texture.clone()),
+            ..default()
+        });
+        // An image in another format: the factor alone.
+        let float = Image::new(
+            size,
+            TextureDimension::D2,
+            vec![0; 32],
+            TextureFormat::Rgba32Float,
+            RenderAssetUsages::default(),
+        );
+        let missing = materials.add(StandardMaterial { base_color_texture: Some(images.add(float)), ..default() });
+        let mut means = HashMap::new();
+        let albedo = |m: &Handle<StandardMaterial>, means: &mut HashMap<_, _>| {
+            crate::cpu::attributes::unpack_albedo(material_albedo(
+                &MeshMaterial3d(m.clone()),
+                &materials,
+                &images,
+                means,
+            ))
+        };
+        assert!(albedo(&plain, &mut means).distance(Vec3::new(0.2, 0.4, 1.0)) < 0.5 / 255.0);
+        let mean = albedo(&textured, &mut means);
+        assert!(mean.distance(Vec3::new(0.5, 0.25, 0.25)) < 1.5 / 255.0, "{mean}");
+        assert_eq!(means.len(), 1, "the mean is kept");
+        assert_eq!(albedo(&missing, &mut means), Vec3::ONE);
     }
 }

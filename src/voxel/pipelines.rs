@@ -54,14 +54,19 @@ pub struct GpuOccluderInstance {
     pub normal_offset: u32,
     /// 1 to fill the instance's inside (`VoxelFill::Solid`; voxelize_solid.wgsl).
     pub solid: u32,
-    pub _pad_b: u32,
-    pub _pad_c: u32,
+    /// Offset of the vertex colours (`Float32x4`) in a vertex, in words ([`NO_COLORS`]: none).
+    pub color_offset: u32,
+    /// The material's base colour, linear, packed ([`crate::cpu::attributes::pack_albedo`]).
+    pub albedo: u32,
 }
 
 /// [`GpuOccluderInstance::skin_index`] of an instance that is not skinned (WGSL `NO_SKIN`).
 pub const NO_SKIN: u32 = u32::MAX;
 /// [`GpuOccluderInstance::normal_offset`] of a flat instance (WGSL `NO_NORMALS`).
 pub const NO_NORMALS: u32 = u32::MAX;
+
+/// [`GpuOccluderInstance::color_offset`] of an instance without vertex colours (WGSL `NO_COLORS`).
+pub const NO_COLORS: u32 = u32::MAX;
 
 /// The instances of one classify dispatch (WGSL `SlabGroup`).
 #[repr(C)]
@@ -91,8 +96,9 @@ pub(crate) struct GpuVoxelizeParams {
     /// Most points per frame.
     pub point_budget: u32,
     pub closed_max: IVec3,
-    /// Whether point counts are written.
-    pub store_counts: u32,
+    /// Words of a voxel's record in the point-count buffer: 0 (none), 1 (counts) or
+    /// [`crate::cpu::attributes::SAMPLE_WORDS`] (counts and attribute sums).
+    pub sample_words: u32,
     pub wrap: UVec3,
     /// First counter of this pass's block.
     pub counter_base: u32,
@@ -116,7 +122,9 @@ pub(crate) struct GpuLevelRegion {
     pub window_min: IVec3,
     pub _pad0: u32,
     pub wrap: UVec3,
-    pub _pad1: u32,
+    /// Words of a voxel's record in the frame's point-count buffer (resolve: attributes where it is
+    /// `SAMPLE_WORDS`).
+    pub sample_words: u32,
     pub dims: UVec3,
     pub _pad2: u32,
     pub size: UVec3,
@@ -185,7 +193,12 @@ pub struct VoxelizePipelines {
     /// A 16-byte storage buffer bound (read-write) where point counts are off: not `dummy`, since one
     /// buffer may not be bound both ways in one dispatch.
     pub dummy_counts: Buffer,
+    /// 1x1x1 albedo and normal textures the resolve pass binds where the volume keeps no attributes.
+    pub dummy_attributes: [TextureView; 2],
 }
+
+/// Formats of the albedo and normal textures (multi-valued voxels).
+pub const ATTRIBUTE_FORMATS: [TextureFormat; 2] = [TextureFormat::Rgba8Unorm, TextureFormat::Rgba8Snorm];
 
 impl FromWorld for VoxelizePipelines {
     fn from_world(world: &mut World) -> Self {
@@ -202,6 +215,20 @@ impl FromWorld for VoxelizePipelines {
             size: 16,
             usage: BufferUsages::STORAGE,
             mapped_at_creation: false,
+        });
+        let dummy_attributes = ATTRIBUTE_FORMATS.map(|format| {
+            device
+                .create_texture(&TextureDescriptor {
+                    label: Some("hao_dummy_voxel_attributes"),
+                    size: Extent3d { width: 1, height: 1, depth_or_array_layers: 1 },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: TextureDimension::D3,
+                    format,
+                    usage: TextureUsages::STORAGE_BINDING | TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                })
+                .create_view(&TextureViewDescriptor::default())
         });
         // The per-dispatch settings (`SlabGroup`, `VoxelizeParams`) are read from storage buffers where the
         // device has the bindings to spare, else from uniform buffers. Mesa's lavapipe (seen with 22.3.6)
@@ -282,6 +309,9 @@ impl FromWorld for VoxelizePipelines {
                     uniform_buffer::<GpuLevelRegion>(false),
                     storage_buffer_read_only_sized(false, None),
                     texture_storage_3d(texture_format, StorageTextureAccess::WriteOnly),
+                    storage_buffer_read_only_sized(false, None),
+                    texture_storage_3d(ATTRIBUTE_FORMATS[0], StorageTextureAccess::WriteOnly),
+                    texture_storage_3d(ATTRIBUTE_FORMATS[1], StorageTextureAccess::WriteOnly),
                 ),
             ),
         );
@@ -387,6 +417,7 @@ impl FromWorld for VoxelizePipelines {
             morph,
             dummy,
             dummy_counts,
+            dummy_attributes,
         }
     }
 }

@@ -448,6 +448,16 @@ fn resolve_occluder(
             }
         }
     }
+    // Vertex colours (multi-valued voxels' albedo): Float32x4, as Bevy keeps them.
+    let color_offset = mesh
+        .layout
+        .0
+        .attribute_ids()
+        .iter()
+        .position(|id| *id == Mesh::ATTRIBUTE_COLOR.id)
+        .map(|i| layout.attributes[i])
+        .filter(|a| a.format == VertexFormat::Float32x4 && a.offset % 4 == 0)
+        .map_or(NO_COLORS, |a| (a.offset / 4) as u32);
     // A skinned mesh: its joint data in the vertex layout, and its skin's place in Bevy's joint matrices
     // (allocated only while the mesh is visible to a view). Without joint data it is voxelized unskinned
     // (extraction warned); where the device cannot skin, skipped.
@@ -508,8 +518,8 @@ fn resolve_occluder(
             morph_vertex_count: morph[3],
             normal_offset,
             solid: o.solid as u32,
-            _pad_b: 0,
-            _pad_c: 0,
+            color_offset,
+            albedo: o.albedo,
         },
     })
 }
@@ -667,6 +677,7 @@ fn fingerprint(o: &ExtractedOccluder, r: &ResolvedInstance) -> u64 {
     o.mesh.hash(&mut hasher);
     o.pn.hash(&mut hasher);
     o.solid.hash(&mut hasher);
+    o.albedo.hash(&mut hasher);
     r.ranges.hash(&mut hasher);
     r.slabs.hash(&mut hasher);
     for v in o.world_from_local.to_cols_array() {
@@ -928,9 +939,10 @@ pub fn prepare_voxelize(
             let clear = if *whole {
                 // Levels hold a multiple of 32 voxels when there are several (cascades).
                 let words = level_voxels.div_ceil(32);
+                let record = level_voxels * 4 * assets.sample_words as u64;
                 Some(StaticClear::Level {
                     occupancy: (l as u64 * words * 4, words * 4),
-                    counts: counts.as_ref().map(|_| (l as u64 * level_voxels * 4, level_voxels * 4)),
+                    counts: counts.as_ref().map(|_| (l as u64 * record, record)),
                 })
             } else {
                 Some(StaticClear::Region(groups4(*b)))
@@ -1036,7 +1048,7 @@ pub fn prepare_voxelize(
             window_min: region.window_min,
             point_budget: assets.point_budget,
             closed_max: region.closed_max,
-            store_counts: counts.is_some() as u32,
+            sample_words: if counts.is_some() { assets.sample_words } else { 0 },
             wrap: level.wrap(),
             counter_base: p.counter_base,
             dims: level.dims,
@@ -1098,6 +1110,16 @@ pub fn prepare_voxelize(
         })
     };
     let views: Vec<TextureView> = (0..assets.mip_levels).map(level_view).collect();
+    // The attribute textures, where kept and the records are bound.
+    let attribute_views = match (&assets.attributes, &counts) {
+        (Some([a, n]), Some(_)) => match (images.get(a), images.get(n)) {
+            (Some(a), Some(n)) => Some([a.texture_view.clone(), n.texture_view.clone()]),
+            _ => return invalidate(&mut state),
+        },
+        _ => None,
+    };
+    let [albedo_view, normal_view] = attribute_views.as_ref().unwrap_or(&pipelines.dummy_attributes);
+    let records = counts.as_ref().map_or(&pipelines.dummy, |c| &c.1);
     let resolve_layout = cache.get_bind_group_layout(&pipelines.resolve_layout);
     let mip_layout = cache.get_bind_group_layout(&pipelines.mip_layout);
     let mut resolve = Vec::new();
@@ -1128,7 +1150,7 @@ pub fn prepare_voxelize(
                 window_min: level.window_min >> mip as i32,
                 _pad0: 0,
                 wrap: level.wrap() >> mip,
-                _pad1: 0,
+                sample_words: if counts.is_some() { assets.sample_words } else { 0 },
                 dims: level.dims,
                 _pad2: 0,
                 size: level.size >> mip,
@@ -1142,6 +1164,9 @@ pub fn prepare_voxelize(
                     p0.as_entire_binding(),
                     occupancy.buffer.as_entire_binding(),
                     &views[0],
+                    records.as_entire_binding(),
+                    albedo_view,
+                    normal_view,
                 )),
             );
             let mut mips = Vec::new();

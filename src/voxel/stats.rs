@@ -134,7 +134,7 @@ pub struct CascadeLevelStats {
     pub rebuilds: u64,
     /// Times the level scrolled (moved by less than its size).
     pub scrolls: u64,
-    /// GPU memory of the level, bytes: occupancy bits (static and frame), texture with mips, point counts.
+    /// GPU memory of the level, bytes: occupancy bits (static and frame), texture with mips, point counts, attributes.
     pub bytes: LevelBytes,
 }
 
@@ -145,14 +145,16 @@ pub struct LevelBytes {
     pub occupancy: u64,
     /// The 3D texture's share, all mips.
     pub texture: u64,
-    /// Point counts, static and frame copies (0 when off).
+    /// Point counts, with attributes their sums, static and frame copies (0 when off).
     pub point_counts: u64,
+    /// The albedo and normal textures (0 without attributes).
+    pub attributes: u64,
 }
 
 impl LevelBytes {
     /// All of it.
     pub fn total(&self) -> u64 {
-        self.occupancy + self.texture + self.point_counts
+        self.occupancy + self.texture + self.point_counts + self.attributes
     }
 }
 

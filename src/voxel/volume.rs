@@ -1,6 +1,8 @@
 //! Main world: the voxel grid's GPU assets, created and replaced as the [`VoxelVolume`] asks, and the
 //! camera the cascades follow.
 
+use super::pipelines::ATTRIBUTE_FORMATS;
+use crate::cpu::attributes::SAMPLE_WORDS;
 use crate::cpu::{self, VoxelGrid};
 use crate::voxel::components::*;
 use bevy::asset::RenderAssetUsages;
@@ -44,10 +46,17 @@ pub struct VoxelGridAssets {
     pub occupancy: Handle<ShaderBuffer>,
     /// The cached occupancy of static geometry alone.
     pub static_occupancy: Handle<ShaderBuffer>,
-    /// This frame's per-voxel point counts (`u32` per voxel), if kept.
+    /// This frame's per-voxel records, if kept: [`Self::sample_words`] `u32`s per voxel, the point count and,
+    /// with attributes, the albedo and normal sums ([`crate::cpu::attributes`]).
     pub point_counts: Option<Handle<ShaderBuffer>>,
-    /// The static geometry's point counts, if kept.
+    /// The static geometry's records, if kept.
     pub static_point_counts: Option<Handle<ShaderBuffer>>,
+    /// Words per voxel in the record buffers: 0 (none), 1 (point counts) or
+    /// [`crate::cpu::attributes::SAMPLE_WORDS`] (counts and attribute sums).
+    pub sample_words: u32,
+    /// The average albedo (`Rgba8Unorm`) and normal (`Rgba8Snorm`) textures of multi-valued voxels
+    /// ([`VoxelVolume::attributes`]), mip 0 only, laid out as [`Self::texture`]'s mip 0.
+    pub attributes: Option<[Handle<Image>; 2]>,
     /// The voxel texture: 1 where occupied, 0 where empty, with a max-reduced mip chain.
     pub texture: Handle<Image>,
     /// Its format (`R8Unorm` where the adapter can write it from a shader, else `R32Float`).
@@ -236,7 +245,7 @@ pub(crate) fn update_voxel_volume(
     let texture_size = (grid.dims + UVec3::splat(align - 1)) / align * align;
     let level_words = grid.occupancy_word_count() as u64;
     let words_bytes = level_words * 4 * levels as u64;
-    let counts_bytes = grid.voxel_count() * 4 * levels as u64;
+    let voxel_bytes = grid.voxel_count() * 4 * levels as u64;
     let binding_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     let refusal = if texture_size.max_element().max(texture_size.z * levels) > limits.max_texture_dimension_3d {
         Some(format!(
@@ -262,18 +271,34 @@ pub(crate) fn update_voxel_volume(
         remove(&mut commands);
         return;
     }
-    let mut point_counts = volume.point_counts;
-    if point_counts && counts_bytes > binding_limit {
+    let mut attributes = volume.attributes;
+    let attribute_bytes = voxel_bytes * SAMPLE_WORDS as u64;
+    if attributes && attribute_bytes > binding_limit {
         report(
             &mut reported,
             format!(
-                "bevy_hao: per-voxel point counts for {levels} level(s) of {}x{}x{} need {counts_bytes} bytes, over the \
+                "bevy_hao: per-voxel albedo and normal sums for {levels} level(s) of {}x{}x{} need {attribute_bytes} \
+                 bytes, over the device's Limits::max_storage_buffer_binding_size ({}); VoxelVolume::attributes is \
+                 off (lower the resolution or the cascades)",
+                grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
+            ),
+        );
+        attributes = false;
+    }
+    let mut point_counts = volume.point_counts || attributes;
+    if point_counts && voxel_bytes > binding_limit {
+        report(
+            &mut reported,
+            format!(
+                "bevy_hao: per-voxel point counts for {levels} level(s) of {}x{}x{} need {voxel_bytes} bytes, over the \
                  device's Limits::max_storage_buffer_binding_size ({}); point counts are off",
                 grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
             ),
         );
         point_counts = false;
     }
+    let sample_words = if attributes { SAMPLE_WORDS } else { point_counts as u32 };
+    let counts_bytes = voxel_bytes * sample_words as u64;
     let mut settings = volume.voxelize_settings();
     // A target bias sets gamma once it has been measured (until then, `gamma` is used).
     if let (Some(_), Some(gamma)) = (volume.target_bias, gamma_for_target.gamma) {
@@ -284,7 +309,7 @@ pub(crate) fn update_voxel_volume(
         && cur.grid == grid
         && cur.levels == levels
         && cur.cascades == shape
-        && cur.point_counts.is_some() == point_counts
+        && cur.sample_words == sample_words
         && cur.settings == settings
         && cur.point_budget == volume.point_budget
         && cur.texture_format == texture_format
@@ -315,6 +340,29 @@ pub(crate) fn update_voxel_volume(
         asset_usage: RenderAssetUsages::RENDER_WORLD,
         ..default()
     };
+    let attribute_texture = |format: TextureFormat, images: &mut Assets<Image>| {
+        images.add(Image {
+            data: None,
+            texture_descriptor: TextureDescriptor {
+                label: Some("hao_voxel_attributes"),
+                size: Extent3d {
+                    width: texture_size.x,
+                    height: texture_size.y,
+                    depth_or_array_layers: texture_size.z * levels,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: TextureDimension::D3,
+                format,
+                usage: TextureUsages::TEXTURE_BINDING | TextureUsages::STORAGE_BINDING | TextureUsages::COPY_SRC,
+                view_formats: &[],
+            },
+            sampler: ImageSampler::nearest(),
+            asset_usage: RenderAssetUsages::RENDER_WORLD,
+            ..default()
+        })
+    };
+    let attribute_textures = attributes.then(|| ATTRIBUTE_FORMATS.map(|f| attribute_texture(f, &mut images)));
     let assets = VoxelGridAssets {
         grid,
         levels,
@@ -325,6 +373,8 @@ pub(crate) fn update_voxel_volume(
         static_occupancy: buffer(words_bytes, &mut buffers),
         point_counts: point_counts.then(|| buffer(counts_bytes, &mut buffers)),
         static_point_counts: point_counts.then(|| buffer(counts_bytes, &mut buffers)),
+        sample_words,
+        attributes: attribute_textures,
         texture: images.add(texture),
         texture_format,
         mip_levels,
@@ -347,7 +397,8 @@ pub(crate) fn update_voxel_volume(
     let bytes = LevelBytes {
         occupancy: 2 * level_words * 4,
         texture: level_texels * texel_bytes,
-        point_counts: if point_counts { 2 * grid.voxel_count() * 4 } else { 0 },
+        point_counts: 2 * grid.voxel_count() * 4 * sample_words as u64,
+        attributes: if attributes { (texture_size.as_u64vec3().element_product()) * 8 } else { 0 },
     };
     stats.update(|s| {
         s.grid = Some(grid);

@@ -1,4 +1,4 @@
-// Clears a box of one level's static occupancy (and point counts) before the box is voxelized again: the
+// Clears a box of one level's static occupancy (and point counts and attribute sums) before the box is voxelized again: the
 // slabs a cascade scrolled into, or where a static occluder changed. One invocation per lattice cell of the
 // box, mapped to where the level stores it (see `VoxelizeParams`). CPU twin: a fresh occupancy.
 #import bevy_hao::voxelize_common::storage_index
@@ -12,7 +12,7 @@ fn clear_region(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let index = storage_index(cell, params.window_min, params.wrap, params.dims, params.voxel_base);
     atomicAnd(&occupancy[index >> 5u], ~(1u << (index & 31u)));
-    if params.store_counts != 0u {
-        atomicStore(&point_counts[index], 0u);
+    for (var k = 0u; k < params.sample_words; k++) {
+        atomicStore(&point_counts[index * params.sample_words + k], 0u);
     }
 }

@@ -41,12 +41,18 @@ struct VoxelGrid {
     mip_levels: u32,
     // Where the voxels may have changed since last frame (dynamic occluders now and last frame).
     changed_count: u32,
-    pad_b: u32,
+    // 1 where `voxel_albedo` and `voxel_normal` hold the voxels' attributes (VoxelVolume::attributes).
+    attributes: u32,
     changed: array<WorldBox, MAX_CHANGED_BOXES>,
 }
 
 @group(2) @binding(0) var voxel_texture: texture_3d<f32>;
 @group(2) @binding(1) var<uniform> voxel_grid: VoxelGrid;
+// Multi-valued voxels (src/cpu/attributes.rs), mip 0 only, in the layout of `voxel_texture`: the average
+// linear albedo (a: 1 where the voxel has points) and the average normal (length 1 where its points agree,
+// toward 0 where they cancel). 1x1x1 placeholders unless `voxel_grid.attributes` is 1.
+@group(2) @binding(2) var voxel_albedo: texture_3d<f32>;
+@group(2) @binding(3) var voxel_normal: texture_3d<f32>;
 
 // cpu/ao.rs: CASCADE_BLEND_CELLS
 const CASCADE_BLEND_CELLS: f32 = 8.0;
@@ -82,6 +88,32 @@ fn voxel_occupied(level: u32, texel: vec3<i32>, mip: u32) -> bool {
     var physical = (t + (l.wrap >> vec3<u32>(mip))) % size;
     physical.z += l.texture_z >> mip;
     return textureLoad(voxel_texture, vec3<i32>(physical), i32(mip)).r > 0.0;
+}
+
+// Where cell `texel` (of the window, clamped to it) of a level is stored in the textures' mip 0.
+fn voxel_texel(level: u32, texel: vec3<i32>) -> vec3<i32> {
+    let l = voxel_grid.levels[level];
+    let t = vec3<u32>(clamp(texel, vec3<i32>(0), vec3<i32>(l.size) - vec3<i32>(1)));
+    var physical = (t + l.wrap) % l.size;
+    physical.z += l.texture_z;
+    return vec3<i32>(physical);
+}
+
+// The average albedo of a cell of the window of a level (rgb), and 1 in a where it has points; zero where
+// the volume keeps no attributes.
+fn voxel_albedo_at(level: u32, texel: vec3<i32>) -> vec4<f32> {
+    if voxel_grid.attributes == 0u {
+        return vec4<f32>(0.0);
+    }
+    return textureLoad(voxel_albedo, voxel_texel(level, texel), 0);
+}
+
+// The average normal of a cell of the window of a level; zero where the volume keeps no attributes.
+fn voxel_normal_at(level: u32, texel: vec3<i32>) -> vec3<f32> {
+    if voxel_grid.attributes == 0u {
+        return vec3<f32>(0.0);
+    }
+    return textureLoad(voxel_normal, voxel_texel(level, texel), 0).xyz;
 }
 
 // cpu/ao.rs: MarchResult (t < 0: no hit).

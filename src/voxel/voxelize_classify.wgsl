@@ -14,10 +14,11 @@
     COUNTER_BUDGET_EXCEEDED, FRAME_POINTS_USED,
 }
 #import bevy_hao::voxelize_vertices::{
-    slab_group, triangle_indices, grid_corners, vertex_normal, NO_NORMALS,
+    slab_group, triangle_indices, grid_corners, vertex_normal, triangle_albedo, NO_NORMALS,
 }
 #import bevy_hao::voxelize_pass::{
     params, big_triangles, counters, inject_sub_triangle, add_counter, flush_counters, reset_counters,
+    keeps_attributes,
 }
 
 // A triangle small enough to inject here, kept across the workgroup's budget reservation.
@@ -28,6 +29,7 @@ struct InlineJob {
     n0: vec3<f32>,
     n1: vec3<f32>,
     n2: vec3<f32>,
+    albedo: vec3<u32>,
     apex: u32,
     range: LatticeRange,
     count: u32,
@@ -51,7 +53,7 @@ fn classify(
     workgroupBarrier();
     let t = gid.x + gid.y * groups.x * 64u;
     let zero = vec3<f32>(0.0);
-    var job = InlineJob(zero, zero, zero, zero, zero, zero, 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
+    var job = InlineJob(zero, zero, zero, zero, zero, zero, vec3<u32>(0u), 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
     if t < slab_group.triangle_count {
         job = classify_triangle(t);
     }
@@ -73,7 +75,7 @@ fn classify(
         if start <= params.point_budget && job.count <= params.point_budget - start {
             atomicAdd(&inline_accepted, job.count);
             for (var s = 0u; s < job.count; s++) {
-                inject_sub_triangle(job.v0, job.v1, job.v2, job.n0, job.n1, job.n2, job.apex, job.range, sub_triangle(job.range, s));
+                inject_sub_triangle(job.v0, job.v1, job.v2, job.n0, job.n1, job.n2, job.albedo, job.apex, job.range, sub_triangle(job.range, s));
             }
         } else {
             atomicStore(&counters[params.counter_base + COUNTER_BUDGET_EXCEEDED], 1u);
@@ -88,7 +90,7 @@ fn classify(
 
 fn classify_triangle(t: u32) -> InlineJob {
     let zero = vec3<f32>(0.0);
-    var none = InlineJob(zero, zero, zero, zero, zero, zero, 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
+    var none = InlineJob(zero, zero, zero, zero, zero, zero, vec3<u32>(0u), 0u, LatticeRange(1u, 1u, 0u, 0u, 0u, 0u, 0u, false), 0u);
     add_counter(COUNTER_TRIANGLES, 1u);
     let tri = triangle_indices(t);
     let inst = tri.inst;
@@ -171,16 +173,20 @@ fn classify_triangle(t: u32) -> InlineJob {
         add_counter(COUNTER_OVERSIZE, 1u);
         return none;
     }
+    var albedo = vec3<u32>(0u);
+    if keeps_attributes() {
+        albedo = triangle_albedo(tri);
+    }
     if placement == PLACEMENT_INSIDE && count <= INLINE_SUB_TRIANGLES {
         // The common case: a triangle near a voxel in size (n <= 4); inject its few sub-triangles here.
         add_counter(COUNTER_SMALL, 1u);
-        return InlineJob(v0, v1, v2, n0, n1, n2, sub.apex, range, count);
+        return InlineJob(v0, v1, v2, n0, n1, n2, albedo, sub.apex, range, count);
     }
     let slot = atomicAdd(&counters[params.counter_base + COUNTER_BIG_TRIANGLES], 1u);
     if slot < arrayLength(&big_triangles) {
         big_triangles[slot] = BigTriangle(
             v0, n, v1, range.u_start, v2, range.v_start, range.width, range.height, count, pack_strips(sub),
-            n0, 0u, n1, 0u, n2, 0u,
+            n0, albedo.x, n1, albedo.y, n2, albedo.z,
         );
     }
     return none;

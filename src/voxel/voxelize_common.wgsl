@@ -19,6 +19,12 @@ const STRIPS_MAX_COARSE: u32 = #{STRIPS_MAX_COARSE}u;
 // pn.rs: MAX_PN_GAMMA_SCALE
 const MAX_PN_GAMMA_SCALE: f32 = 4.0;
 
+// attributes.rs: SAMPLE_WORDS, ALBEDO_SCALE, NORMAL_SCALE, MIRRORED_BIT
+const SAMPLE_WORDS: u32 = #{SAMPLE_WORDS}u;
+const ALBEDO_SCALE: f32 = 255.0;
+const NORMAL_SCALE: f32 = 1023.0;
+const MIRRORED_BIT: u32 = #{MIRRORED_BIT}u;
+
 // tessellation.rs: SubdivisionPattern (VoxelizeParams::pattern)
 const PATTERN_UNIFORM: u32 = 0u;
 const PATTERN_STRIPS: u32 = 1u;
@@ -61,7 +67,9 @@ struct VoxelizeParams {
     window_min: vec3<i32>,
     point_budget: u32,
     closed_max: vec3<i32>,
-    store_counts: u32,
+    // Words of a voxel's record in `point_counts`: 0 (none), 1 (the point count) or SAMPLE_WORDS (the count
+    // and the attribute sums; attributes.rs).
+    sample_words: u32,
     wrap: vec3<u32>,
     counter_base: u32,
     dims: vec3<u32>,
@@ -82,7 +90,8 @@ struct LevelRegion {
     window_min: vec3<i32>,
     pad_a: u32,
     wrap: vec3<u32>,
-    pad_b: u32,
+    // Words of a voxel's record in the frame's `point_counts` (see `VoxelizeParams`; the resolve pass).
+    sample_words: u32,
     // Cells of the level (its bits).
     dims: vec3<u32>,
     pad_c: u32,
@@ -93,8 +102,9 @@ struct LevelRegion {
 
 // A triangle that needs more than one point or crosses the grid boundary, queued by the classify pass for
 // the expand pass (src/voxel/pipelines.rs: `BIG_TRIANGLE_BYTES`): its vertices in their own order, its
-// coarse lattice range, `strips` packed with the diagonal (bit 29) and the apex (bits 30-31), and its
-// grid-space vertex normals for a PN triangle (zero for a flat one).
+// coarse lattice range, `strips` packed with the diagonal (bit 29) and the apex (bits 30-31), its
+// grid-space vertex normals for a PN triangle (zero for a flat one), and its corner albedos
+// (`triangle_albedo`).
 struct BigTriangle {
     a: vec3<f32>,
     n: u32,
@@ -107,11 +117,11 @@ struct BigTriangle {
     sub_triangle_count: u32,
     strips: u32,
     normal_a: vec3<f32>,
-    pad_a: u32,
+    albedo_a: u32,
     normal_b: vec3<f32>,
-    pad_b: u32,
+    albedo_b: u32,
     normal_c: vec3<f32>,
-    pad_c: u32,
+    albedo_c: u32,
 }
 
 // pn.rs: PnPatch. The ten control points of a PN triangle: b300, b030, b003, b210, b120, b021, b012, b102,
@@ -205,6 +215,82 @@ fn pack_strips(sub: Subdivision) -> u32 {
 // voxelize.rs: grid_space_position
 fn grid_space_position(m: mat4x3<f32>, p: vec3<f32>) -> vec3<f32> {
     return m[0] * p.x + m[1] * p.y + m[2] * p.z + m[3];
+}
+
+// attributes.rs: unit_byte. x in [0, 1] to a byte, rounded to nearest; NaN gives 0.
+fn unit_byte(x: f32) -> u32 {
+    if !(x > 0.0) {
+        return 0u;
+    }
+    if x >= 1.0 {
+        return 255u;
+    }
+    return u32(floor(0.5 + ALBEDO_SCALE * x));
+}
+
+// attributes.rs: pack_albedo
+fn pack_albedo(c: vec3<f32>) -> u32 {
+    return unit_byte(c.x) | (unit_byte(c.y) << 8u) | (unit_byte(c.z) << 16u);
+}
+
+// attributes.rs: unpack_albedo
+fn unpack_albedo(p: u32) -> vec3<f32> {
+    return vec3<f32>(f32(p & 255u), f32((p >> 8u) & 255u), f32((p >> 16u) & 255u)) / ALBEDO_SCALE;
+}
+
+// attributes.rs: corner_albedo
+fn corner_albedo(base: u32, vertex_color: vec4<f32>) -> u32 {
+    return pack_albedo(unpack_albedo(base) * vertex_color.xyz);
+}
+
+// attributes.rs: apex_weights. The weights of corners 0, 1, 2 of lattice point (a, b) along the edges from
+// corner `apex`.
+fn apex_weights(apex: u32, a: f32, b: f32) -> vec3<f32> {
+    var w = array<f32, 3>(0.0, 0.0, 0.0);
+    w[apex % 3u] = 1.0 - a - b;
+    w[(apex + 1u) % 3u] = a;
+    w[(apex + 2u) % 3u] = b;
+    return vec3<f32>(w[0], w[1], w[2]);
+}
+
+// attributes.rs: normalize_or_zero (glam's normalize_or_zero)
+fn normalize_or_zero(n: vec3<f32>) -> vec3<f32> {
+    let l = length(n);
+    let u = n / l;
+    if l > 0.0 && is_finite3(u) {
+        return u;
+    }
+    return vec3<f32>(0.0);
+}
+
+// attributes.rs: face_normal. `albedo_a`: the first corner albedo, with MIRRORED_BIT.
+fn face_normal(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>, albedo_a: u32) -> vec3<f32> {
+    let n = normalize_or_zero(cross(v1 - v0, v2 - v0));
+    if (albedo_a & MIRRORED_BIT) != 0u {
+        return -n;
+    }
+    return n;
+}
+
+// attributes.rs: interpolated_normal
+fn interpolated_normal(n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
+    return normalize_or_zero(n0 * w.x + n1 * w.y + n2 * w.z);
+}
+
+// attributes.rs: normal_fixed. A component in [-1, 1] in fixed point, as the bits of an i32; NaN gives 0.
+fn normal_fixed(x: f32) -> u32 {
+    if !(x == x) {
+        return 0u;
+    }
+    return bitcast<u32>(i32(floor(0.5 + NORMAL_SCALE * clamp(x, -1.0, 1.0))));
+}
+
+// attributes.rs: point_sample. What a point adds to its voxel's record after the count.
+fn point_sample(albedo: vec3<u32>, w: vec3<f32>, normal: vec3<f32>) -> array<u32, 6> {
+    let c = unpack_albedo(albedo.x) * w.x + unpack_albedo(albedo.y) * w.y + unpack_albedo(albedo.z) * w.z;
+    return array<u32, 6>(
+        unit_byte(c.x), unit_byte(c.y), unit_byte(c.z), normal_fixed(normal.x), normal_fixed(normal.y), normal_fixed(normal.z),
+    );
 }
 
 fn is_finite3(v: vec3<f32>) -> bool {
@@ -594,6 +680,13 @@ fn sub_triangle_centroid(v0: vec3<f32>, e1: vec3<f32>, e2: vec3<f32>, inv_3n: f3
     let a = f32(sum.x) * inv_3n;
     let b = f32(sum.y) * inv_3n;
     return v0 + e1 * a + e2 * b;
+}
+
+// attributes.rs: centroid_weights. The weights of corners 0, 1, 2 at a sub-triangle's centroid.
+fn centroid_weights(range: LatticeRange, sub: SubTriangle, apex: u32, inv_3n: f32) -> vec3<f32> {
+    let c = sub_triangle_corners(range, sub);
+    let sum = c[0] + c[1] + c[2];
+    return apex_weights(apex, f32(sum.x) * inv_3n, f32(sum.y) * inv_3n);
 }
 
 // tessellation.rs: lattice_point

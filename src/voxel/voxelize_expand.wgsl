@@ -56,7 +56,8 @@ fn expand(
         let range = LatticeRange(t.n, strips, diagonal, t.u_start, t.v_start, t.width, t.height, true);
         let sub = sub_triangle(range, g - offsets[lo]);
         if sub.valid {
-            inject_sub_triangle(t.a, t.b, t.c, t.normal_a, t.normal_b, t.normal_c, apex, range, sub);
+            let albedo = vec3<u32>(t.albedo_a, t.albedo_b, t.albedo_c);
+            inject_sub_triangle(t.a, t.b, t.c, t.normal_a, t.normal_b, t.normal_c, albedo, apex, range, sub);
         }
     }
     workgroupBarrier();

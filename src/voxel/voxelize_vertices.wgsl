@@ -5,7 +5,7 @@
 // `bevy_hao::cpu::skinning`, `TriangleMesh::triangle`.
 #define_import_path bevy_hao::voxelize_vertices
 
-#import bevy_hao::voxelize_common::{grid_space_position, is_finite3}
+#import bevy_hao::voxelize_common::{grid_space_position, is_finite3, normalize_or_zero, corner_albedo, MIRRORED_BIT}
 
 // One mesh instance (src/voxel/prepare.rs: `GpuOccluderInstance`).
 struct OccluderInstance {
@@ -34,8 +34,10 @@ struct OccluderInstance {
     normal_offset: u32,
     // 1: filled solid (voxelize_solid.wgsl).
     solid: u32,
-    pad_b: u32,
-    pad_c: u32,
+    // The word offset of the vertex colours (Float32x4) in a vertex (NO_COLORS: none), and the material's
+    // base colour, linear, packed (attributes.rs: pack_albedo).
+    color_offset: u32,
+    albedo: u32,
 }
 
 // The instances of this dispatch: those whose meshes live in the bound pair of slabs.
@@ -79,6 +81,7 @@ const INDEX_NONE: u32 = 0u;
 const NO_SKIN: u32 = #{NO_SKIN}u;
 const INDEX_U16: u32 = 1u;
 const NO_NORMALS: u32 = #{NO_NORMALS}u;
+const NO_COLORS: u32 = #{NO_COLORS}u;
 
 fn read_index(format: u32, element: u32) -> u32 {
     if format == INDEX_U16 {
@@ -182,16 +185,6 @@ fn normal_transform(m0: vec3<f32>, m1: vec3<f32>, m2: vec3<f32>, n: vec3<f32>) -
     return (c0 * n.x + c1 * n.y + c2 * n.z) * sign(det);
 }
 
-// n / |n|, or zero where that is not finite (glam's normalize_or_zero).
-fn normalize_or_zero(n: vec3<f32>) -> vec3<f32> {
-    let l = length(n);
-    let u = n / l;
-    if l > 0.0 && is_finite3(u) {
-        return u;
-    }
-    return vec3<f32>(0.0);
-}
-
 // A PN instance's vertex normal in grid space: morphed by the targets' normal displacements, skinned by the
 // vertex's skin matrix, then through the instance's grid_from_local. Zero if it cannot be had.
 fn vertex_normal(inst: OccluderInstance, vertex: u32) -> vec3<f32> {
@@ -212,6 +205,32 @@ fn vertex_normal(inst: OccluderInstance, vertex: u32) -> vec3<f32> {
 #endif
     let g = inst.grid_from_local;
     return normalize_or_zero(normal_transform(g[0], g[1], g[2], n));
+}
+
+fn read_color(inst: OccluderInstance, vertex: u32) -> vec4<f32> {
+    let base = (inst.vertex_start + vertex) * inst.vertex_stride + inst.color_offset;
+    return vec4<f32>(
+        bitcast<f32>(vertices[base]), bitcast<f32>(vertices[base + 1u]), bitcast<f32>(vertices[base + 2u]), bitcast<f32>(vertices[base + 3u])
+    );
+}
+
+// attributes.rs: MeshAlbedo::triangle. A corner's albedo: the base colour times its vertex colour.
+fn vertex_albedo(inst: OccluderInstance, vertex: u32) -> u32 {
+    if inst.color_offset == NO_COLORS {
+        return inst.albedo & 0xffffffu;
+    }
+    return corner_albedo(inst.albedo, read_color(inst, vertex));
+}
+
+// attributes.rs: TriangleAttributes::new. The triangle's corner albedos, the first marked MIRRORED_BIT
+// where the instance's transform mirrors.
+fn triangle_albedo(t: TriangleIndices) -> vec3<u32> {
+    var a = vec3<u32>(vertex_albedo(t.inst, t.index_a), vertex_albedo(t.inst, t.index_b), vertex_albedo(t.inst, t.index_c));
+    let g = t.inst.grid_from_local;
+    if dot(g[0], cross(g[1], g[2])) < 0.0 {
+        a.x |= MIRRORED_BIT;
+    }
+    return a;
 }
 
 // The instance holding triangle `t` of this dispatch: the last whose first_triangle <= t.

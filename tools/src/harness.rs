@@ -160,6 +160,17 @@ pub fn read_occupancy(app: &mut App) -> VoxelOccupancy {
     VoxelOccupancy::from_words(assets.grid, &words, None).expect("occupancy buffer too short")
 }
 
+/// The frame's occupancy with its per-voxel records (point counts, and with `VoxelVolume::attributes` the
+/// albedo and normal sums) as the GPU has them.
+pub fn read_records(app: &mut App) -> VoxelOccupancy {
+    let assets = grid_assets(app).expect("no voxel grid");
+    let bytes = read_buffer(app, assets.occupancy.clone(), 3);
+    let words: Vec<u32> = bytemuck::cast_slice(&bytes).to_vec();
+    let records = read_buffer(app, assets.point_counts.clone().expect("no point counts"), 3);
+    VoxelOccupancy::from_records(assets.grid, &words, bytemuck::cast_slice(&records), assets.sample_words)
+        .expect("record buffer too short")
+}
+
 /// The static grid's occupancy as the GPU has it.
 pub fn read_static_occupancy(app: &mut App) -> VoxelOccupancy {
     let assets = grid_assets(app).expect("no voxel grid");
@@ -285,20 +296,21 @@ pub fn median(mut v: Vec<f64>) -> Option<f64> {
 }
 
 /// Reads an image back (the first arrival at least `settle` frames after the call), without the 256-byte
-/// row padding. Returns `(width, height, bytes per texel, bytes)`.
+/// row padding. Returns `(width, height, bytes per texel, bytes)`; a 3D image's slices follow each other.
 pub fn read_image(app: &mut App, image: Handle<Image>, settle: usize) -> (u32, u32, u32, Vec<u8>) {
-    let (w, h, texel) = {
+    let (w, h, depth, texel) = {
         let images = app.world().resource::<Assets<Image>>();
         let img = images.get(&image).expect("image asset");
         let size = img.texture_descriptor.size;
         let texel = img.texture_descriptor.format.block_copy_size(None).expect("uncompressed format");
-        (size.width, size.height, texel)
+        (size.width, size.height, size.depth_or_array_layers, texel)
     };
     let data = read_back(app, Readback::texture(image), settle);
     let row = (w * texel) as usize;
     let padded = row.div_ceil(256) * 256;
-    let mut out = Vec::with_capacity(row * h as usize);
-    for y in 0..h as usize {
+    let rows = (h * depth) as usize;
+    let mut out = Vec::with_capacity(row * rows);
+    for y in 0..rows {
         out.extend_from_slice(&data[y * padded..y * padded + row]);
     }
     (w, h, texel, out)
@@ -379,6 +391,10 @@ pub mod args {
         StaticDynamic,
         /// Voxels tinted by cascade.
         Cascades,
+        /// Voxels colored by their average albedo (needs `VoxelVolume::attributes`).
+        Albedo,
+        /// Voxels colored by their average normal (needs `VoxelVolume::attributes`).
+        Normals,
     }
 
     impl From<View> for HaoDebugView {
@@ -390,6 +406,8 @@ pub mod args {
                 View::Counts => HaoDebugView::PointCounts,
                 View::StaticDynamic => HaoDebugView::StaticDynamic,
                 View::Cascades => HaoDebugView::Cascades,
+                View::Albedo => HaoDebugView::Albedo,
+                View::Normals => HaoDebugView::Normals,
             }
         }
     }

@@ -40,11 +40,14 @@
 //! both sides (the clip's weight channels, or the mesh's own weights), before skinning.
 
 use bevy::prelude::*;
+use bevy_hao::cpu::attributes::MeshAlbedo;
 use bevy_hao::cpu::*;
 use bevy_hao::prelude::*;
 use bevy_hao::{RebuildStaticVoxels, VoxelizeCounters};
 use bevy_hao_tools::meshes::load_mesh;
-use bevy_hao_tools::{compare, graze_split, ground_truth_mesh, ground_truth_mesh_with_cuts, watertight, write_binvox};
+use bevy_hao_tools::{
+    compare, graze_split, ground_truth_mesh, ground_truth_mesh_with_cuts, watertight, write_attribute_ply, write_binvox,
+};
 use clap::Parser;
 use std::time::Instant;
 
@@ -59,6 +62,7 @@ struct Args {
     gamma_sweep: bool,
     pn: bool,
     solid: bool,
+    attributes: bool,
     runs: usize,
     gpu: bool,
     max_memory_mb: u64,
@@ -113,6 +117,13 @@ struct Cli {
     /// `--gamma-sweep` or `--target-bias`.
     #[arg(long)]
     solid: bool,
+    /// Multi-valued voxels: each voxel also keeps the average albedo (an OBJ's material colours, `Kd`;
+    /// white for built-ins, glTF files and with `--pn`) and the average normal of its points. Adds the
+    /// columns `voxels with attributes`, `mean albedo` and `normal agreement` (the mean length of the voxels'
+    /// average normals: 1 where every voxel's points agree), and `--export` also writes `OUT.ply`, the
+    /// voxels' centres, normals and colours. With `--gpu` the GPU's sums are held against the CPU twin's.
+    #[arg(long)]
+    attributes: bool,
     /// Timed runs per measurement (the median is printed).
     #[arg(long, default_value_t = 5)]
     runs: usize,
@@ -149,6 +160,7 @@ fn parse_args() -> Result<Args, String> {
         gamma_sweep: c.gamma_sweep,
         pn: c.pn,
         solid: c.solid,
+        attributes: c.attributes,
         max_memory_mb: c.max_memory_mb,
         point_budget: c.point_budget,
         runs: c.runs.max(1),
@@ -185,13 +197,17 @@ fn parse_args() -> Result<Args, String> {
     }
     if a.gpu && a.solid {
         return Err(
-            "--solid runs on the CPU reference (the GPU voxelizer has no solid fill yet); leave out --gpu".into()
+            "--solid is measured on the CPU twin (the GPU tests hold the plugin's fill to it); leave out --gpu".into(),
         );
     }
     if a.gpu && a.pn {
         return Err(
-            "--pn runs on the CPU reference (the GPU voxelizer has no PN triangles yet); leave out --gpu".into()
+            "--pn is measured on the CPU twin (the GPU tests hold the plugin's PN triangles to it); leave out --gpu"
+                .into(),
         );
+    }
+    if a.gpu && a.attributes && a.animation.is_some() {
+        return Err("--attributes with --gpu voxelizes a mesh, not a posed glTF scene; leave out --animation".into());
     }
     if a.gpu && (a.gamma_sweep || a.target_bias.is_some()) {
         return Err("--gamma-sweep and --target-bias run on the CPU reference; leave out --gpu".into());
@@ -247,6 +263,7 @@ fn gpu_voxelize(
     res: u32,
     settings: &VoxelizeSettings,
     runs: usize,
+    attributes: Option<&[Vec4]>,
 ) -> Result<(VoxelOccupancy, VoxelizeCounters, Option<f64>, String), String> {
     if let GpuSource::Posed { path, clip, time } = source {
         return gpu_voxelize_posed(path, clip, time, bounds, res, settings, runs);
@@ -254,16 +271,33 @@ fn gpu_voxelize(
     let GpuSource::Mesh(mesh) = source else { unreachable!("handled above") };
     let positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
     let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-    let volume = gpu_volume(bounds, res, settings);
+    // With attributes: the vertex colours (white where there are none) under a white material.
+    let colors: Option<Vec<[f32; 4]>> =
+        attributes.map(|c| (0..positions.len()).map(|i| c.get(i).copied().unwrap_or(Vec4::ONE).to_array()).collect());
+    let volume = VoxelVolume { attributes: attributes.is_some(), ..gpu_volume(bounds, res, settings) };
     let mut app = bevy_hao_tools::harness::headless_app(move |app| {
-        app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
-            let m =
-                Mesh::new(bevy::mesh::PrimitiveTopology::TriangleList, bevy::asset::RenderAssetUsages::RENDER_WORLD)
-                    .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions.clone())
-                    .with_inserted_indices(bevy::mesh::Indices::U32(indices.clone()));
-            commands.spawn(volume);
-            commands.spawn((Mesh3d(meshes.add(m)), StaticOccluder));
-        });
+        app.add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>| {
+                let mut m = Mesh::new(
+                    bevy::mesh::PrimitiveTopology::TriangleList,
+                    bevy::asset::RenderAssetUsages::RENDER_WORLD,
+                )
+                .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions.clone())
+                .with_inserted_indices(bevy::mesh::Indices::U32(indices.clone()));
+                if let Some(c) = &colors {
+                    m.insert_attribute(Mesh::ATTRIBUTE_COLOR, c.clone());
+                }
+                commands.spawn(volume);
+                commands.spawn((
+                    Mesh3d(meshes.add(m)),
+                    MeshMaterial3d(materials.add(StandardMaterial::default())),
+                    StaticOccluder,
+                ));
+            },
+        );
     });
     let mut frames = 0;
     while !(bevy_hao_tools::harness::stats(&app).static_rebuilds >= 1
@@ -279,7 +313,11 @@ fn gpu_voxelize(
     if !errors.is_empty() {
         return Err(format!("wgpu errors: {errors:?}"));
     }
-    let occupancy = bevy_hao_tools::harness::read_occupancy(&mut app);
+    let occupancy = if attributes.is_some() {
+        bevy_hao_tools::harness::read_records(&mut app)
+    } else {
+        bevy_hao_tools::harness::read_occupancy(&mut app)
+    };
     let counters = bevy_hao_tools::harness::stats(&app).static_counters;
     // Each forced rebuild records one `hao/voxelize_static` span; read them from the diagnostic's history
     // once the last has had time to arrive.
@@ -309,6 +347,7 @@ fn gpu_volume(bounds: (Vec3, Vec3), res: u32, settings: &VoxelizeSettings) -> Vo
         subdivision: settings.pattern.into(),
         point_budget: u32::MAX,
         point_counts: false,
+        attributes: false,
     }
 }
 
@@ -443,12 +482,23 @@ fn main() {
     macro_rules! note {
         ($($arg:tt)*) => { bar.suspend(|| eprintln!($($arg)*)) };
     }
+    // Columns of the options that add them: --solid, --attributes.
+    let mut extra_header = String::new();
+    let mut extra_rule = String::new();
+    if args.solid {
+        extra_header += " inside voxels | open edges |";
+        extra_rule += "---:|---:|";
+    }
+    if args.attributes {
+        extra_header += " voxels with attributes | mean albedo | normal agreement |";
+        extra_rule += "---:|---|---:|";
+    }
     println!(
         "| mesh | res | grid | triangles | gamma | mode | pattern | points injected | estimated points | voxels set \
          | points per voxel | ground-truth voxels | bias % | grazed share of bias % | excess voxels | watertight \
-         | voxelize ms (median) | ground truth ms (median) |"
+         | voxelize ms (median) | ground truth ms (median) |{extra_header}"
     );
-    println!("|---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|");
+    println!("|---|---:|---|---:|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---:|{extra_rule}");
     let mut sweeps = Vec::new();
     let (mut failures, mut voxelized) = (0usize, false);
     for input in &args.inputs {
@@ -460,7 +510,7 @@ fn main() {
                     Ok((mesh, clip, warnings)) => {
                         let stem = path.file_stem().map_or_else(|| input.clone(), |s| s.to_string_lossy().into_owned());
                         let name = format!("{stem} (clip {clip} at {}s)", args.time);
-                        (bevy_hao_tools::meshes::LoadedMesh { name, mesh, warnings }, Some(clip))
+                        (bevy_hao_tools::meshes::LoadedMesh { name, mesh, warnings, albedo: None }, Some(clip))
                     }
                     Err(e) => {
                         note!("error: {e}");
@@ -479,11 +529,16 @@ fn main() {
         for w in &loaded.warnings {
             note!("warning: {}: {w}", loaded.name);
         }
-        // PN triangles need a normal per vertex: the welded mesh's, smooth.
+        // PN triangles need a normal per vertex: the welded mesh's, smooth (and its vertices are not the
+        // file's: its points sample white).
+        let vertex_albedo = if args.pn { None } else { loaded.albedo.clone() };
         let mesh = if args.pn { bevy_hao_tools::meshes::builtin::weld(loaded.mesh) } else { loaded.mesh };
+        let albedo = MeshAlbedo { base: 0x00ff_ffff, vertex_colors: vertex_albedo.as_deref() };
+        let mut open_edges = 0;
         let pn_normals = args.pn.then(|| smooth_vertex_normals(&mesh));
         if args.solid {
             let open = open_edge_count(&mesh);
+            open_edges = open;
             if open > 0 {
                 note!(
                     "warning: {}: not closed ({open} edges lack their twin); --solid leaves columns with an odd number of crossings hollow",
@@ -581,13 +636,19 @@ fn main() {
             let cut = VoxelOccupancy::new(grid, false);
             let check = VoxelOccupancy::new(grid, false);
             ground_truth_mesh_with_cuts(&mesh, to_grid, &check, Some(&cut));
+            let region = InjectionRegion::whole(grid.dims);
+            let fresh = || {
+                if args.attributes { VoxelOccupancy::with_attributes(grid) } else { VoxelOccupancy::new(grid, true) }
+            };
             for &pattern in &args.patterns {
-                let mut result = VoxelOccupancy::new(grid, true);
+                let mut result = fresh();
                 let run = |gamma: f32, runs: usize, result: &mut VoxelOccupancy| {
                     let settings = VoxelizeSettings { gamma, mode: args.mode, pattern };
                     median_ms(runs, result, |out| match &pn_normals {
-                        Some(normals) => voxelize_mesh_pn(&mesh, normals, to_grid, &settings, out),
-                        None => voxelize_mesh(&mesh, to_grid, &settings, out),
+                        Some(normals) => voxelize_sampled_mesh_pn_in_region(
+                            &mesh, normals, &albedo, to_grid, &settings, &region, out,
+                        ),
+                        None => voxelize_sampled_mesh_in_region(&mesh, &albedo, to_grid, &settings, &region, out),
                     })
                 };
                 let mut gamma = args.gamma;
@@ -625,21 +686,29 @@ fn main() {
                         Some(clip) => GpuSource::Posed { path: std::path::Path::new(input), clip, time: args.time },
                         None => GpuSource::Mesh(&mesh),
                     };
-                    match gpu_voxelize(source, (lo, hi), res, &settings, args.runs) {
+                    let colors = args.attributes.then_some(albedo.vertex_colors.unwrap_or(&[]));
+                    match gpu_voxelize(source, (lo, hi), res, &settings, args.runs, colors) {
                         Ok((occ, counters, t, adapter)) => {
                             if occ.grid() != &grid {
                                 note!("error: the GPU grid {:?} differs from the CPU's {:?}", occ.grid(), grid);
                                 std::process::exit(1);
                             }
                             // The CPU twin on the same mesh and grid: how many voxels the two disagree on.
-                            let twin = VoxelOccupancy::new(grid, false);
-                            voxelize_mesh(&mesh, to_grid, &settings, &twin);
+                            let twin = fresh();
+                            voxelize_sampled_mesh_in_region(&mesh, &albedo, to_grid, &settings, &region, &twin);
                             let (only_gpu, only_cpu) = (occ.count_not_in(&twin), twin.count_not_in(&occ));
                             note!(
                                 "  GPU vs CPU twin: {only_gpu} voxels only on the GPU, {only_cpu} only on the CPU, of {} ({:.3} per 1000)",
                                 twin.set_voxel_count(),
                                 1000.0 * (only_gpu + only_cpu) as f64 / twin.set_voxel_count().max(1) as f64
                             );
+                            if args.attributes {
+                                let (same, equal, worst) = compare_records(&occ, &twin);
+                                note!(
+                                    "  GPU vs CPU twin attributes: {same} voxels with the same point count, {equal} of them with equal sums; \
+                                     largest difference {worst} units (a point's rounding is 1)",
+                                );
+                            }
                             note!(
                                 "  GPU ({adapter}): {} triangles read, {} injected at once, {} queued for expansion, {} invalid, {} degenerate, {} oversize",
                                 counters.triangles,
@@ -669,6 +738,7 @@ fn main() {
                     }
                     (t, vstats.injected)
                 };
+                let mut extra = String::new();
                 if args.solid {
                     let f = fill_solid(&mesh, to_grid, &result);
                     note!(
@@ -676,6 +746,18 @@ fn main() {
                         f.filled,
                         f.crossings,
                         f.odd_columns
+                    );
+                    extra += &format!(" {} | {open_edges} |", f.filled);
+                }
+                if args.attributes {
+                    let (n, albedo_sum, agreement) = attribute_summary(&result);
+                    let mean = albedo_sum / n.max(1) as f32;
+                    extra += &format!(
+                        " {n} | {:.3} {:.3} {:.3} | {:.3} |",
+                        mean.x,
+                        mean.y,
+                        mean.z,
+                        agreement / n.max(1) as f32
                     );
                 }
                 let cmp = compare(&result, &truth);
@@ -691,7 +773,7 @@ fn main() {
                     format!("no ({} of {} rays leak)", wt.leaks, wt.rays)
                 };
                 println!(
-                    "| {} | {res} | {}x{}x{} | {} | {:.2} | {} | {pattern} | {} | {:.0} | {} | {:.2} | {} | {:.3} | {:.3} | {} | {} | {:.1} | {:.1} |",
+                    "| {} | {res} | {}x{}x{} | {} | {:.2} | {} | {pattern} | {} | {:.0} | {} | {:.2} | {} | {:.3} | {:.3} | {} | {} | {:.1} | {:.1} |{extra}",
                     loaded.name,
                     grid.dims.x,
                     grid.dims.y,
@@ -737,6 +819,18 @@ fn main() {
                             std::process::exit(1);
                         }
                     }
+                    if args.attributes {
+                        let ply = format!("{}.ply", path.strip_suffix(".binvox").unwrap_or(&path));
+                        let written = std::fs::File::create(&ply)
+                            .and_then(|f| write_attribute_ply(&result, &mut std::io::BufWriter::new(f)));
+                        match written {
+                            Ok(n) => note!("  wrote {ply} ({n} voxels with attributes)"),
+                            Err(e) => {
+                                note!("error: writing {ply}: {e}");
+                                std::process::exit(1);
+                            }
+                        }
+                    }
                 }
                 if args.gamma_sweep {
                     let mut rows = Vec::new();
@@ -780,6 +874,35 @@ fn main() {
         note!("error: {failures} mesh/resolution run(s) were refused (see above)");
         std::process::exit(1);
     }
+}
+
+/// Voxels with attributes, the sum of their average albedos and the sum of their average normals' lengths.
+fn attribute_summary(occ: &VoxelOccupancy) -> (u64, Vec3, f32) {
+    let (mut n, mut albedo, mut agreement) = (0u64, Vec3::ZERO, 0.0f32);
+    occ.for_each_set_index(|i| {
+        if let Some(a) = occ.attributes(occ.grid().cell_of_index(i)) {
+            n += 1;
+            albedo += a.albedo;
+            agreement += a.normal.length();
+        }
+    });
+    (n, albedo, agreement)
+}
+
+/// Of the voxels both grids set: how many have the same point count, how many of those the same sums, and
+/// the largest difference of a sum among them.
+fn compare_records(a: &VoxelOccupancy, b: &VoxelOccupancy) -> (u64, u64, i64) {
+    let (mut same, mut equal, mut worst) = (0u64, 0u64, 0i64);
+    for i in 0..a.grid().voxel_count() as u32 {
+        let (x, y) = (a.record(i), b.record(i));
+        if x[0] == 0 || x[0] != y[0] {
+            continue;
+        }
+        same += 1;
+        equal += (x == y) as u64;
+        worst = worst.max((1..7).map(|k| (x[k] as i32 as i64 - y[k] as i32 as i64).abs()).max().unwrap_or(0));
+    }
+    (same, equal, worst)
 }
 
 /// Advances the progress bar when a mesh/resolution run ends, however it ends.

@@ -107,6 +107,19 @@ impl ObjModel {
         self.groups.iter().map(|g| g.indices.len() / 3).sum()
     }
 
+    /// A linear albedo per vertex of [`Self::to_triangle_mesh`]: its group's material's diffuse colour
+    /// (`Kd`, as the scenes give it to `StandardMaterial::base_color`; white without a material). Diffuse
+    /// textures are not read.
+    pub fn vertex_albedo(&self) -> Vec<glam::Vec4> {
+        let mut out = Vec::new();
+        for g in &self.groups {
+            let m = g.material.as_ref().and_then(|name| self.materials.iter().find(|m| &m.name == name));
+            let c = m.map_or(glam::Vec4::ONE, |m| glam::Vec3::from(m.diffuse).extend(1.0));
+            out.extend(std::iter::repeat_n(c, g.positions.len()));
+        }
+        out
+    }
+
     /// All groups' triangles in one mesh (what the voxelizers need).
     pub fn to_triangle_mesh(&self) -> TriangleMesh {
         let mut positions = Vec::new();
