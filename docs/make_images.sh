@@ -15,6 +15,8 @@ run sibenik -- --headless --frames 30 --size $size --ao ssao --view ao --screens
 run sibenik -- --headless --frames 30 --size $size --view voxels --screenshot $out/cathedral_voxels.png
 run sibenik -- --headless --frames 30 --size $size --view counts --screenshot $out/cathedral_point_counts.png
 run sibenik -- --headless --frames 30 --size $size --view cascades --screenshot $out/cathedral_cascades.png
+run sibenik -- --headless --frames 30 --size $size --view albedo --screenshot $out/cathedral_albedo.png
+run sibenik -- --headless --frames 30 --size $size --view normals --screenshot $out/cathedral_normals.png
 run dynamic -- --headless --frames 60 --size $size --view static-dynamic --screenshot $out/dynamic_static_dynamic.png
 cargo run --release -p bevy_hao_tools --bin ao_compare -- --size 320x180 --rays 256 --out $out/ao_compare_cathedral.png
 # The window with the inspector (needs a display; xvfb-run provides one).

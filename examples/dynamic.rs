@@ -4,7 +4,7 @@
 //! a marker, voxelized in the pose Bevy draws it each frame).
 //!
 //! ```text
-//! cargo run --release --example dynamic -- [--view final|ao|voxels|counts|static-dynamic|cascades]
+//! cargo run --release --example dynamic -- [--view final|ao|voxels|counts|static-dynamic|cascades|albedo|normals]
 //!     [--character PATH.glb|.gltf [--clip NAME|INDEX] [--character-scale S]]
 //!     [--headless --frames 90 --screenshot OUT.png [--size 960x540]]
 //! ```
@@ -154,8 +154,15 @@ fn setup(
 ) {
     spawn_scene(&SceneSource::Builtin("cathedral".into()), &mut commands, &mut meshes, &mut materials, &server)
         .expect("built-in scene");
-    // The default volume (cascades following the camera), with point counts for the heat map view.
-    commands.spawn(VoxelVolume { point_counts: true, ..default() });
+    // The default volume (cascades following the camera), with point counts for the heat map view; the
+    // albedo and normal views need the voxels' attributes, whose sums must fit one storage binding (128 MiB
+    // on lavapipe): 3 cascades of 112^3 then.
+    if matches!(view.0, HaoDebugView::Albedo | HaoDebugView::Normals) {
+        let bounds = VolumeBounds::FollowCamera { cascades: 3, cells: 112, finest_cell_size: 0.125 };
+        commands.spawn(VoxelVolume { bounds, attributes: true, ..default() });
+    } else {
+        commands.spawn(VoxelVolume { point_counts: true, ..default() });
+    }
     commands.spawn(sun());
     let red = materials.add(StandardMaterial { base_color: Color::srgb(0.7, 0.2, 0.15), ..default() });
     let sphere = meshes.add(Sphere::new(0.8).mesh().uv(32, 16));

@@ -115,7 +115,8 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                 }
                 // The default volume (cascades that follow the camera), or with --res one grid fitted to the
                 // scene. Point counts for the heat map; the albedo and normal views need the voxels'
-                // attributes, which cost 64 bytes a voxel: 3 cascades of 128^3 rather than 4 of 192^3.
+                // attributes, whose sums (28 bytes a voxel) must fit one storage binding (128 MiB on
+                // lavapipe): 3 cascades of 112^3 rather than 4 of 192^3.
                 let attributes = matches!(args.view, HaoDebugView::Albedo | HaoDebugView::Normals);
                 commands.spawn(match args.res {
                     Some(n) => VoxelVolume {
@@ -126,7 +127,7 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                         ..default()
                     },
                     None if attributes => VoxelVolume {
-                        bounds: VolumeBounds::FollowCamera { cascades: 3, cells: 128, finest_cell_size: 0.125 },
+                        bounds: VolumeBounds::FollowCamera { cascades: 3, cells: 112, finest_cell_size: 0.125 },
                         attributes,
                         ..default()
                     },

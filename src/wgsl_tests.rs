@@ -177,7 +177,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 half_resolution,
                 denoise_radius,
                 accumulation_frames,
-                pad,
+                back_hits,
             ]
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),
@@ -343,7 +343,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 12] = [
+    let pairs: [(&str, &str, f64); 14] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -356,6 +356,8 @@ fn shared_constants_agree() {
         (common, "MAX_PN_GAMMA_SCALE", crate::cpu::pn::MAX_PN_GAMMA_SCALE as f64),
         (common, "ALBEDO_SCALE", crate::cpu::attributes::ALBEDO_SCALE as f64),
         (common, "NORMAL_SCALE", crate::cpu::attributes::NORMAL_SCALE as f64),
+        ("src/ao/hao_trace.wgsl", "BACK_HIT_COS", crate::cpu::ao::BACK_HIT_COS as f64),
+        ("src/ao/hao_trace.wgsl", "MAX_BACK_HITS", crate::cpu::ao::MAX_BACK_HITS as f64),
     ];
     for (path, name, rust) in pairs {
         let wgsl = wgsl_const(path, name);

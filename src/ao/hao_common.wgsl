@@ -17,7 +17,8 @@ struct HaoSettings {
     denoise_radius: u32,
     // Most frames of history a pixel keeps (1: none).
     accumulation_frames: u32,
-    pad_a: u32,
+    // 1: rays pass through voxels whose average normal faces along them (`ignore_back_hits`).
+    back_hits: u32,
 }
 
 const PI: f32 = 3.141592653589793;

@@ -9,13 +9,33 @@
     HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff,
     octahedral_encode, half_resolution_offset, history_accepts,
 }
-#import bevy_hao::voxel_grid::{voxel_grid, ray_start_level, march_cascades}
+#import bevy_hao::voxel_grid::{
+    voxel_grid, ray_start_level, march_cascades, level_position, voxel_normal_at, safe_inverse, ray_box,
+}
 
 @group(0) @binding(0) var depth_texture: texture_depth_2d;
 @group(0) @binding(1) var normal_texture: texture_2d<f32>;
 @group(0) @binding(2) var<uniform> settings: HaoSettings;
 @group(0) @binding(3) var ao_out: texture_storage_2d<rgba16float, write>;
 @group(1) @binding(0) var<uniform> view: View;
+
+// cpu/ao.rs: BACK_HIT_COS, MAX_BACK_HITS
+const BACK_HIT_COS: f32 = 0.5;
+const MAX_BACK_HITS: u32 = 4u;
+
+// cpu/ao.rs: back_hit_exit. Where a ray that hit the cell at `hit` (world distance, level) leaves that cell,
+// in the level's cells, if the cell's average normal faces along the ray (its back); else -1.
+fn back_hit_exit(origin: vec3<f32>, dir: vec3<f32>, hit: vec2<f32>) -> f32 {
+    let level = u32(hit.y);
+    let o = level_position(level, origin);
+    let t = hit.x / voxel_grid.levels[level].cell_size;
+    let cell = floor(o + dir * (t + 1.0e-3));
+    let n = voxel_normal_at(level, vec3<i32>(cell));
+    if dot(n, dir) <= BACK_HIT_COS {
+        return -1.0;
+    }
+    return ray_box(o, safe_inverse(dir), cell, cell + vec3<f32>(1.0)).y + 1.0e-3;
+}
 
 fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
     let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
@@ -76,7 +96,16 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         // The finest level that holds the surface (blended across its border), then coarser ones.
         let start = ray_start_level(world, i, rotation);
         let origin = world + normal * (settings.start_offset * voxel_grid.levels[start].cell_size);
-        let hit = march_cascades(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
+        var hit = march_cascades(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
+        // Through the backs of surfaces, a few times at most.
+        let back_hits = settings.back_hits != 0u && voxel_grid.attributes != 0u;
+        for (var k = 0u; k < MAX_BACK_HITS && back_hits && hit.x >= 0.0; k++) {
+            let exit = back_hit_exit(origin, dir, hit);
+            if exit < 0.0 {
+                break;
+            }
+            hit = march_cascades(origin, dir, u32(hit.y), exit, settings.max_distance, settings.steps);
+        }
         if hit.x >= 0.0 {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
             let cell = voxel_grid.levels[u32(hit.y)].cell_size;

@@ -38,8 +38,8 @@ pub struct GpuHaoSettings {
     pub denoise_radius: u32,
     /// Most frames of temporal history (1: none).
     pub accumulation_frames: u32,
-    /// Padding to 16 bytes.
-    pub pad: u32,
+    /// 1 to pass through voxels whose average normal faces along the ray.
+    pub back_hits: u32,
 }
 
 /// A view's HAO textures and settings.
@@ -140,7 +140,7 @@ pub fn prepare_hao_textures(
             half_resolution: half as u32,
             denoise_radius: hao.denoise_radius,
             accumulation_frames: hao.accumulation_frames,
-            pad: 0,
+            back_hits: hao.ignore_back_hits as u32,
         };
         let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {

@@ -97,6 +97,9 @@ pub fn ray_box(origin: Vec3, inv_dir: Vec3, lo: Vec3, hi: Vec3) -> Vec2 {
 pub struct VoxelMips {
     dims: UVec3,
     levels: Vec<(UVec3, Vec<bool>)>,
+    /// The cells' average normals as the normal texture holds them (8-bit signed), where the occupancy has
+    /// attributes.
+    normals: Option<Vec<Vec3>>,
 }
 
 impl VoxelMips {
@@ -131,7 +134,25 @@ impl VoxelMips {
             }
             out.push((s, cur));
         }
-        Self { dims, levels: out }
+        // The normal texture's precision: Rgba8Snorm.
+        let snorm = |v: Vec3| (v.clamp(Vec3::NEG_ONE, Vec3::ONE) * 127.0).round() / 127.0;
+        let normals = occ.has_attributes().then(|| {
+            (0..occ.grid().voxel_count() as u32)
+                .map(|i| occ.attributes(occ.grid().cell_of_index(i)).map_or(Vec3::ZERO, |a| snorm(a.normal)))
+                .collect()
+        });
+        Self { dims, levels: out, normals }
+    }
+
+    /// The average normal of cell `cell` as the normal texture holds it (WGSL: `voxel_normal_at`); zero
+    /// outside the grid or without attributes.
+    pub fn normal(&self, cell: IVec3) -> Vec3 {
+        let Some(n) = &self.normals else { return Vec3::ZERO };
+        if cell.cmplt(IVec3::ZERO).any() || cell.cmpge(self.dims.as_ivec3()).any() {
+            return Vec3::ZERO;
+        }
+        let c = cell.as_uvec3();
+        n[(c.x + self.dims.x * (c.y + self.dims.y * c.z)) as usize]
     }
 
     fn load(&self, texel: IVec3, level: usize) -> bool {
@@ -286,6 +307,27 @@ pub fn march_cascades(
     }
 }
 
+/// A voxel whose average normal has at least this cosine with a ray (facing along it) is the back of a
+/// surface to that ray: with [`TraceSettings::ignore_back_hits`] the ray passes through it. Only clearly
+/// back-facing voxels: both faces of a thin wall in one voxel cancel to a short normal, which occludes.
+/// (0.25 was also measured; see the README.)
+pub const BACK_HIT_COS: f32 = 0.5;
+/// How many backs of surfaces a ray passes through at most; the next voxel it hits occludes.
+pub const MAX_BACK_HITS: u32 = 4;
+
+/// Where a ray that hit the cell at `hit` (world distance, level) leaves that cell, in the level's cells, if
+/// the cell is the back of a surface to it ([`BACK_HIT_COS`]); `None` otherwise (WGSL: `back_hit_exit`).
+pub fn back_hit_exit(levels: &[TraceLevel], origin: Vec3, dir: Vec3, hit: (f32, usize)) -> Option<f32> {
+    let (t, level) = hit;
+    let lv = &levels[level];
+    let o = lv.level_position(origin);
+    let cell = (o + dir * (t / lv.cell_size + 1.0e-3)).floor();
+    if lv.mips.normal(cell.as_ivec3()).dot(dir) <= BACK_HIT_COS {
+        return None;
+    }
+    Some(ray_box(o, safe_inverse(dir), cell, cell + Vec3::ONE).y + 1.0e-3)
+}
+
 /// Settings of the voxel trace (WGSL `HaoSettings`, the parts the trace reads).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TraceSettings {
@@ -301,6 +343,8 @@ pub struct TraceSettings {
     pub intensity: f32,
     /// Rays start this many cells off the surface along its normal, and skip as many along their path.
     pub start_offset: f32,
+    /// Rays pass through the backs of surfaces ([`back_hit_exit`]), where the voxels have attributes.
+    pub ignore_back_hits: bool,
 }
 
 /// Voxel ambient occlusion at one world-space surface point (WGSL: the body of `trace`), through the levels
@@ -318,7 +362,16 @@ pub fn voxel_ambient_occlusion(
         let dir = hemisphere_direction(basis, i, s.rays, rotation);
         let start = ray_start_level(levels, world, i, rotation);
         let origin = world + normal * (s.start_offset * levels[start].cell_size);
-        if let Some((t, level)) = march_cascades(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps) {
+        let mut hit = march_cascades(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps);
+        // Through the backs of surfaces, a few times at most.
+        for _ in 0..MAX_BACK_HITS {
+            let Some(exit) = hit.filter(|_| s.ignore_back_hits).and_then(|h| back_hit_exit(levels, origin, dir, h))
+            else {
+                break;
+            };
+            hit = march_cascades(levels, origin, dir, hit.expect("a hit").1, exit, s.max_distance, s.steps);
+        }
+        if let Some((t, level)) = hit {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
             let d = (origin + dir * (t + 0.5 * levels[level].cell_size) - world).length();
             occlusion += ao_falloff(d, s.max_distance, s.falloff);
@@ -331,6 +384,19 @@ pub fn voxel_ambient_occlusion(
 mod tests {
     use super::*;
     use crate::cpu::VoxelGrid;
+
+    /// 64 rays of 64 steps reaching 8 cells, starting a cell off.
+    fn trace_settings(falloff: f32, ignore_back_hits: bool) -> TraceSettings {
+        TraceSettings {
+            rays: 64,
+            steps: 64,
+            max_distance: 8.0,
+            falloff,
+            intensity: 1.0,
+            start_offset: 1.0,
+            ignore_back_hits,
+        }
+    }
 
     #[test]
     fn hemisphere_directions_are_unit_cosine_weighted_and_above_the_surface() {
@@ -380,8 +446,7 @@ mod tests {
         let t = mips.march_level(Vec3::new(2.5, 5.5, 12.5), d, 0.0, 100.0, 2, 64).hit.unwrap();
         assert!(((Vec3::new(2.5, 5.5, 12.5) + d * t).x - 30.0).abs() < 0.01);
         // An open floor sees no occlusion; facing the wall from close by does.
-        let s =
-            TraceSettings { rays: 64, steps: 64, max_distance: 8.0, falloff: 1.0, intensity: 1.0, start_offset: 1.0 };
+        let s = trace_settings(1.0, true);
         let level = [TraceLevel { origin: Vec3::ZERO, cell_size: 1.0, window_min: IVec3::ZERO, mips: &mips }];
         let open = voxel_ambient_occlusion(&level, Vec3::new(10.5, 10.5, 10.5), -Vec3::X, Vec2::ZERO, &s);
         let near = voxel_ambient_occlusion(&level, Vec3::new(28.0, 10.5, 10.5), Vec3::X, Vec2::ZERO, &s);
@@ -415,8 +480,7 @@ mod tests {
         assert!(march_cascades(&levels, Vec3::new(20.0, 16.5, 16.5), Vec3::X, 0, 0.0, 8.0, 64).is_none());
         // A floor point just inside level 0's border, facing the wall across it, is occluded; deep inside the
         // level, facing away, it is open.
-        let s =
-            TraceSettings { rays: 64, steps: 64, max_distance: 8.0, falloff: 1.0, intensity: 1.0, start_offset: 1.0 };
+        let s = trace_settings(1.0, true);
         let near = voxel_ambient_occlusion(&levels, Vec3::new(29.0, 16.5, 16.5), Vec3::X, Vec2::new(0.3, 0.7), &s);
         let open = voxel_ambient_occlusion(&levels, Vec3::new(16.0, 16.5, 16.5), -Vec3::X, Vec2::new(0.3, 0.7), &s);
         assert!(near < 0.85, "{near}");
@@ -426,5 +490,47 @@ mod tests {
             .map(|i| ray_start_level(&levels, Vec3::new(16.0 * (i % 2) as f32, 16.0, 16.0), i, Vec2::ZERO))
             .collect();
         assert!(starts.iter().step_by(2).all(|&l| l == 1) && starts.iter().skip(1).step_by(2).all(|&l| l == 0));
+    }
+
+    #[test]
+    fn rays_pass_through_the_back_of_a_single_sided_surface_and_stop_at_its_front() {
+        use crate::cpu::attributes::MeshAlbedo;
+        use crate::cpu::{InjectionRegion, TriangleMesh, VoxelizeSettings, voxelize_sampled_mesh_in_region};
+        // A quad at y = 10.5 facing up (counter-clockwise seen from above), and a closed box beside it.
+        let quad = TriangleMesh::new(
+            vec![
+                Vec3::new(2.0, 10.5, 2.0),
+                Vec3::new(2.0, 10.5, 18.0),
+                Vec3::new(18.0, 10.5, 18.0),
+                Vec3::new(18.0, 10.5, 2.0),
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(20)).unwrap();
+        let occ = VoxelOccupancy::with_attributes(grid);
+        let region = InjectionRegion::whole(grid.dims);
+        let settings = VoxelizeSettings::default();
+        voxelize_sampled_mesh_in_region(&quad, &MeshAlbedo::WHITE, grid.grid_from_world(), &settings, &region, &occ);
+        let mips = VoxelMips::new(&occ, 3);
+        assert!(mips.normal(IVec3::new(10, 10, 10)).distance(Vec3::Y) < 0.01);
+        let level = [TraceLevel { origin: Vec3::ZERO, cell_size: 1.0, window_min: IVec3::ZERO, mips: &mips }];
+        let trace = |ignore_back_hits: bool, world: Vec3, normal: Vec3| {
+            let s = trace_settings(0.0, ignore_back_hits);
+            voxel_ambient_occlusion(&level, world, normal, Vec2::ZERO, &s)
+        };
+        // From below, looking up at the quad's back: occluded, unless back hits are ignored; then the rays
+        // within 60 degrees of its normal pass (a quarter of cosine-weighted rays are further off: they
+        // still stop).
+        let below = Vec3::new(10.0, 8.0, 10.0);
+        let (stopped, passed) = (trace(false, below, Vec3::Y), trace(true, below, Vec3::Y));
+        assert!(stopped < 0.1 && (0.65..0.85).contains(&passed), "{stopped} {passed}");
+        // From above, looking down at its front: occluded either way.
+        let above = Vec3::new(10.0, 13.0, 10.0);
+        assert!(trace(true, above, -Vec3::Y) < 0.2);
+        // Without attributes there are no normals: the setting changes nothing.
+        let plain = VoxelMips::new(&VoxelOccupancy::from_words(grid, &occ.words(), None).unwrap(), 3);
+        let level = [TraceLevel { origin: Vec3::ZERO, cell_size: 1.0, window_min: IVec3::ZERO, mips: &plain }];
+        let s = trace_settings(0.0, true);
+        assert!(voxel_ambient_occlusion(&level, below, Vec3::Y, Vec2::ZERO, &s) < 0.2);
     }
 }

@@ -110,12 +110,13 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
     } else if settings.mode == MODE_CASCADES {
         color = heat(f32(level) / 4.0) * 0.7 + vec3<f32>(0.3);
     } else if settings.mode == MODE_ALBEDO || settings.mode == MODE_NORMALS {
-        // Grey without attributes; magenta for a voxel without points (a solid's inside).
+        // Grey without attributes; a voxel without points (a solid's inside): magenta in the albedo view,
+        // black in the normals view (no unit normal is drawn darker than 0.2).
         color = vec3<f32>(0.5);
         if voxel_grid.attributes != 0u {
             let albedo = voxel_albedo_at(level, vec3<i32>(cell));
             if albedo.a == 0.0 {
-                color = vec3<f32>(0.8, 0.2, 0.8);
+                color = select(vec3<f32>(0.03), vec3<f32>(0.8, 0.2, 0.8), settings.mode == MODE_ALBEDO);
             } else if settings.mode == MODE_ALBEDO {
                 color = albedo.rgb;
             } else {

@@ -49,8 +49,8 @@ pub enum HaoDebugView {
     /// Voxels colored by their average albedo (multi-valued voxels; grey without
     /// `VoxelVolume::attributes`, magenta for a voxel without points, as inside a solid).
     Albedo,
-    /// Voxels colored by their average normal (`n * 0.5 + 0.5`, unshaded; darker where the points' normals
-    /// cancel). Needs `VoxelVolume::attributes`.
+    /// Voxels colored by their average normal (`n * 0.5 + 0.5`, unshaded; toward grey where the points'
+    /// normals cancel; black for a voxel without points). Needs `VoxelVolume::attributes`.
     Normals,
 }
 

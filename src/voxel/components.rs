@@ -232,8 +232,9 @@ pub struct VoxelVolume {
     ///
     /// Costs 64 bytes per voxel besides occupancy (two copies, static and frame, of the point count and six
     /// `u32` sums, and two 4-byte texels; includes [`Self::point_counts`]): 134 MB for one 128^3 grid, 403 MB
-    /// for 3 cascades of 128^3, 1.8 GB for the default 4 cascades of 192^3. Turned off with a warning where
-    /// one copy of the sums (28 bytes per voxel) exceeds the device's storage-binding limit.
+    /// for 3 cascades of 128^3, 1.8 GB for the default 4 cascades of 192^3. Turned off, with a logged error
+    /// naming the sizes, where one copy of the sums (28 bytes per voxel) exceeds the device's storage-binding
+    /// limit (128 MiB on lavapipe and WebGPU's defaults: at most 3 cascades of 112^3 or one 160^3 grid).
     pub attributes: bool,
 }
 

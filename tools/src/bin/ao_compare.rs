@@ -95,6 +95,13 @@ struct Args {
     /// The denoiser's radius (HybridAmbientOcclusion::denoise_radius).
     #[arg(long)]
     denoise: Option<u32>,
+    /// Multi-valued voxels (VoxelVolume::attributes): the voxels keep their average albedo and normal.
+    #[arg(long)]
+    attributes: bool,
+    /// Rays stop at the backs of surfaces too (HybridAmbientOcclusion::ignore_back_hits off; it is on by
+    /// default and acts only with --attributes).
+    #[arg(long, requires = "attributes")]
+    stop_at_back_hits: bool,
     /// The PNG written: HAO, HAO + near field, SSAO and the reference side by side.
     #[arg(long, default_value = "ao_compare.png")]
     out: String,
@@ -199,8 +206,10 @@ fn main() {
         near_field: false,
         accumulation_frames: args.accumulation,
         denoise_radius: args.denoise.unwrap_or(HybridAmbientOcclusion::default().denoise_radius),
+        ignore_back_hits: !args.stop_at_back_hits,
         ..default()
     };
+    let attributes = args.attributes;
     let accumulation = hao.sanitized().0.accumulation_frames as usize;
     let (size, res) = (args.size, args.res);
     let setup_source = source.clone();
@@ -237,16 +246,18 @@ fn main() {
                         bounds: VolumeBounds::FitStaticScene { margin },
                         resolution: VolumeResolution::Cells(res),
                         subdivision,
+                        attributes,
                         ..default()
                     });
                 } else if let Some((cascades, cells, finest_cell_size)) = cascades {
                     commands.spawn(VoxelVolume {
                         bounds: VolumeBounds::FollowCamera { cascades, cells, finest_cell_size },
                         subdivision,
+                        attributes,
                         ..default()
                     });
                 } else {
-                    commands.spawn(VoxelVolume { subdivision, ..default() });
+                    commands.spawn(VoxelVolume { subdivision, attributes, ..default() });
                 }
                 let mut outputs = Vec::new();
                 for k in 0..3 {
@@ -392,7 +403,15 @@ fn main() {
     } else {
         "cascades following the camera (the default: 4 of 192^3, finest cell 0.125)".to_string()
     };
-    let world = if args.world { ", inside a generated 1 km level" } else { "" };
+    let world = match (args.world, args.attributes, args.stop_at_back_hits) {
+        (w, true, stop) => format!(
+            "{}, with attributes (rays {} the backs of surfaces)",
+            if w { ", inside a generated 1 km level" } else { "" },
+            if stop { "stop at" } else { "pass through" }
+        ),
+        (true, false, _) => ", inside a generated 1 km level".to_string(),
+        _ => String::new(),
+    };
     println!(
         "HAO: {:?}, max distance {}, accumulation over {accumulation} frames (measured {settled} frames after the \
          scene settled), voxel volume: {volume}{world}; reference: {} rays per pixel\n",

@@ -65,8 +65,9 @@ struct Cli {
     /// Also measure the default cascades with a moving camera (walking, running, teleporting).
     #[arg(long)]
     cascades: bool,
-    /// Also measure the static voxelization with `VoxelFill::Solid` and with `PnTriangles` (on the welded
-    /// mesh's smooth normals).
+    /// Also measure the static voxelization with `VoxelFill::Solid`, with `PnTriangles` (on the welded
+    /// mesh's smooth normals), and with `VoxelVolume::attributes` (multi-valued voxels: albedo and normal
+    /// sums, and their resolve into two more textures).
     #[arg(long)]
     fills: bool,
 }
@@ -394,6 +395,23 @@ fn main() {
                     let points = bevy_hao_tools::harness::stats(&app).static_counters.sub_triangles as u64;
                     fills.push(("voxelize_static (PnTriangles, smooth normals)", p[0], p[2], points));
                     app.world_mut().entity_mut(e).remove::<PnTriangles>().insert(original);
+                    // Multi-valued voxels: the volume's assets are replaced, then the same rebuilds.
+                    let set_attributes = |app: &mut App, on: bool| {
+                        let before = bevy_hao_tools::harness::stats(app).static_rebuilds;
+                        app.world_mut().query::<&mut VoxelVolume>().single_mut(app.world_mut()).unwrap().attributes =
+                            on;
+                        let mut frames = 0;
+                        while bevy_hao_tools::harness::stats(app).static_rebuilds == before && frames < 60 {
+                            app.update();
+                            frames += 1;
+                        }
+                    };
+                    set_attributes(&mut app, true);
+                    let v = measure(&mut app, args.frames, true, &spans);
+                    let points = bevy_hao_tools::harness::stats(&app).static_counters.sub_triangles as u64;
+                    fills.push(("voxelize_static (VoxelVolume::attributes)", v[0], v[2], points));
+                    fills.push(("resolve (full grid, VoxelVolume::attributes)", v[1], v[2], points));
+                    set_attributes(&mut app, false);
                 }
                 app.world_mut().entity_mut(e).remove::<StaticOccluder>().insert(DynamicOccluder);
                 let b = measure(&mut app, args.frames, false, &["hao/voxelize_dynamic", "hao/resolve", prepass]);
