@@ -33,6 +33,7 @@ pub(crate) fn shader_defs() -> Vec<ShaderDefVal> {
         u("NO_COLORS", pipelines::NO_COLORS),
         u("SAMPLE_WORDS", crate::cpu::attributes::SAMPLE_WORDS),
         u("MIRRORED_BIT", crate::cpu::attributes::MIRRORED_BIT),
+        u("TWO_SIDED_BIT", crate::cpu::attributes::TWO_SIDED_BIT),
         u("VOXELIZE_WORKGROUP", pipelines::VOXELIZE_WORKGROUP),
         u("SCREEN_WORKGROUP", SCREEN_WORKGROUP),
     ]

@@ -781,12 +781,15 @@ fn mesh_with_colors(mesh: &TriangleMesh, normals: &[Vec3], colors: Option<&[Vec4
 /// sums equal the CPU twin's up to the rounding of each point's value, in both modes: a torus with a base
 /// colour, a dynamic sphere with vertex colours over a white material, a box mirrored by its transform,
 /// a PN icosphere, a huge triangle crossing the grid without a material (white: clipped, queued for the
-/// expand pass); the resolved textures hold the averages; each mesh's voxels have its colour, and the
-/// normals point out of the convex meshes, the mirrored one included.
+/// expand pass), a sphere with a double-sided material; the resolved textures hold the averages; each
+/// mesh's voxels have its colour, the normals point out of the convex meshes, the mirrored one included, and
+/// the double-sided sphere's voxels have none.
 #[test]
 fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
-    use bevy_hao::cpu::attributes::{MeshAlbedo, pack_albedo, resolve_sample};
+    use bevy_hao::cpu::attributes::{MeshAlbedo, TWO_SIDED_BIT, pack_albedo, resolve_sample};
     let _gpu = gpu_lock();
+    // The scene's item with a double-sided material.
+    const TWO_SIDED: usize = 5;
     let linear = |c: Color| {
         let l = c.to_linear();
         Vec3::new(l.red, l.green, l.blue)
@@ -832,6 +835,14 @@ fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
             false,
             false,
         ),
+        (
+            sphere.clone(),
+            Transform::from_xyz(2.0, 2.2, -1.3).with_scale(Vec3::splat(0.7)),
+            Some(Color::srgb(0.9, 0.9, 0.2)),
+            None,
+            false,
+            false,
+        ),
     ];
     for injection in [VoxelInjection::Centroid, VoxelInjection::Conservative] {
         let spawned = scene.clone();
@@ -842,11 +853,21 @@ fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
                       mut meshes: ResMut<Assets<Mesh>>,
                       mut materials: ResMut<Assets<StandardMaterial>>| {
                     commands.spawn(VoxelVolume { attributes: true, ..volume(4.0, 64, injection) });
-                    for (mesh, transform, color, colors, pn, dynamic) in &spawned {
+                    for (k, (mesh, transform, color, colors, pn, dynamic)) in spawned.iter().enumerate() {
                         let m = mesh_with_colors(mesh, &outward(mesh), colors.as_deref());
                         let mut e = commands.spawn((Mesh3d(meshes.add(m)), *transform));
                         if let Some(c) = color {
-                            e.insert(MeshMaterial3d(materials.add(StandardMaterial { base_color: *c, ..default() })));
+                            let (double_sided, cull_mode) = if k == TWO_SIDED {
+                                (true, None)
+                            } else {
+                                (false, StandardMaterial::default().cull_mode)
+                            };
+                            e.insert(MeshMaterial3d(materials.add(StandardMaterial {
+                                base_color: *c,
+                                double_sided,
+                                cull_mode,
+                                ..default()
+                            })));
                         }
                         if *pn {
                             e.insert(PnTriangles);
@@ -867,10 +888,11 @@ fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
         let grid = assets.grid;
         let cpu = VoxelOccupancy::with_attributes(grid);
         let region = cpu::InjectionRegion::whole(grid.dims);
-        for (mesh, transform, color, colors, pn, _) in &scene {
+        for (k, (mesh, transform, color, colors, pn, _)) in scene.iter().enumerate() {
             let to_grid = grid.grid_from_world() * GlobalTransform::from(*transform).affine();
+            let two_sided = if k == TWO_SIDED { TWO_SIDED_BIT } else { 0 };
             let albedo = MeshAlbedo {
-                base: color.map_or(0x00ff_ffff, |c| pack_albedo(linear(c))),
+                base: color.map_or(0x00ff_ffff, |c| pack_albedo(linear(c))) | two_sided,
                 vertex_colors: colors.as_deref(),
             };
             if *pn {
@@ -918,7 +940,7 @@ fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
         // Each mesh's voxels carry its albedo, and its normals point out of it (the torus's inner side does
         // not point away from its centre: colour only).
         let cell_world = |i: u32| grid.cell_center_world(grid.cell_of_index(i));
-        for (k, (mesh, transform, color, colors, _, _)) in scene.iter().enumerate().take(4) {
+        for (k, (mesh, transform, color, colors, _, _)) in scene.iter().enumerate().filter(|(k, _)| *k != 4) {
             let (lo, hi) = mesh.bounds().unwrap();
             let center = transform.transform_point((lo + hi) * 0.5);
             let radius = 0.25 * (hi - lo).min_element() * transform.scale.abs().min_element();
@@ -947,7 +969,11 @@ fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
             }
             println!("mesh {k}: {n} voxels, {out} with outward normals, {colour_ok} with the material's colour");
             assert!(n > 50, "mesh {k}: {n}");
-            assert!(k == 0 || out * 10 >= n * 9, "mesh {k}: {out} of {n} normals point out");
+            if k == TWO_SIDED {
+                assert_eq!(out, 0, "mesh {k}: a double-sided material adds no normal");
+            } else {
+                assert!(k == 0 || out * 10 >= n * 9, "mesh {k}: {out} of {n} normals point out");
+            }
             assert_eq!(colour_ok, n, "mesh {k}: albedo");
         }
 

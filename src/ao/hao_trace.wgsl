@@ -29,7 +29,8 @@ fn back_hit_exit(origin: vec3<f32>, dir: vec3<f32>, hit: vec2<f32>) -> f32 {
     let level = u32(hit.y);
     let o = level_position(level, origin);
     let t = hit.x / voxel_grid.levels[level].cell_size;
-    let cell = floor(o + dir * (t + 1.0e-3));
+    // The cell the march found occupied (the point it stopped at).
+    let cell = floor(o + dir * t);
     let n = voxel_normal_at(level, vec3<i32>(cell));
     if dot(n, dir) <= BACK_HIT_COS {
         return -1.0;

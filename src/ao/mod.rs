@@ -239,9 +239,10 @@ pub struct HybridAmbientOcclusion {
     /// With multi-valued voxels ([`crate::VoxelVolume::attributes`]): a ray passes through a voxel whose
     /// average normal clearly faces along it (the back of a surface, which a ray reaches only from inside a
     /// solid, grazing the voxels of its own surface, or behind single-sided geometry) instead of stopping
-    /// there (see `bevy_hao::cpu::ao::back_hit_exit`). On by default: against the ray-traced reference it
-    /// lowered HAO's error on the cathedral, Sibenik and Sponza in a fitted grid and in cascades (README).
-    /// No effect without attributes.
+    /// there (see `bevy_hao::cpu::ao::back_hit_exit`). Voxels of double-sided materials have no normal and
+    /// always stop rays; single-sided geometry seen from behind does not. On by default: against the
+    /// ray-traced reference it lowered HAO's error on the cathedral, Sibenik and Sponza in a fitted grid and
+    /// in cascades (README). No effect without attributes.
     pub ignore_back_hits: bool,
 }
 

@@ -144,14 +144,14 @@ impl VoxelMips {
         Self { dims, levels: out, normals }
     }
 
-    /// The average normal of cell `cell` as the normal texture holds it (WGSL: `voxel_normal_at`); zero
-    /// outside the grid or without attributes.
+    /// The average normal of cell `cell` as the normal texture holds it (WGSL: `voxel_normal_at`): clamped
+    /// to the padded texture, zero in its padding and without attributes.
     pub fn normal(&self, cell: IVec3) -> Vec3 {
         let Some(n) = &self.normals else { return Vec3::ZERO };
-        if cell.cmplt(IVec3::ZERO).any() || cell.cmpge(self.dims.as_ivec3()).any() {
+        let c = cell.clamp(IVec3::ZERO, self.levels[0].0.as_ivec3() - IVec3::ONE).as_uvec3();
+        if c.cmpge(self.dims).any() {
             return Vec3::ZERO;
         }
-        let c = cell.as_uvec3();
         n[(c.x + self.dims.x * (c.y + self.dims.y * c.z)) as usize]
     }
 
@@ -312,7 +312,9 @@ pub fn march_cascades(
 /// back-facing voxels: both faces of a thin wall in one voxel cancel to a short normal, which occludes.
 /// (0.25 was also measured; see the README.)
 pub const BACK_HIT_COS: f32 = 0.5;
-/// How many backs of surfaces a ray passes through at most; the next voxel it hits occludes.
+/// How many backs of surfaces a ray passes through at most; the next voxel it hits occludes. Each pass
+/// restarts the march with the full `steps` budget, so a ray may visit up to `(MAX_BACK_HITS + 1) * steps`
+/// texels.
 pub const MAX_BACK_HITS: u32 = 4;
 
 /// Where a ray that hit the cell at `hit` (world distance, level) leaves that cell, in the level's cells, if
@@ -321,7 +323,8 @@ pub fn back_hit_exit(levels: &[TraceLevel], origin: Vec3, dir: Vec3, hit: (f32, 
     let (t, level) = hit;
     let lv = &levels[level];
     let o = lv.level_position(origin);
-    let cell = (o + dir * (t / lv.cell_size + 1.0e-3)).floor();
+    // The cell the march found occupied (the point it stopped at).
+    let cell = (o + dir * (t / lv.cell_size)).floor();
     if lv.mips.normal(cell.as_ivec3()).dot(dir) <= BACK_HIT_COS {
         return None;
     }

@@ -29,6 +29,10 @@ pub const NORMAL_SCALE: f32 = 1023.0;
 /// Set in the first corner albedo of a triangle whose transform mirrors (negative determinant): its face
 /// normal is turned around, as the renderer turns the vertex normals (their inverse transpose) around.
 pub const MIRRORED_BIT: u32 = 1 << 24;
+/// Set in a material's packed base colour ([`MeshAlbedo::base`]) and a triangle's first corner albedo when
+/// the material is drawn from both sides (`StandardMaterial::double_sided`, or no `cull_mode`): its points
+/// add no normal, since either side is a front, so its voxels never read as a back to a ray.
+pub const TWO_SIDED_BIT: u32 = 1 << 25;
 
 /// `x` in [0, 1] to a byte, rounding to nearest (WGSL `unit_byte`; NaN gives 0).
 #[inline]
@@ -39,7 +43,7 @@ pub fn unit_byte(x: f32) -> u32 {
     if x >= 1.0 {
         return 255;
     }
-    (0.5 + ALBEDO_SCALE * x).floor() as u32
+    ((0.5 + ALBEDO_SCALE * x).floor() as u32).min(255)
 }
 
 /// A linear colour packed to 8 bits per channel, red in the low byte, the fourth byte zero (WGSL
@@ -59,11 +63,11 @@ pub fn unpack_albedo(p: u32) -> Vec3 {
 /// `corner_albedo`).
 #[inline]
 pub fn corner_albedo(base: u32, vertex_color: Vec4) -> u32 {
-    pack_albedo(unpack_albedo(base) * vertex_color.truncate())
+    pack_albedo(unpack_albedo(base) * vertex_color.truncate()) & 0x00ff_ffff
 }
 
 /// What a triangle's points sample: its corner albedos ([`corner_albedo`]), the first with
-/// [`MIRRORED_BIT`] if its transform mirrors.
+/// [`MIRRORED_BIT`] if its transform mirrors and [`TWO_SIDED_BIT`] if its material is double-sided.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TriangleAttributes {
     /// Packed corner albedos, in the triangle's vertex order.
@@ -87,7 +91,8 @@ impl TriangleAttributes {
 /// The albedo of a mesh's triangles: a base colour for all and, optionally, a colour per vertex.
 #[derive(Clone, Copy, Debug)]
 pub struct MeshAlbedo<'a> {
-    /// The material's base colour, linear, packed by [`pack_albedo`].
+    /// The material's base colour, linear, packed by [`pack_albedo`], with [`TWO_SIDED_BIT`] for a
+    /// double-sided material.
     pub base: u32,
     /// Linear vertex colours, one per position (`Mesh::ATTRIBUTE_COLOR`).
     pub vertex_colors: Option<&'a [Vec4]>,
@@ -103,7 +108,9 @@ impl MeshAlbedo<'_> {
             Some(c) => corner_albedo(self.base, c.get(i as usize).copied().unwrap_or(Vec4::ONE)),
             None => self.base & 0x00ff_ffff,
         };
-        TriangleAttributes::new(tri.map(corner), grid_from_local)
+        let mut t = TriangleAttributes::new(tri.map(corner), grid_from_local);
+        t.albedo[0] |= self.base & TWO_SIDED_BIT;
+        t
     }
 }
 
@@ -159,11 +166,12 @@ pub fn normal_fixed(x: f32) -> u32 {
 }
 
 /// What one point adds to a voxel's record after its count: the albedo interpolated at weights `w` and the
-/// normal, in fixed point (WGSL `point_sample`).
+/// normal (none for a double-sided material), in fixed point (WGSL `point_sample`).
 #[inline]
 pub fn point_sample(attributes: &TriangleAttributes, w: Vec3, normal: Vec3) -> [u32; 6] {
     let [a, b, c] = attributes.albedo.map(unpack_albedo);
     let albedo = a * w.x + b * w.y + c * w.z;
+    let normal = if attributes.albedo[0] & TWO_SIDED_BIT != 0 { Vec3::ZERO } else { normal };
     [
         unit_byte(albedo.x),
         unit_byte(albedo.y),

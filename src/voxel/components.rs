@@ -224,17 +224,18 @@ pub struct VoxelVolume {
     /// `voxel_normal` in `voxel_grid.wgsl`), for the static and the dynamic geometry and in every cascade.
     ///
     /// A point's albedo is its mesh's `StandardMaterial::base_color` times the vertex colour
-    /// (`Mesh::ATTRIBUTE_COLOR`) where there is one; a `base_color_texture` counts by its mean colour (of
-    /// the image's first mip, where it is 8-bit RGBA in main-world memory; other materials count white).
-    /// A point's normal is its triangle's face normal (counter-clockwise front faces), or for
-    /// [`crate::PnTriangles`] the interpolated vertex normal. Voxels filled by [`crate::VoxelFill::Solid`]
-    /// have no points: no albedo and no normal.
+    /// (`Mesh::ATTRIBUTE_COLOR`) where there is one; a `base_color_texture` multiplies it by the texture's
+    /// mean colour (of the image's first mip, where that is 8-bit RGBA in main-world memory; computed once per
+    /// image). Meshes with other materials count white. A point's normal is its triangle's face normal
+    /// (counter-clockwise front faces), or for [`crate::PnTriangles`] the interpolated vertex normal; a
+    /// double-sided material (`double_sided` or no `cull_mode`) adds no normal, so its voxels always occlude.
+    /// Voxels filled by [`crate::VoxelFill::Solid`] have no points: no albedo and no normal.
     ///
     /// Costs 64 bytes per voxel besides occupancy (two copies, static and frame, of the point count and six
     /// `u32` sums, and two 4-byte texels; includes [`Self::point_counts`]): 134 MB for one 128^3 grid, 403 MB
-    /// for 3 cascades of 128^3, 1.8 GB for the default 4 cascades of 192^3. Turned off, with a logged error
-    /// naming the sizes, where one copy of the sums (28 bytes per voxel) exceeds the device's storage-binding
-    /// limit (128 MiB on lavapipe and WebGPU's defaults: at most 3 cascades of 112^3 or one 160^3 grid).
+    /// for 3 cascades of 128^3, 1.8 GB for the default 4 cascades of 192^3. Turned off, with a warning naming
+    /// the sizes, where one copy of the sums (28 bytes per voxel) exceeds the device's storage-binding limit
+    /// (128 MiB on lavapipe and WebGPU's defaults: 3 cascades of 112^3 or one 168^3 grid fit).
     pub attributes: bool,
 }
 

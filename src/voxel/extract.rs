@@ -118,8 +118,8 @@ pub fn extract_voxel_occluders(
     meshes: Extract<Res<Assets<Mesh>>>,
     (grid, materials, images): (
         Extract<Option<Res<VoxelGridAssets>>>,
-        Extract<Res<Assets<StandardMaterial>>>,
-        Extract<Res<Assets<Image>>>,
+        Extract<Option<Res<Assets<StandardMaterial>>>>,
+        Extract<Option<Res<Assets<Image>>>>,
     ),
     mut checked: Local<HashSet<(AssetId<Mesh>, Option<u32>)>>,
     mut warned_morph: Local<bool>,
@@ -162,8 +162,10 @@ pub fn extract_voxel_occluders(
             morphed,
             pn,
             solid: fill == Some(&VoxelFill::Solid),
-            albedo: match material {
-                Some(m) if attributes => material_albedo(m, &materials, &images, &mut texture_means),
+            albedo: match (material, materials.as_deref(), images.as_deref()) {
+                (Some(m), Some(materials), Some(images)) if attributes => {
+                    material_albedo(m, materials, images, &mut texture_means)
+                }
                 _ => WHITE,
             },
         };
@@ -186,8 +188,9 @@ const TEXTURE_MEAN_SAMPLES: usize = 1 << 16;
 
 /// A material's albedo for multi-valued voxels, linear, packed: `base_color`, times the mean colour of
 /// `base_color_texture` where that image is 8-bit RGBA (sRGB or linear) with its data in the main world
-/// (otherwise the factor alone). Means are computed once per image, from at most
-/// [`TEXTURE_MEAN_SAMPLES`] pixels of its first mip.
+/// (otherwise the factor alone), with [`crate::cpu::attributes::TWO_SIDED_BIT`] for a material drawn from
+/// both sides. Means are computed once per image (an image changed later keeps its first mean), from at
+/// most [`TEXTURE_MEAN_SAMPLES`] pixels of its first mip.
 pub fn material_albedo(
     material: &MeshMaterial3d<StandardMaterial>,
     materials: &Assets<StandardMaterial>,
@@ -211,7 +214,8 @@ pub fn material_albedo(
         };
         albedo *= mean.unwrap_or(Vec3::ONE);
     }
-    crate::cpu::attributes::pack_albedo(albedo)
+    let two_sided = m.double_sided || m.cull_mode.is_none();
+    crate::cpu::attributes::pack_albedo(albedo) | if two_sided { crate::cpu::attributes::TWO_SIDED_BIT } else { 0 }
 }
 
 /// The mean linear colour of an 8-bit RGBA image's first mip, from evenly spaced pixels.

@@ -273,28 +273,28 @@ pub(crate) fn update_voxel_volume(
     }
     let mut attributes = volume.attributes;
     let attribute_bytes = voxel_bytes * SAMPLE_WORDS as u64;
+    // Fallbacks, not refusals: warned once each (the grid is still built).
+    let mut fallback = |msg: String| {
+        if warned.insert(msg.clone()) {
+            warn!("{msg}");
+        }
+    };
     if attributes && attribute_bytes > binding_limit {
-        report(
-            &mut reported,
-            format!(
-                "bevy_hao: per-voxel albedo and normal sums for {levels} level(s) of {}x{}x{} need {attribute_bytes} \
+        fallback(format!(
+            "bevy_hao: per-voxel albedo and normal sums for {levels} level(s) of {}x{}x{} need {attribute_bytes} \
                  bytes, over the device's Limits::max_storage_buffer_binding_size ({}); VoxelVolume::attributes is \
                  off (lower the resolution or the cascades)",
-                grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
-            ),
-        );
+            grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
+        ));
         attributes = false;
     }
     let mut point_counts = volume.point_counts || attributes;
     if point_counts && voxel_bytes > binding_limit {
-        report(
-            &mut reported,
-            format!(
-                "bevy_hao: per-voxel point counts for {levels} level(s) of {}x{}x{} need {voxel_bytes} bytes, over the \
+        fallback(format!(
+            "bevy_hao: per-voxel point counts for {levels} level(s) of {}x{}x{} need {voxel_bytes} bytes, over the \
                  device's Limits::max_storage_buffer_binding_size ({}); point counts are off",
-                grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
-            ),
-        );
+            grid.dims.x, grid.dims.y, grid.dims.z, limits.max_storage_buffer_binding_size
+        ));
         point_counts = false;
     }
     let sample_words = if attributes { SAMPLE_WORDS } else { point_counts as u32 };

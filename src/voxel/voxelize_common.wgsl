@@ -19,11 +19,12 @@ const STRIPS_MAX_COARSE: u32 = #{STRIPS_MAX_COARSE}u;
 // pn.rs: MAX_PN_GAMMA_SCALE
 const MAX_PN_GAMMA_SCALE: f32 = 4.0;
 
-// attributes.rs: SAMPLE_WORDS, ALBEDO_SCALE, NORMAL_SCALE, MIRRORED_BIT
+// attributes.rs: SAMPLE_WORDS, ALBEDO_SCALE, NORMAL_SCALE, MIRRORED_BIT, TWO_SIDED_BIT
 const SAMPLE_WORDS: u32 = #{SAMPLE_WORDS}u;
 const ALBEDO_SCALE: f32 = 255.0;
 const NORMAL_SCALE: f32 = 1023.0;
 const MIRRORED_BIT: u32 = #{MIRRORED_BIT}u;
+const TWO_SIDED_BIT: u32 = #{TWO_SIDED_BIT}u;
 
 // tessellation.rs: SubdivisionPattern (VoxelizeParams::pattern)
 const PATTERN_UNIFORM: u32 = 0u;
@@ -225,7 +226,8 @@ fn unit_byte(x: f32) -> u32 {
     if x >= 1.0 {
         return 255u;
     }
-    return u32(floor(0.5 + ALBEDO_SCALE * x));
+    // Capped: a driver may assume no NaN and let one through the tests above.
+    return min(u32(floor(0.5 + ALBEDO_SCALE * x)), 255u);
 }
 
 // attributes.rs: pack_albedo
@@ -240,7 +242,7 @@ fn unpack_albedo(p: u32) -> vec3<f32> {
 
 // attributes.rs: corner_albedo
 fn corner_albedo(base: u32, vertex_color: vec4<f32>) -> u32 {
-    return pack_albedo(unpack_albedo(base) * vertex_color.xyz);
+    return pack_albedo(unpack_albedo(base) * vertex_color.xyz) & 0xffffffu;
 }
 
 // attributes.rs: apex_weights. The weights of corners 0, 1, 2 of lattice point (a, b) along the edges from
@@ -285,9 +287,14 @@ fn normal_fixed(x: f32) -> u32 {
     return bitcast<u32>(i32(floor(0.5 + NORMAL_SCALE * clamp(x, -1.0, 1.0))));
 }
 
-// attributes.rs: point_sample. What a point adds to its voxel's record after the count.
-fn point_sample(albedo: vec3<u32>, w: vec3<f32>, normal: vec3<f32>) -> array<u32, 6> {
+// attributes.rs: point_sample. What a point adds to its voxel's record after the count (no normal for a
+// double-sided material).
+fn point_sample(albedo: vec3<u32>, w: vec3<f32>, normal_in: vec3<f32>) -> array<u32, 6> {
     let c = unpack_albedo(albedo.x) * w.x + unpack_albedo(albedo.y) * w.y + unpack_albedo(albedo.z) * w.z;
+    var normal = normal_in;
+    if (albedo.x & TWO_SIDED_BIT) != 0u {
+        normal = vec3<f32>(0.0);
+    }
     return array<u32, 6>(
         unit_byte(c.x), unit_byte(c.y), unit_byte(c.z), normal_fixed(normal.x), normal_fixed(normal.y), normal_fixed(normal.z),
     );

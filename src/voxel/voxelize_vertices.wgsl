@@ -5,7 +5,9 @@
 // `bevy_hao::cpu::skinning`, `TriangleMesh::triangle`.
 #define_import_path bevy_hao::voxelize_vertices
 
-#import bevy_hao::voxelize_common::{grid_space_position, is_finite3, normalize_or_zero, corner_albedo, MIRRORED_BIT}
+#import bevy_hao::voxelize_common::{
+    grid_space_position, is_finite3, normalize_or_zero, corner_albedo, MIRRORED_BIT, TWO_SIDED_BIT,
+}
 
 // One mesh instance (src/voxel/prepare.rs: `GpuOccluderInstance`).
 struct OccluderInstance {
@@ -222,14 +224,15 @@ fn vertex_albedo(inst: OccluderInstance, vertex: u32) -> u32 {
     return corner_albedo(inst.albedo, read_color(inst, vertex));
 }
 
-// attributes.rs: TriangleAttributes::new. The triangle's corner albedos, the first marked MIRRORED_BIT
-// where the instance's transform mirrors.
+// attributes.rs: MeshAlbedo::triangle. The triangle's corner albedos, the first marked MIRRORED_BIT where
+// the instance's transform mirrors and TWO_SIDED_BIT where its material is double-sided.
 fn triangle_albedo(t: TriangleIndices) -> vec3<u32> {
     var a = vec3<u32>(vertex_albedo(t.inst, t.index_a), vertex_albedo(t.inst, t.index_b), vertex_albedo(t.inst, t.index_c));
     let g = t.inst.grid_from_local;
     if dot(g[0], cross(g[1], g[2])) < 0.0 {
         a.x |= MIRRORED_BIT;
     }
+    a.x |= t.inst.albedo & TWO_SIDED_BIT;
     return a;
 }
 

@@ -1,7 +1,8 @@
 //! The attribute sidecar of a voxel grid: multi-valued voxels ([`bevy_hao::cpu::attributes`]) as a binary
 //! PLY point cloud, one vertex per voxel with points, at the voxel's world-space centre, with its average
-//! normal (`nx ny nz`, length below 1 where the points' normals disagree) and its average linear albedo
-//! (`red green blue`, bytes). MeshLab, CloudCompare and Blender open it beside the binvox.
+//! normal (`nx ny nz`, length below 1 where the points' normals disagree) and its average albedo (`red green
+//! blue`, bytes, sRGB-encoded as viewers expect). MeshLab, CloudCompare and Blender open it beside the
+//! binvox.
 
 use bevy_hao::cpu::VoxelOccupancy;
 use std::io::{self, Write};
@@ -22,7 +23,7 @@ pub fn write_attribute_ply(occ: &VoxelOccupancy, out: &mut impl Write) -> io::Re
     write!(
         out,
         "ply\nformat binary_little_endian 1.0\ncomment bevy_hao multi-valued voxels: centre, average normal, \
-         average linear albedo; cell size {}\nelement vertex {}\nproperty float x\nproperty float y\n\
+         average albedo (sRGB); cell size {}\nelement vertex {}\nproperty float x\nproperty float y\n\
          property float z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty uchar red\n\
          property uchar green\nproperty uchar blue\nend_header\n",
         grid.cell_size,
@@ -32,7 +33,7 @@ pub fn write_attribute_ply(occ: &VoxelOccupancy, out: &mut impl Write) -> io::Re
         for v in [p.x, p.y, p.z, a.normal.x, a.normal.y, a.normal.z] {
             out.write_all(&v.to_le_bytes())?;
         }
-        let byte = |c: f32| (c.clamp(0.0, 1.0) * 255.0).round() as u8;
+        let byte = |c: f32| (bevy::color::Srgba::gamma_function_inverse(c.clamp(0.0, 1.0)) * 255.0).round() as u8;
         out.write_all(&[byte(a.albedo.x), byte(a.albedo.y), byte(a.albedo.z)])?;
     }
     Ok(vertices.len() as u64)
@@ -62,12 +63,13 @@ mod tests {
         let header = std::str::from_utf8(&bytes[..header_end]).unwrap();
         assert!(header.contains(&format!("element vertex {n}\n")), "{header}");
         assert_eq!(bytes.len() - header_end, n as usize * 27);
-        // Every vertex: normal +z (counter-clockwise in the xy plane), albedo (255, 128, 0).
+        // Every vertex: normal +z (counter-clockwise in the xy plane), albedo linear (1, 0.5, 0) to a byte,
+        // sRGB-encoded: (255, 188, 0).
         for v in bytes[header_end..].chunks_exact(27) {
             let f = |k: usize| f32::from_le_bytes(v[4 * k..4 * k + 4].try_into().unwrap());
             assert_eq!((f(3), f(4)), (0.0, 0.0));
             assert!((f(5) - 1.0).abs() < 1e-3);
-            assert_eq!(&v[24..27], &[255, 128, 0]);
+            assert_eq!(&v[24..27], &[255, 188, 0]);
         }
         // Without attribute sums: no vertices.
         let plain = VoxelOccupancy::new(grid, true);

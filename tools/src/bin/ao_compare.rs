@@ -304,6 +304,12 @@ fn main() {
         eprintln!("error: wgpu errors: {errors:?}");
         std::process::exit(1);
     }
+    // Whether the plugin kept the attributes asked for (it turns them off where they exceed the device's
+    // binding limit).
+    let attributes_kept = bevy_hao_tools::harness::grid_assets(&app).is_some_and(|g| g.attributes.is_some());
+    if args.attributes && !attributes_kept {
+        eprintln!("warning: --attributes: the plugin turned the volume's attributes off (see its warning above)");
+    }
     let outputs = app.world().resource::<Outputs>().clone();
     let ao: Vec<Vec<f32>> =
         outputs.0.iter().map(|o| bevy_hao_tools::harness::read_image_f32(&mut app, o.ao.clone(), 2).2).collect();
@@ -403,7 +409,7 @@ fn main() {
     } else {
         "cascades following the camera (the default: 4 of 192^3, finest cell 0.125)".to_string()
     };
-    let world = match (args.world, args.attributes, args.stop_at_back_hits) {
+    let world = match (args.world, attributes_kept, args.stop_at_back_hits) {
         (w, true, stop) => format!(
             "{}, with attributes (rays {} the backs of surfaces)",
             if w { ", inside a generated 1 km level" } else { "" },

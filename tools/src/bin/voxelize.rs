@@ -20,7 +20,7 @@
 //! gamma it predicts for the target; `--gamma-sweep` prints bias and time against gamma (Figure 5d).
 //!
 //! Limits, checked before anything is allocated or voxelized: a run whose grids would take more than
-//! `--max-memory-mb` (about 8 bytes a voxel) or whose triangles subdivide into more than `--point-budget`
+//! `--max-memory-mb` (about 8 bytes a voxel, 32 to 56 with `--attributes`) or whose triangles subdivide into more than `--point-budget`
 //! sub-triangles is refused with the figure; a `--gamma` out of range is replaced with a warning; the tool
 //! exits non-zero when a run was refused or nothing was voxelized.
 //!
@@ -319,16 +319,26 @@ fn gpu_voxelize(
         bevy_hao_tools::harness::read_occupancy(&mut app)
     };
     let counters = bevy_hao_tools::harness::stats(&app).static_counters;
-    // Each forced rebuild records one `hao/voxelize_static` span; read them from the diagnostic's history
-    // once the last has had time to arrive.
-    let before = bevy_hao_tools::harness::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu").len();
-    for _ in 0..runs {
-        app.world_mut().write_message(RebuildStaticVoxels);
+    // Each forced rebuild records one `hao/voxelize_static` span, whose timestamps arrive a few frames
+    // later: rebuild and collect each new measurement until `runs` have arrived (a rebuild whose span never
+    // arrives is made up for by another, up to 30 frames more).
+    let span = "render/hao/voxelize_static/elapsed_gpu";
+    let mut last = bevy_hao_tools::harness::diagnostic_measurement(&app, span).map(|m| m.0);
+    let mut times = Vec::with_capacity(runs);
+    let mut frames = 0;
+    while times.len() < runs && frames < runs + 30 {
+        if frames < runs || frames % 4 == 0 {
+            app.world_mut().write_message(RebuildStaticVoxels);
+        }
         app.update();
+        frames += 1;
+        if let Some((t, v)) = bevy_hao_tools::harness::diagnostic_measurement(&app, span)
+            && last != Some(t)
+        {
+            last = Some(t);
+            times.push(v);
+        }
     }
-    bevy_hao_tools::harness::run(&mut app, 4);
-    let history = bevy_hao_tools::harness::diagnostic_history(&app, "render/hao/voxelize_static/elapsed_gpu");
-    let times: Vec<f64> = history.iter().skip(before).copied().collect();
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
     Ok((occupancy, counters, bevy_hao_tools::harness::median(times), adapter))
 }
@@ -577,8 +587,10 @@ fn main() {
             };
             let to_grid = grid.grid_from_world();
             // Refuse before allocating: the grids this run keeps (ground truth, its cuts, a check, the result
-            // with point counts, the watertight test's flood fill) take about 8 bytes a voxel.
-            let need_mb = grid.voxel_count().saturating_mul(8) / (1 << 20);
+            // with point counts, the watertight test's flood fill) take about 8 bytes a voxel; attribute sums
+            // 24 more in the result and as many in the GPU twin's check.
+            let per_voxel = if args.attributes { 8 + 24 * (1 + args.gpu as u64) } else { 8 };
+            let need_mb = grid.voxel_count().saturating_mul(per_voxel) / (1 << 20);
             if need_mb > args.max_memory_mb {
                 note!(
                     "error: {} at {res}: a {}x{}x{} grid needs about {need_mb} MB, over --max-memory-mb {}; skipped",
@@ -703,10 +715,10 @@ fn main() {
                                 1000.0 * (only_gpu + only_cpu) as f64 / twin.set_voxel_count().max(1) as f64
                             );
                             if args.attributes {
-                                let (same, equal, worst) = compare_records(&occ, &twin);
+                                let (same, differ, equal, worst) = compare_records(&occ, &twin);
                                 note!(
-                                    "  GPU vs CPU twin attributes: {same} voxels with the same point count, {equal} of them with equal sums; \
-                                     largest difference {worst} units (a point's rounding is 1)",
+                                    "  GPU vs CPU twin attributes: {same} voxels with the same point count ({differ} with another), {equal} of \
+                                     them with equal sums; largest difference {worst} units (a point's rounding is 1)",
                                 );
                             }
                             note!(
@@ -889,20 +901,24 @@ fn attribute_summary(occ: &VoxelOccupancy) -> (u64, Vec3, f32) {
     (n, albedo, agreement)
 }
 
-/// Of the voxels both grids set: how many have the same point count, how many of those the same sums, and
-/// the largest difference of a sum among them.
-fn compare_records(a: &VoxelOccupancy, b: &VoxelOccupancy) -> (u64, u64, i64) {
-    let (mut same, mut equal, mut worst) = (0u64, 0u64, 0i64);
+/// Of the voxels either grid has points in: how many have the same point count, how many another, how many
+/// of the first the same sums, and the largest difference of a sum among them.
+fn compare_records(a: &VoxelOccupancy, b: &VoxelOccupancy) -> (u64, u64, u64, i64) {
+    let (mut same, mut differ, mut equal, mut worst) = (0u64, 0u64, 0u64, 0i64);
     for i in 0..a.grid().voxel_count() as u32 {
         let (x, y) = (a.record(i), b.record(i));
-        if x[0] == 0 || x[0] != y[0] {
+        if x[0] == 0 && y[0] == 0 {
+            continue;
+        }
+        if x[0] != y[0] {
+            differ += 1;
             continue;
         }
         same += 1;
         equal += (x == y) as u64;
         worst = worst.max((1..7).map(|k| (x[k] as i32 as i64 - y[k] as i32 as i64).abs()).max().unwrap_or(0));
     }
-    (same, equal, worst)
+    (same, differ, equal, worst)
 }
 
 /// Advances the progress bar when a mesh/resolution run ends, however it ends.
