@@ -178,7 +178,7 @@ pub struct VoxelizeState {
     dynamic_world: Vec<Option<(Vec3, Vec3)>>,
     /// The same last frame.
     prev_dynamic_world: Vec<Option<(Vec3, Vec3)>>,
-    warned_meshes: HashSet<AssetId<Mesh>>,
+    warned_meshes: HashSet<(AssetId<Mesh>, WarnedFor)>,
     warned_moved: HashSet<Entity>,
     static_transforms: HashMap<Entity, Affine3A>,
     rebuild_requests: u64,
@@ -292,6 +292,17 @@ pub struct VoxelizeFrame {
     pub resolve: Vec<ResolveWork>,
 }
 
+/// What a mesh was warned about (once each).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) enum WarnedFor {
+    /// It cannot be voxelized.
+    Skipped,
+    /// Its morph targets cannot be applied.
+    Morph,
+    /// `PnTriangles` without normals: voxelized flat.
+    FlatPn,
+}
+
 /// An occluder ready for the GPU.
 #[derive(Clone)]
 struct ResolvedInstance {
@@ -332,7 +343,7 @@ fn resolve_morph(
     o: &ExtractedOccluder,
     allocator: &MeshAllocator,
     skins: &Skins,
-    warned: &mut HashSet<AssetId<Mesh>>,
+    warned: &mut HashSet<(AssetId<Mesh>, WarnedFor)>,
 ) -> Result<Option<([u32; 4], Buffer)>, ()> {
     // Without morph weights Bevy draws the base shape, and so is it voxelized.
     if !o.morphed {
@@ -340,7 +351,7 @@ fn resolve_morph(
     }
     let Some(slice) = allocator.mesh_morph_target_slice(&o.mesh) else { return Ok(None) };
     let Some((indices, uniforms)) = skins.morphs else {
-        if warned.insert(o.mesh) {
+        if warned.insert((o.mesh, WarnedFor::Morph)) {
             warn!(
                 "bevy_hao: mesh {:?} has morph targets, and this device cannot bind them for voxelization: its base \
                  shape is voxelized",
@@ -350,7 +361,7 @@ fn resolve_morph(
         return Ok(None);
     };
     if !slice.buffer.usage().contains(BufferUsages::STORAGE) {
-        if warned.insert(o.mesh) {
+        if warned.insert((o.mesh, WarnedFor::Morph)) {
             warn!(
                 "bevy_hao: mesh {:?}'s morph targets cannot be bound as storage: its base shape is voxelized",
                 o.mesh
@@ -393,11 +404,11 @@ fn resolve_occluder(
     meshes: &RenderAssets<RenderMesh>,
     allocator: &MeshAllocator,
     skins: &Skins,
-    warned: &mut HashSet<AssetId<Mesh>>,
+    warned: &mut HashSet<(AssetId<Mesh>, WarnedFor)>,
 ) -> Resolution {
     let Some(mesh) = meshes.get(o.mesh) else { return Resolution::Pending };
-    let skip = |warned: &mut HashSet<AssetId<Mesh>>, why: &str| {
-        if warned.insert(o.mesh) {
+    let skip = |warned: &mut HashSet<(AssetId<Mesh>, WarnedFor)>, why: &str| {
+        if warned.insert((o.mesh, WarnedFor::Skipped)) {
             warn!("bevy_hao: mesh {:?} is not voxelized: {why}", o.mesh);
         }
         Resolution::Skipped
@@ -442,7 +453,7 @@ fn resolve_occluder(
                 normal_offset = (n.offset / 4) as u32
             }
             _ => {
-                if warned.insert(o.mesh) {
+                if warned.insert((o.mesh, WarnedFor::FlatPn)) {
                     warn!("bevy_hao: mesh {:?} has PnTriangles but no Float32x3 normals: it is voxelized flat", o.mesh);
                 }
             }
