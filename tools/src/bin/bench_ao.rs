@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--res N]
+//!     [--attributes]
 //! ```
 //!
 //! One headless camera renders the scene in two kinds of phase of one run, each measured over `--frames`
@@ -18,6 +19,10 @@
 //! and its ratio to Bevy's SSAO alone. Voxelization is not counted here (see `bench_voxelize`). On a software
 //! rasterizer such as lavapipe the times are CPU times of the emulated GPU: compare ratios within one run,
 //! not absolute figures.
+//!
+//! With `--attributes` (and `--res`: the default cascades' attribute sums exceed some devices' binding limit)
+//! the volume keeps multi-valued voxels, and a last table times the `Medium` trace with rays stopping at the
+//! backs of surfaces and passing through them (`HybridAmbientOcclusion::ignore_back_hits`).
 
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -47,10 +52,13 @@ struct Args {
     /// default volume, camera-following cascades).
     #[arg(long)]
     res: Option<u32>,
+    /// Multi-valued voxels (VoxelVolume::attributes), and the trace with and without ignore_back_hits.
+    #[arg(long, requires = "res")]
+    attributes: bool,
 }
 
 fn main() {
-    let Args { scene, size, frames, res } = Args::parse();
+    let Args { scene, size, frames, res, attributes } = Args::parse();
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)
@@ -80,6 +88,7 @@ fn main() {
                     commands.spawn(VoxelVolume {
                         bounds: VolumeBounds::FitStaticScene { margin: 0.0 },
                         resolution: VolumeResolution::Cells(res),
+                        attributes,
                         ..default()
                     });
                 }
@@ -151,6 +160,14 @@ fn main() {
             bar.inc(1);
         }
     }
+    // With attributes: the Medium trace with rays stopping at backs, then passing through them.
+    let mut backs = Vec::new();
+    if attributes {
+        for ignore_back_hits in [false, true] {
+            app.world_mut().entity_mut(cam).insert(HybridAmbientOcclusion { ignore_back_hits, ..default() });
+            backs.push((ignore_back_hits, measure(&mut app, &["hao/trace"])[0]));
+        }
+    }
     bar.finish_and_clear();
     let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
@@ -195,5 +212,17 @@ fn main() {
             f(whole),
             f(ssao_alone)
         );
+    }
+    if attributes {
+        let kept = bevy_hao_tools::harness::grid_assets(&app).is_some_and(|g| g.attributes.is_some());
+        println!(
+            "\nMedium, accumulated, with the volume's attributes{}:\n",
+            if kept { "" } else { " (turned off by the plugin!)" }
+        );
+        println!("| rays at the backs of surfaces | trace ms |");
+        println!("|---|---:|");
+        for (ignore, t) in backs {
+            println!("| {} | {} |", if ignore { "pass through (the default)" } else { "stop" }, f(t));
+        }
     }
 }
