@@ -277,7 +277,8 @@ pub fn voxelize_sampled_triangle_in_region(
     if placement == GridPlacement::Inside && count <= INLINE_SUB_TRIANGLES {
         stats.small = 1;
     }
-    let normal = face_normal(v, attributes);
+    // Only where the sums are kept: a plain voxelization pays nothing for them.
+    let normal = if out.has_attributes() { face_normal(v, attributes) } else { Vec3::ZERO };
     let inv_3n = 1.0 / (3.0 * range.fine() as f32);
     let sample = |sub| point_sample(attributes, centroid_weights(&range, sub, sub_apex, inv_3n), normal);
     match settings.mode {

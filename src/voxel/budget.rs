@@ -7,7 +7,7 @@
 //! itself is enforced exactly on the GPU (the scan pass); this estimate warns before it is hit, and the
 //! inspector shows it.
 
-use super::occluders::occluder_is_dynamic;
+use super::occluders::{OccluderMarkers, markers_are_dynamic};
 use super::stats::VoxelizationStats;
 use super::volume::VoxelGridAssets;
 use crate::cpu::{TriangleSizes, expected_point_count};
@@ -52,17 +52,7 @@ pub(crate) fn estimate_point_budget(
     meshes: Res<Assets<Mesh>>,
     mut events: MessageReader<AssetEvent<Mesh>>,
     mut cache: Local<HashMap<AssetId<Mesh>, Option<TriangleSizes>>>,
-    occluders: Query<
-        (
-            &Mesh3d,
-            &GlobalTransform,
-            &InheritedVisibility,
-            Has<StaticOccluder>,
-            Has<DynamicOccluder>,
-            Has<PromotedToDynamic>,
-        ),
-        Without<NoVoxelOcclusion>,
-    >,
+    occluders: Query<(&Mesh3d, &GlobalTransform, &InheritedVisibility, OccluderMarkers), Without<NoVoxelOcclusion>>,
     assets: Option<Res<VoxelGridAssets>>,
     stats: Res<VoxelizationStats>,
     mut warned: Local<bool>,
@@ -76,7 +66,7 @@ pub(crate) fn estimate_point_budget(
     let gamma = assets.settings.effective_gamma() as f64;
     let cell = assets.grid.cell_size as f64;
     let (mut static_points, mut dynamic_points) = (0.0f64, 0.0f64);
-    for (mesh, transform, visible, s, d, p) in &occluders {
+    for (mesh, transform, visible, markers) in &occluders {
         if !visible.get() {
             continue;
         }
@@ -88,7 +78,7 @@ pub(crate) fn estimate_point_budget(
         // Every level a mesh overlaps voxelizes it (at most all of them, each with twice the cell size).
         let points: f64 =
             (0..assets.levels).map(|l| expected_point_count(&sizes, cell * (1u64 << l) as f64, gamma, pattern)).sum();
-        if occluder_is_dynamic(s, d, p) {
+        if markers_are_dynamic(markers) {
             dynamic_points += points;
         } else {
             static_points += points;

@@ -3,7 +3,7 @@
 
 use super::budget::mesh_triangles;
 use super::components::*;
-use super::occluders::occluder_is_dynamic;
+use super::occluders::{OccluderMarkers, markers_are_dynamic};
 use super::stats::VoxelizationStats;
 use crate::cpu::{self, SubdivisionPattern};
 use bevy::prelude::*;
@@ -25,15 +25,7 @@ pub(crate) fn choose_gamma_for_target(
     assets: Option<Res<super::volume::VoxelGridAssets>>,
     meshes: Res<Assets<Mesh>>,
     occluders: Query<
-        (
-            Entity,
-            &Mesh3d,
-            &GlobalTransform,
-            &InheritedVisibility,
-            Has<StaticOccluder>,
-            Has<DynamicOccluder>,
-            Has<PromotedToDynamic>,
-        ),
+        (Entity, &Mesh3d, &GlobalTransform, &InheritedVisibility, OccluderMarkers),
         Without<NoVoxelOcclusion>,
     >,
     mut chosen: ResMut<GammaForTarget>,
@@ -58,7 +50,7 @@ pub(crate) fn choose_gamma_for_target(
     let pattern: SubdivisionPattern = volume.subdivision.into();
     let statics: Vec<_> = occluders
         .iter()
-        .filter(|(_, _, _, visible, s, d, p)| visible.get() && !occluder_is_dynamic(*s, *d, *p))
+        .filter(|(_, _, _, visible, markers)| visible.get() && !markers_are_dynamic(*markers))
         .collect();
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     (target.to_bits(), cell.to_bits(), pattern as u8).hash(&mut hasher);

@@ -11,6 +11,15 @@ pub(crate) fn occluder_is_dynamic(is_static: bool, is_dynamic: bool, promoted: b
     is_dynamic || (promoted && !is_static)
 }
 
+/// The markers that class a mesh entity as a static or dynamic occluder, as queried by the main-world
+/// systems that look at the static set.
+pub(crate) type OccluderMarkers = (Has<StaticOccluder>, Has<DynamicOccluder>, Has<PromotedToDynamic>);
+
+/// [`occluder_is_dynamic`] of queried [`OccluderMarkers`].
+pub(crate) fn markers_are_dynamic((is_static, is_dynamic, promoted): (bool, bool, bool)) -> bool {
+    occluder_is_dynamic(is_static, is_dynamic, promoted)
+}
+
 /// The world-space bounds of an entity's mesh.
 pub(crate) fn world_aabb(aabb: &Aabb, transform: &GlobalTransform) -> (Vec3, Vec3) {
     let m = transform.affine();

@@ -14,7 +14,7 @@ use bevy::render::render_resource::{Extent3d, TextureDescriptor, TextureDimensio
 use bevy::render::renderer::{RenderAdapter, RenderDevice};
 use bevy::render::storage::ShaderBuffer;
 
-use super::occluders::{occluder_is_dynamic, world_aabb};
+use super::occluders::{OccluderMarkers, markers_are_dynamic, world_aabb};
 use super::stats::{CascadeLevelStats, LevelBytes, VoxelizationStats, read_voxelize_counters};
 use crate::ao::HybridAmbientOcclusion;
 
@@ -130,14 +130,7 @@ pub(crate) fn update_voxel_volume(
     mut commands: Commands,
     volumes: Query<&VoxelVolume>,
     occluders: Query<
-        (
-            &GlobalTransform,
-            &Aabb,
-            &InheritedVisibility,
-            Has<StaticOccluder>,
-            Has<DynamicOccluder>,
-            Has<PromotedToDynamic>,
-        ),
+        (&GlobalTransform, &Aabb, &InheritedVisibility, OccluderMarkers),
         (With<Mesh3d>, Without<NoVoxelOcclusion>),
     >,
     current: Option<Res<VoxelGridAssets>>,
@@ -201,8 +194,8 @@ pub(crate) fn update_voxel_volume(
             VolumeBounds::FitStaticScene { margin } => {
                 let mut acc: Option<(Vec3, Vec3)> = None;
                 let mut non_finite = 0;
-                for (transform, aabb, visible, s, d, p) in &occluders {
-                    if !visible.get() || occluder_is_dynamic(s, d, p) {
+                for (transform, aabb, visible, markers) in &occluders {
+                    if !visible.get() || markers_are_dynamic(markers) {
                         continue;
                     }
                     let (lo, hi) = world_aabb(aabb, transform);
@@ -320,49 +313,30 @@ pub(crate) fn update_voxel_volume(
     let buffer = |bytes: u64, buffers: &mut Assets<ShaderBuffer>| {
         buffers.add(ShaderBuffer::with_size(bytes.max(4) as usize, RenderAssetUsages::RENDER_WORLD))
     };
-    let texture = Image {
+    // The voxel texture and the attribute textures share the layout: levels stacked along z.
+    let image = |label: &'static str, format: TextureFormat, mips: u32, sampler: ImageSampler| Image {
         data: None,
         texture_descriptor: TextureDescriptor {
-            label: Some("hao_voxel_texture"),
+            label: Some(label),
             size: Extent3d {
                 width: texture_size.x,
                 height: texture_size.y,
                 depth_or_array_layers: texture_size.z * levels,
             },
-            mip_level_count: mip_levels,
+            mip_level_count: mips,
             sample_count: 1,
             dimension: TextureDimension::D3,
-            format: texture_format,
+            format,
             usage: TextureUsages::TEXTURE_BINDING | TextureUsages::STORAGE_BINDING | TextureUsages::COPY_SRC,
             view_formats: &[],
         },
-        sampler: ImageSampler::linear(),
+        sampler,
         asset_usage: RenderAssetUsages::RENDER_WORLD,
         ..default()
     };
-    let attribute_texture = |format: TextureFormat, images: &mut Assets<Image>| {
-        images.add(Image {
-            data: None,
-            texture_descriptor: TextureDescriptor {
-                label: Some("hao_voxel_attributes"),
-                size: Extent3d {
-                    width: texture_size.x,
-                    height: texture_size.y,
-                    depth_or_array_layers: texture_size.z * levels,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: TextureDimension::D3,
-                format,
-                usage: TextureUsages::TEXTURE_BINDING | TextureUsages::STORAGE_BINDING | TextureUsages::COPY_SRC,
-                view_formats: &[],
-            },
-            sampler: ImageSampler::nearest(),
-            asset_usage: RenderAssetUsages::RENDER_WORLD,
-            ..default()
-        })
-    };
-    let attribute_textures = attributes.then(|| ATTRIBUTE_FORMATS.map(|f| attribute_texture(f, &mut images)));
+    let texture = image("hao_voxel_texture", texture_format, mip_levels, ImageSampler::linear());
+    let attribute_textures = attributes
+        .then(|| ATTRIBUTE_FORMATS.map(|f| images.add(image("hao_voxel_attributes", f, 1, ImageSampler::nearest()))));
     let assets = VoxelGridAssets {
         grid,
         levels,
