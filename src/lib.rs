@@ -17,7 +17,7 @@ pub use debug::{HaoDebugImages, HaoDebugView, HaoDebugViewPlugin};
 pub use voxel::components::*;
 pub use voxel::{
     CascadeLevelStats, LevelBytes, RebuildStaticVoxels, VOXEL_GRID_GROUP, VoxelGridAssets, VoxelGridBindings,
-    VoxelizationPlugin, VoxelizationStats, VoxelizationStatsData, VoxelizeCounters, voxel_grid_layout,
+    VoxelizationPlugin, VoxelizationStats, VoxelizationStatsData, VoxelizeCounters, VoxelizeCpuTime, voxel_grid_layout,
 };
 
 use bevy::prelude::*;

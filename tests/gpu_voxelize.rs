@@ -1010,3 +1010,123 @@ fn multi_valued_voxels_on_the_gpu_equal_their_cpu_twin() {
         assert!(take_render_errors().is_empty());
     }
 }
+
+#[derive(Component)]
+struct Pillar(usize);
+
+#[test]
+fn the_work_follows_what_changed_not_how_many_meshes_there_are() {
+    let _gpu = gpu_lock();
+    const PILLARS: usize = 300;
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(volume(4.0, 32, VoxelInjection::Centroid));
+            let cube = meshes.add(Cuboid::new(0.1, 0.1, 0.1));
+            for i in 0..PILLARS {
+                let (x, z) = ((i % 20) as f32 * 0.3 - 3.0, (i / 20) as f32 * 0.3 - 3.0);
+                let mut e = commands.spawn((Mesh3d(cube.clone()), Transform::from_xyz(x, -1.0, z), Pillar(i)));
+                // Half marked static, half unmarked (static by default).
+                if i % 2 == 0 {
+                    e.insert(StaticOccluder);
+                }
+            }
+        });
+    });
+    run(&mut app, 6);
+    let s = stats(&app);
+    assert_eq!(s.occluders_tracked, PILLARS as u64);
+    let rebuilds = s.static_rebuilds;
+    assert!(s.static_triangles >= PILLARS as u64 * 12, "every pillar voxelized: {}", s.static_triangles);
+
+    // Nothing changes: no occluder is resolved again, and nothing is voxelized.
+    for _ in 0..5 {
+        app.update();
+        assert_eq!(stats(&app).occluders_resolved, 0, "a frame with nothing changed re-resolves no occluder");
+    }
+    assert_eq!(stats(&app).static_rebuilds, rebuilds);
+
+    let pillar = |app: &mut App, k: usize| {
+        let mut q = app.world_mut().query::<(Entity, &Pillar)>();
+        q.iter(app.world()).find(|(_, p)| p.0 == k).unwrap().0
+    };
+    // One marked static pillar moves: it alone is resolved again, and its region rebuilt.
+    let moved = pillar(&mut app, 10);
+    app.world_mut().get_mut::<Transform>(moved).unwrap().translation.y = 1.0;
+    app.update();
+    let s = stats(&app);
+    assert_eq!(s.occluders_resolved, 1, "a moved entity re-resolves one");
+    assert_eq!(s.static_rebuilds, rebuilds + 1);
+    let occ = read_occupancy(&mut app);
+    assert!(set_cells(&occ, Vec3::new(0.0 - 0.1, 0.9, -3.0 - 0.1), Vec3::new(0.1, 1.1, -3.0 + 0.1)) > 0);
+    app.update();
+    assert_eq!(stats(&app).occluders_resolved, 0);
+
+    // One despawned: forgotten, and its voxels gone.
+    let gone = pillar(&mut app, 10);
+    app.world_mut().despawn(gone);
+    app.update();
+    assert_eq!(stats(&app).occluders_tracked, PILLARS as u64 - 1, "a despawned one is forgotten");
+    let occ = read_occupancy(&mut app);
+    assert_eq!(set_cells(&occ, Vec3::new(-0.1, 0.9, -3.1), Vec3::new(0.1, 1.1, -2.9)), 0);
+
+    // Hidden, then shown: it leaves and comes back; the rest is not resolved again.
+    let hidden = pillar(&mut app, 21);
+    app.world_mut().entity_mut(hidden).insert(Visibility::Hidden);
+    app.update();
+    assert_eq!(stats(&app).occluders_tracked, PILLARS as u64 - 2);
+    app.world_mut().entity_mut(hidden).insert(Visibility::Inherited);
+    app.update();
+    let s = stats(&app);
+    assert_eq!(s.occluders_tracked, PILLARS as u64 - 1);
+    assert_eq!(s.occluders_resolved, 1);
+    assert!(take_render_errors().is_empty());
+}
+
+#[test]
+fn a_chunk_of_static_occluders_streams_in_within_the_budget_nearest_first() {
+    let _gpu = gpu_lock();
+    const CUBES: usize = 200;
+    const PER_FRAME: usize = 40;
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            // Cuboids have 12 triangles: 40 of them a frame.
+            commands.spawn(VoxelVolume { stream_budget: 12 * PER_FRAME as u32, ..volume(4.0, 64, VoxelInjection::Centroid) });
+            commands.spawn((Mesh3d(meshes.add(Plane3d::default().mesh().size(7.0, 7.0))), Transform::from_xyz(0.0, -3.0, 0.0)));
+        });
+    });
+    run(&mut app, 6);
+    assert_eq!(stats(&app).static_queue, 0);
+    // A chunk arrives: 200 cubes on a line from the centre of the volume (the focus without a camera) outwards.
+    let cube = app.world_mut().resource_mut::<Assets<Mesh>>().add(Cuboid::new(0.1, 0.1, 0.1));
+    let at = |i: usize| Vec3::new(-3.5 + 7.0 * (i % 20) as f32 / 20.0, -2.0 + 0.3 * (i / 20) as f32, 0.0);
+    let mut by_distance: Vec<usize> = (0..CUBES).collect();
+    by_distance.sort_by(|a, b| at(*a).length().total_cmp(&at(*b).length()));
+    for i in 0..CUBES {
+        app.world_mut().spawn((Mesh3d(cube.clone()), Transform::from_translation(at(i))));
+    }
+    let rebuilds = stats(&app).static_rebuilds;
+    app.update();
+    let s = stats(&app);
+    assert_eq!(s.static_queue, (CUBES - PER_FRAME) as u64, "one budget's worth voxelized");
+    let cube_set = |occ: &VoxelOccupancy, i: usize| set_cells(occ, at(i) - 0.07, at(i) + 0.07) > 0;
+    // Read back at once (a frame or two, each voxelizing one budget more): the nearest are in, the farthest not.
+    let assets = grid_assets(&app).unwrap();
+    let bytes = read_buffer(&mut app, assets.occupancy.clone(), 0);
+    let occ = VoxelOccupancy::from_words(assets.grid, bytemuck::cast_slice(&bytes), None).unwrap();
+    let (nearest, farthest) = (by_distance[0], by_distance[CUBES - 1]);
+    assert!(cube_set(&occ, nearest), "the nearest cube comes first");
+    assert!(!cube_set(&occ, farthest), "the farthest cube waits");
+    assert!(s.static_rebuilds > rebuilds);
+    // The queue drains a budget per frame until every cube is in.
+    for _ in 0..CUBES / PER_FRAME {
+        app.update();
+    }
+    assert_eq!(stats(&app).static_queue, 0);
+    let occ = read_occupancy(&mut app);
+    let missing: Vec<usize> = (0..CUBES).filter(|i| !cube_set(&occ, *i)).collect();
+    assert!(missing.is_empty(), "cubes not voxelized: {missing:?}");
+    assert!(cube_set(&occ, farthest));
+    // The floor is still there (added, not rebuilt over).
+    assert!(set_cells(&occ, Vec3::new(-3.4, -3.1, -3.4), Vec3::new(3.4, -2.9, 3.4)) > 100);
+    assert!(take_render_errors().is_empty());
+}

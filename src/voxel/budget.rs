@@ -7,11 +7,10 @@
 //! itself is enforced exactly on the GPU (the scan pass); this estimate warns before it is hit, and the
 //! inspector shows it.
 
-use super::occluders::{OccluderMarkers, markers_are_dynamic};
+use super::changes::OccluderChanges;
 use super::stats::VoxelizationStats;
 use super::volume::VoxelGridAssets;
 use crate::cpu::{TriangleSizes, expected_point_count};
-use crate::voxel::components::*;
 use bevy::mesh::{Indices, VertexAttributeValues};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -46,44 +45,51 @@ fn mesh_triangle_sizes(mesh: &Mesh) -> Option<TriangleSizes> {
 }
 
 /// Estimates the static and per-frame dynamic point counts and warns (once per episode)
-/// when the dynamic estimate exceeds `VoxelVolume::point_budget`.
+/// when the dynamic estimate exceeds `VoxelVolume::point_budget`. The static estimate is summed again only
+/// when the static set, the grid or a mesh changed; the dynamic one over the dynamic occluders each frame.
 #[allow(clippy::type_complexity)]
 pub(crate) fn estimate_point_budget(
     meshes: Res<Assets<Mesh>>,
     mut events: MessageReader<AssetEvent<Mesh>>,
     mut cache: Local<HashMap<AssetId<Mesh>, Option<TriangleSizes>>>,
-    occluders: Query<(&Mesh3d, &GlobalTransform, &InheritedVisibility, OccluderMarkers), Without<NoVoxelOcclusion>>,
+    occluders: Query<(&Mesh3d, &GlobalTransform)>,
+    changes: Res<OccluderChanges>,
     assets: Option<Res<VoxelGridAssets>>,
     stats: Res<VoxelizationStats>,
     mut warned: Local<bool>,
+    mut statics: Local<Option<((u64, u64, u64, u64, u32, u8), f64)>>,
+    mut mesh_epoch: Local<u64>,
 ) {
+    let _span = stats.cpu_span(|t| &mut t.estimate_point_budget);
     for event in events.read() {
         if let AssetEvent::Modified { id } | AssetEvent::Removed { id } | AssetEvent::Added { id } = event {
             cache.remove(id);
+            *mesh_epoch += 1;
         }
     }
     let Some(assets) = assets else { return };
     let gamma = assets.settings.effective_gamma() as f64;
     let cell = assets.grid.cell_size as f64;
-    let (mut static_points, mut dynamic_points) = (0.0f64, 0.0f64);
-    for (mesh, transform, visible, markers) in &occluders {
-        if !visible.get() {
-            continue;
-        }
+    let pattern = assets.settings.pattern;
+    let mut points = |entity: Entity| {
+        let Ok((mesh, transform)) = occluders.get(entity) else { return 0.0 };
         let id = mesh.id();
         let entry = *cache.entry(id).or_insert_with(|| meshes.get(id).and_then(mesh_triangle_sizes));
-        let Some(sizes) = entry else { continue };
+        let Some(sizes) = entry else { return 0.0 };
         let sizes = sizes.scaled(transform.compute_transform().scale.abs().max_element() as f64);
-        let pattern = assets.settings.pattern;
         // Every level a mesh overlaps voxelizes it (at most all of them, each with twice the cell size).
-        let points: f64 =
-            (0..assets.levels).map(|l| expected_point_count(&sizes, cell * (1u64 << l) as f64, gamma, pattern)).sum();
-        if markers_are_dynamic(markers) {
-            dynamic_points += points;
-        } else {
-            static_points += points;
+        (0..assets.levels).map(|l| expected_point_count(&sizes, cell * (1u64 << l) as f64, gamma, pattern)).sum::<f64>()
+    };
+    let key = (changes.static_version, *mesh_epoch, gamma.to_bits(), cell.to_bits(), assets.levels, pattern as u8);
+    let static_points = match *statics {
+        Some((k, p)) if k == key => p,
+        _ => {
+            let p = changes.static_entities().map(&mut points).sum();
+            *statics = Some((key, p));
+            p
         }
-    }
+    };
+    let dynamic_points: f64 = changes.dynamics.iter().map(|e| points(*e)).sum();
     let budget = assets.point_budget as f64;
     if dynamic_points > budget && !*warned {
         warn!(

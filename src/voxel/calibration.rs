@@ -3,11 +3,12 @@
 
 use super::budget::mesh_triangles;
 use super::components::*;
-use super::occluders::{OccluderMarkers, markers_are_dynamic};
+use super::changes::OccluderChanges;
 use super::stats::VoxelizationStats;
 use crate::cpu::{self, SubdivisionPattern};
 use bevy::prelude::*;
-use std::hash::{Hash, Hasher};
+use bevy::platform::hash::FixedHasher;
+use std::hash::BuildHasher;
 
 /// The gamma chosen for the volume's target bias, if it has one.
 #[derive(Resource, Default, Debug, Clone)]
@@ -24,13 +25,14 @@ pub(crate) fn choose_gamma_for_target(
     volumes: Query<&VoxelVolume>,
     assets: Option<Res<super::volume::VoxelGridAssets>>,
     meshes: Res<Assets<Mesh>>,
-    occluders: Query<
-        (Entity, &Mesh3d, &GlobalTransform, &InheritedVisibility, OccluderMarkers),
-        Without<NoVoxelOcclusion>,
-    >,
+    occluders: Query<(&Mesh3d, &GlobalTransform)>,
+    changes: Res<OccluderChanges>,
+    mut mesh_events: MessageReader<AssetEvent<Mesh>>,
+    mut mesh_epoch: Local<u64>,
     mut chosen: ResMut<GammaForTarget>,
     stats: Res<VoxelizationStats>,
 ) {
+    let _span = stats.cpu_span(|t| &mut t.choose_gamma);
     let volume = volumes.iter().next().copied().unwrap_or_default().sanitized().0;
     let Some(target) = volume.target_bias.filter(|_| volume.injection == VoxelInjection::Centroid) else {
         if chosen.gamma.is_some() {
@@ -48,23 +50,24 @@ pub(crate) fn choose_gamma_for_target(
         },
     };
     let pattern: SubdivisionPattern = volume.subdivision.into();
-    let statics: Vec<_> = occluders
-        .iter()
-        .filter(|(_, _, _, visible, markers)| visible.get() && !markers_are_dynamic(*markers))
-        .collect();
-    let mut hasher = std::collections::hash_map::DefaultHasher::new();
-    (target.to_bits(), cell.to_bits(), pattern as u8).hash(&mut hasher);
-    for (entity, mesh, transform, ..) in &statics {
-        (entity, mesh.id(), meshes.get(mesh.id()).is_some()).hash(&mut hasher);
-        transform.affine().to_cols_array().map(f32::to_bits).hash(&mut hasher);
+    for event in mesh_events.read() {
+        if let AssetEvent::Added { .. } | AssetEvent::Modified { .. } | AssetEvent::LoadedWithDependencies { .. } = event {
+            *mesh_epoch += 1;
+        }
     }
-    let key = hasher.finish();
+    // Measured again only when the static set, a mesh or the settings changed.
+    let key =
+        FixedHasher.hash_one((target.to_bits(), cell.to_bits(), pattern as u8, changes.static_version, *mesh_epoch));
     if key == chosen.key {
         return;
     }
     chosen.key = key;
     let mut triangles = Vec::new();
-    for (_, mesh, transform, ..) in &statics {
+    let mut statics: Vec<Entity> = changes.static_entities().collect();
+    // A stable order, so that the patches measured do not depend on the map's.
+    statics.sort_unstable();
+    for entity in statics {
+        let Ok((mesh, transform)) = occluders.get(entity) else { continue };
         if let Some((_, local)) = meshes.get(mesh.id()).and_then(mesh_triangles) {
             let affine = transform.affine();
             triangles.extend(local.into_iter().map(|t| t.map(|p| affine.transform_point3(p))));

@@ -215,6 +215,14 @@ pub struct VoxelVolume {
     /// Most sub-triangle points generated per frame (static rebuild and dynamic geometry together);
     /// more are dropped with a warning. The need of each mesh is estimated (equation 5, or its strip counterpart).
     pub point_budget: u32,
+    /// Most triangles of newly added static occluders voxelized per frame (a level loading, a chunk
+    /// streamed in): the rest wait for the following frames, the occluders nearest the camera first (the
+    /// centre of the volume without a camera), so that a chunk of thousands of meshes arriving at once
+    /// spreads its cost over frames and its occlusion appears region by region. Every level counts the
+    /// occluder's triangles once. Occluders that move or change in place, and levels rebuilt whole, are not
+    /// held back. `VoxelizationStats` reports the occluders waiting (`static_queue`). 0 is replaced by the
+    /// default, 262,144.
+    pub stream_budget: u32,
     /// Keep a per-voxel point count (multi-valued voxelization; 4 bytes per voxel, twice; off by default,
     /// since cascades have millions of voxels). Turned off with a warning if the count buffers would exceed
     /// the device's storage-binding limit.
@@ -249,6 +257,7 @@ impl Default for VoxelVolume {
             injection: VoxelInjection::Centroid,
             subdivision: VoxelSubdivision::Strips,
             point_budget: 32 << 20,
+            stream_budget: 1 << 18,
             point_counts: false,
             attributes: false,
         }
@@ -285,6 +294,11 @@ impl VoxelVolume {
         {
             fix("target_bias", format!("Some({p})"), "None".into());
             v.target_bias = None;
+        }
+        if v.stream_budget == 0 {
+            let d = VoxelVolume::default().stream_budget;
+            fix("stream_budget", "0".into(), format!("{d}"));
+            v.stream_budget = d;
         }
         if v.point_budget == 0 {
             let d = VoxelVolume::default().point_budget;

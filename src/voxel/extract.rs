@@ -4,7 +4,8 @@
 //! `RenderMeshInstances`, which hold no CPU transforms when meshes are built on the GPU, and which are culled
 //! to the views: an occluder behind the camera must still be voxelized.
 
-use super::occluders::{occluder_is_dynamic, world_aabb};
+use super::changes::{OccluderChanges, occluder_is_dynamic, world_aabb};
+use super::stats::VoxelizationStats;
 use super::volume::{VoxelGridAssets, VoxelVolumeFocus};
 use crate::voxel::components::*;
 use bevy::camera::primitives::Aabb;
@@ -13,6 +14,7 @@ use bevy::math::Affine3A;
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::morph::MeshMorphWeights;
 use bevy::mesh::skinning::SkinnedMesh;
+use bevy::ecs::entity::EntityHashMap;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bevy::render::Extract;
@@ -35,6 +37,9 @@ pub struct ExtractedOccluder {
     pub world_from_local: Affine3A,
     /// Its world-space bounds, if Bevy computed them.
     pub world_bounds: Option<(Vec3, Vec3)>,
+    /// Voxelized every frame (marked or promoted dynamic, skinned or morphed) rather than into the cached
+    /// static grid.
+    pub dynamic: bool,
     /// Marked [`StaticOccluder`] (as opposed to static by default).
     pub marked_static: bool,
     /// For a skinned mesh ([`SkinnedMesh`]), the number of joints of its skin. Its vertices are skinned to
@@ -51,13 +56,14 @@ pub struct ExtractedOccluder {
     pub albedo: u32,
 }
 
-/// This frame's occluders, split into static and dynamic.
+/// The occluders, kept across frames and extracted again only where the main world saw a change
+/// ([`OccluderChanges`]).
 #[derive(Resource, Default)]
 pub struct ExtractedOccluders {
-    /// Voxelized into the cached static grid.
-    pub statics: Vec<ExtractedOccluder>,
-    /// Voxelized every frame.
-    pub dynamics: Vec<ExtractedOccluder>,
+    /// Every visible occluder, by main-world entity.
+    pub occluders: EntityHashMap<ExtractedOccluder>,
+    /// The entities extracted again this frame: added, changed, or gone (then absent from `occluders`).
+    pub changed: Vec<Entity>,
     /// The number of [`RebuildStaticVoxels`] requests so far.
     pub rebuild_requests: u64,
 }
@@ -89,14 +95,14 @@ pub fn extract_voxel_grid(
     commands.insert_resource(ExtractedVoxelGrid { assets: assets.as_deref().cloned(), focus: focus.0 });
 }
 
-/// Extracts the visible (in the hierarchy, not per view) occluding mesh instances.
+/// Extracts the occluders that changed this frame (visible in the hierarchy, not per view).
 #[allow(clippy::type_complexity)]
 pub fn extract_voxel_occluders(
     mut extracted: ResMut<ExtractedOccluders>,
+    changes: Extract<Res<OccluderChanges>>,
     occluders: Extract<
         Query<
             (
-                Entity,
                 &Mesh3d,
                 &GlobalTransform,
                 Option<&Aabb>,
@@ -124,15 +130,26 @@ pub fn extract_voxel_occluders(
     mut checked: Local<HashSet<(AssetId<Mesh>, Option<u32>)>>,
     mut warned_morph: Local<bool>,
     mut texture_means: Local<HashMap<AssetId<Image>, Vec3>>,
+    stats: Res<VoxelizationStats>,
 ) {
+    let _span = stats.cpu_span(|t| &mut t.extract_occluders);
     let attributes = grid.as_ref().is_some_and(|g| g.attributes.is_some());
-    extracted.statics.clear();
-    extracted.dynamics.clear();
+    let extracted = &mut *extracted;
     extracted.rebuild_requests = requests.0;
-    for (entity, mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed, pn, fill, material) in
-        &occluders
-    {
+    extracted.changed.clear();
+    extracted.changed.extend(&changes.changed);
+    if changes.all_changed {
+        extracted.changed.extend(changes.occluders.keys());
+    }
+    for &entity in &extracted.changed {
+        let Ok((mesh, transform, aabb, visible, s, d, p, skin, dynamic_bounds, morphed, pn, fill, material)) =
+            occluders.get(entity)
+        else {
+            extracted.occluders.remove(&entity);
+            continue;
+        };
         if !visible.get() {
+            extracted.occluders.remove(&entity);
             continue;
         }
         if morphed && !cfg!(feature = "morph") && !std::mem::replace(&mut *warned_morph, true) {
@@ -157,6 +174,11 @@ pub fn extract_voxel_occluders(
             mesh: mesh.id(),
             world_from_local: transform.affine(),
             world_bounds: aabb.filter(|_| bounds_valid).map(|a| world_aabb(a, transform)),
+            // Skinned and morphed meshes move by themselves: dynamic unless marked static (then voxelized in
+            // the pose they have when the static voxels are built). The tracker's class: a mesh it promoted
+            // this frame is dynamic already.
+            dynamic: occluder_is_dynamic(s, d, p || skin_joints.is_some() || morphed)
+                || changes.dynamics.contains(&entity),
             marked_static: s,
             skin_joints,
             morphed,
@@ -169,16 +191,8 @@ pub fn extract_voxel_occluders(
                 _ => WHITE,
             },
         };
-        // Skinned and morphed meshes move by themselves: dynamic unless marked static (then voxelized in the
-        // pose they have when the static voxels are built).
-        if occluder_is_dynamic(s, d, p || skin_joints.is_some() || morphed) {
-            extracted.dynamics.push(occluder);
-        } else {
-            extracted.statics.push(occluder);
-        }
+        extracted.occluders.insert(entity, occluder);
     }
-    // A stable order, so that the static set's fingerprint does not depend on query order.
-    extracted.statics.sort_by_key(|o| o.entity);
 }
 
 const WHITE: u32 = 0x00ff_ffff;

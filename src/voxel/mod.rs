@@ -26,9 +26,9 @@
 pub(crate) mod bindings;
 mod budget;
 mod calibration;
+mod changes;
 pub mod components;
 pub(crate) mod extract;
-mod occluders;
 mod pass;
 pub(crate) mod pipelines;
 mod prepare;
@@ -37,7 +37,7 @@ pub(crate) mod volume;
 
 pub use bindings::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
 pub use extract::RebuildStaticVoxels;
-pub use stats::VoxelizeCounters;
+pub use stats::{VoxelizeCounters, VoxelizeCpuTime};
 pub use stats::{CascadeLevelStats, LevelBytes, VoxelizationStats, VoxelizationStatsData};
 pub use volume::VoxelGridAssets;
 
@@ -119,10 +119,11 @@ impl Plugin for VoxelizationPlugin {
         app.insert_resource(stats.clone())
             .init_resource::<volume::VoxelVolumeFocus>()
             .init_resource::<calibration::GammaForTarget>()
+            .init_resource::<changes::OccluderChanges>()
             .add_systems(
                 PostUpdate,
                 (
-                    occluders::promote_moved_occluders,
+                    changes::track_occluders,
                     volume::update_voxel_focus,
                     calibration::choose_gamma_for_target,
                     volume::update_voxel_volume,

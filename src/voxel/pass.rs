@@ -114,6 +114,7 @@ pub fn voxelize(
                         encoder.clear_buffer(static_counts, c.0, Some(c.1));
                     }
                 }
+                StaticClear::Keep => {}
                 StaticClear::Region(w) => {
                     let mut cpass = encoder.begin_compute_pass(&ComputePassDescriptor {
                         label: Some("hao_voxel_clear"),

@@ -185,6 +185,15 @@ pub struct VoxelizationStatsData {
     pub dynamic_triangles: u64,
     /// Occluders skipped because their mesh cannot be voxelized (not a triangle list, not bindable).
     pub skipped_instances: u64,
+    /// Occluders the render world knows (visible mesh entities that are not `NoVoxelOcclusion`): resolved to
+    /// mesh slabs, waiting for their mesh, or skipped.
+    pub occluders_tracked: u64,
+    /// Occluders resolved to mesh slabs again in the last frame: those that changed (added, moved, re-marked,
+    /// re-meshed, shown or hidden), those waiting for their mesh, and skinned or morphed ones. A frame in
+    /// which nothing changed resolves none.
+    pub occluders_resolved: u64,
+    /// Static occluders added and waiting to be voxelized (`VoxelVolume::stream_budget`).
+    pub static_queue: u64,
     /// The GPU counters of the last static build.
     pub static_counters: VoxelizeCounters,
     /// The GPU counters of the last frame's dynamic pass.
@@ -197,6 +206,59 @@ pub struct VoxelizationStatsData {
     pub estimated_dynamic_points: u64,
     /// `VoxelVolume::target_bias` and the gamma chosen for it, once measured.
     pub gamma_for_target: Option<(f32, f32)>,
+    /// The CPU time of the plugin's voxelization systems in the last frame, main and render world.
+    pub cpu_time: VoxelizeCpuTime,
+}
+
+/// The CPU time of the voxelization systems in the last frame they ran, each measured around its body
+/// (wall-clock `Instant`s; the systems that look at occluders, where a level's size could show).
+#[derive(Clone, Copy, Default, Debug, PartialEq)]
+pub struct VoxelizeCpuTime {
+    /// Main world: finding the occluders that changed, promoting moved meshes.
+    pub track_occluders: std::time::Duration,
+    /// Main world: the point estimate.
+    pub estimate_point_budget: std::time::Duration,
+    /// Main world: gamma for the target bias.
+    pub choose_gamma: std::time::Duration,
+    /// Main world: the grid (and the fitted bounds).
+    pub update_volume: std::time::Duration,
+    /// Extraction of the occluders that changed.
+    pub extract_occluders: std::time::Duration,
+    /// Render world: resolving what changed, planning the passes, their buffers and bind groups.
+    pub prepare_voxelize: std::time::Duration,
+}
+
+impl VoxelizeCpuTime {
+    /// The main world's share.
+    pub fn main_world(&self) -> std::time::Duration {
+        self.track_occluders + self.estimate_point_budget + self.choose_gamma + self.update_volume
+    }
+
+    /// The render world's share (extraction included).
+    pub fn render_world(&self) -> std::time::Duration {
+        self.extract_occluders + self.prepare_voxelize
+    }
+}
+
+/// Measures a system's body and stores it in [`VoxelizeCpuTime`] when dropped.
+pub(crate) struct CpuSpan<'a> {
+    stats: &'a VoxelizationStats,
+    start: std::time::Instant,
+    field: fn(&mut VoxelizeCpuTime) -> &mut std::time::Duration,
+}
+
+impl VoxelizationStats {
+    /// Starts measuring a system (see [`CpuSpan`]).
+    pub(crate) fn cpu_span(&self, field: fn(&mut VoxelizeCpuTime) -> &mut std::time::Duration) -> CpuSpan<'_> {
+        CpuSpan { stats: self, start: std::time::Instant::now(), field }
+    }
+}
+
+impl Drop for CpuSpan<'_> {
+    fn drop(&mut self) {
+        let elapsed = self.start.elapsed();
+        self.stats.update(|s| *(self.field)(&mut s.cpu_time) = elapsed);
+    }
 }
 
 impl VoxelizationStats {

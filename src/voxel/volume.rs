@@ -14,7 +14,7 @@ use bevy::render::render_resource::{Extent3d, TextureDescriptor, TextureDimensio
 use bevy::render::renderer::{RenderAdapter, RenderDevice};
 use bevy::render::storage::ShaderBuffer;
 
-use super::occluders::{OccluderMarkers, markers_are_dynamic, world_aabb};
+use super::changes::{OccluderChanges, world_aabb};
 use super::stats::{CascadeLevelStats, LevelBytes, VoxelizationStats, read_voxelize_counters};
 use crate::ao::HybridAmbientOcclusion;
 
@@ -42,6 +42,8 @@ pub struct VoxelGridAssets {
     pub settings: cpu::VoxelizeSettings,
     /// Most points per frame.
     pub point_budget: u32,
+    /// Most triangles of added static occluders voxelized per frame ([`VoxelVolume::stream_budget`]).
+    pub stream_budget: u32,
     /// This frame's occupancy: the static grid plus this frame's dynamic geometry.
     pub occupancy: Handle<ShaderBuffer>,
     /// The cached occupancy of static geometry alone.
@@ -129,10 +131,9 @@ pub(crate) fn update_voxel_focus(
 pub(crate) fn update_voxel_volume(
     mut commands: Commands,
     volumes: Query<&VoxelVolume>,
-    occluders: Query<
-        (&GlobalTransform, &Aabb, &InheritedVisibility, OccluderMarkers),
-        (With<Mesh3d>, Without<NoVoxelOcclusion>),
-    >,
+    occluders: Query<(&GlobalTransform, &Aabb)>,
+    changes: Res<OccluderChanges>,
+    mut fitted: Local<Option<(u64, Option<(Vec3, Vec3)>)>>,
     current: Option<Res<VoxelGridAssets>>,
     device: Option<Res<RenderDevice>>,
     adapter: Option<Res<RenderAdapter>>,
@@ -145,6 +146,7 @@ pub(crate) fn update_voxel_volume(
     mut warned: Local<bevy::platform::collections::HashSet<String>>,
     mut generation: Local<u64>,
 ) {
+    let _span = stats.cpu_span(|t| &mut t.update_volume);
     let (Some(device), Some(adapter)) = (device, adapter) else { return };
     let mut iter = volumes.iter();
     let given = iter.next().copied().unwrap_or_default();
@@ -192,30 +194,16 @@ pub(crate) fn update_voxel_volume(
         let bounds = match volume.bounds {
             VolumeBounds::World { min, max } => Some((min, max)),
             VolumeBounds::FitStaticScene { margin } => {
-                let mut acc: Option<(Vec3, Vec3)> = None;
-                let mut non_finite = 0;
-                for (transform, aabb, visible, markers) in &occluders {
-                    if !visible.get() || markers_are_dynamic(markers) {
-                        continue;
+                // The static set's bounds, summed again only when it changed.
+                let bounds = match *fitted {
+                    Some((version, bounds)) if version == changes.static_version => bounds,
+                    _ => {
+                        let bounds = static_bounds(&changes, &occluders, &mut warned);
+                        *fitted = Some((changes.static_version, bounds));
+                        bounds
                     }
-                    let (lo, hi) = world_aabb(aabb, transform);
-                    if !(lo.is_finite() && hi.is_finite()) {
-                        // A NaN or infinite vertex: leave it out rather than lose the whole grid.
-                        non_finite += 1;
-                        continue;
-                    }
-                    acc = Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-                }
-                if non_finite > 0 {
-                    let msg = format!(
-                        "bevy_hao: {non_finite} static occluder(s) have non-finite bounds (NaN or infinite vertices) \
-                         and are left out when fitting the voxel grid"
-                    );
-                    if warned.insert(msg.clone()) {
-                        warn!("{msg}");
-                    }
-                }
-                acc.map(|(lo, hi)| (lo - Vec3::splat(margin.max(0.0)), hi + Vec3::splat(margin.max(0.0))))
+                };
+                bounds.map(|(lo, hi)| (lo - Vec3::splat(margin.max(0.0)), hi + Vec3::splat(margin.max(0.0))))
             }
             VolumeBounds::FollowCamera { .. } => unreachable!("handled above"),
         };
@@ -305,6 +293,7 @@ pub(crate) fn update_voxel_volume(
         && cur.sample_words == sample_words
         && cur.settings == settings
         && cur.point_budget == volume.point_budget
+        && cur.stream_budget == volume.stream_budget
         && cur.texture_format == texture_format
     {
         return;
@@ -343,6 +332,7 @@ pub(crate) fn update_voxel_volume(
         cascades: shape,
         settings,
         point_budget: volume.point_budget,
+        stream_budget: volume.stream_budget,
         occupancy: buffer(words_bytes, &mut buffers),
         static_occupancy: buffer(words_bytes, &mut buffers),
         point_counts: point_counts.then(|| buffer(counts_bytes, &mut buffers)),
@@ -397,4 +387,33 @@ fn report(reported: &mut ReportedVolume, msg: String) {
         error!("{msg}");
         reported.0 = Some(msg);
     }
+}
+
+/// The union of the static occluders' world bounds (those with non-finite bounds left out, with a warning).
+fn static_bounds(
+    changes: &OccluderChanges,
+    occluders: &Query<(&GlobalTransform, &Aabb)>,
+    warned: &mut bevy::platform::collections::HashSet<String>,
+) -> Option<(Vec3, Vec3)> {
+    let mut acc: Option<(Vec3, Vec3)> = None;
+    let mut non_finite = 0;
+    for (transform, aabb) in changes.static_entities().filter_map(|e| occluders.get(e).ok()) {
+        let (lo, hi) = world_aabb(aabb, transform);
+        if !(lo.is_finite() && hi.is_finite()) {
+            // A NaN or infinite vertex: leave it out rather than lose the whole grid.
+            non_finite += 1;
+            continue;
+        }
+        acc = Some(acc.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+    }
+    if non_finite > 0 {
+        let msg = format!(
+            "bevy_hao: {non_finite} static occluder(s) have non-finite bounds (NaN or infinite vertices) and are \
+             left out when fitting the voxel grid"
+        );
+        if warned.insert(msg.clone()) {
+            warn!("{msg}");
+        }
+    }
+    acc
 }

@@ -358,6 +358,8 @@ fn gpu_volume(bounds: (Vec3, Vec3), res: u32, settings: &VoxelizeSettings) -> Vo
         point_budget: u32::MAX,
         point_counts: false,
         attributes: false,
+        // The whole model at once: the grid is compared with the CPU's on the first frames.
+        stream_budget: u32::MAX,
     }
 }
 
