@@ -91,9 +91,18 @@ fn plugins() -> PluginGroupBuilder {
 /// A headless app with the HAO plugin (and Bevy's render diagnostics, for GPU time spans), ready to
 /// `update()`.
 pub fn headless_app(setup: impl FnOnce(&mut App)) -> App {
+    headless_app_with(true, setup)
+}
+
+/// A headless app as [`headless_app`], with the HAO plugin or without it (Bevy alone, for side-by-side
+/// measurements).
+pub fn headless_app_with(hao: bool, setup: impl FnOnce(&mut App)) -> App {
     require_vulkan();
     let mut app = App::new();
-    app.add_plugins((plugins(), bevy_hao::HaoPlugin, bevy::render::diagnostic::RenderDiagnosticsPlugin));
+    app.add_plugins((plugins(), bevy::render::diagnostic::RenderDiagnosticsPlugin));
+    if hao {
+        app.add_plugins(bevy_hao::HaoPlugin);
+    }
     app.insert_resource(RenderErrorHandler(|error, _, _| {
         RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()).push(format!("{:?}: {}", error.ty, error.description));
         RenderErrorPolicy::StopRendering
