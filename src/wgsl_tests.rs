@@ -248,7 +248,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 region_max,
                 voxel_base,
                 window_min,
-                _pad0,
+                brick_pass,
                 wrap,
                 sample_words,
                 dims,

@@ -1090,8 +1090,14 @@ fn a_chunk_of_static_occluders_streams_in_within_the_budget_nearest_first() {
     let mut app = headless_app(|app| {
         app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
             // Cuboids have 12 triangles: 40 of them a frame.
-            commands.spawn(VoxelVolume { stream_budget: 12 * PER_FRAME as u32, ..volume(4.0, 64, VoxelInjection::Centroid) });
-            commands.spawn((Mesh3d(meshes.add(Plane3d::default().mesh().size(7.0, 7.0))), Transform::from_xyz(0.0, -3.0, 0.0)));
+            commands.spawn(VoxelVolume {
+                stream_budget: 12 * PER_FRAME as u32,
+                ..volume(4.0, 64, VoxelInjection::Centroid)
+            });
+            commands.spawn((
+                Mesh3d(meshes.add(Plane3d::default().mesh().size(7.0, 7.0))),
+                Transform::from_xyz(0.0, -3.0, 0.0),
+            ));
         });
     });
     run(&mut app, 6);
@@ -1128,5 +1134,60 @@ fn a_chunk_of_static_occluders_streams_in_within_the_budget_nearest_first() {
     assert!(cube_set(&occ, farthest));
     // The floor is still there (added, not rebuilt over).
     assert!(set_cells(&occ, Vec3::new(-3.4, -3.1, -3.4), Vec3::new(3.4, -2.9, 3.4)) > 100);
+    assert!(take_render_errors().is_empty());
+}
+
+/// The voxel texture (mip 0) against the frame's occupancy bits, cell by cell: the cells where they differ.
+fn texture_differs_from_occupancy(app: &mut App) -> (u64, u64) {
+    let occ = read_occupancy(app);
+    let texture = grid_assets(app).unwrap().texture;
+    let (w, h, texel, bytes) = read_image(app, texture, 0);
+    let d = occ.grid().dims;
+    let (mut differ, mut set) = (0, 0);
+    for z in 0..d.z {
+        for y in 0..d.y {
+            for x in 0..d.x {
+                let i = ((x + w * (y + h * z)) * texel) as usize;
+                let occupied = bytes[i..i + texel as usize].iter().any(|&b| b != 0);
+                let bit = occ.is_set(UVec3::new(x, y, z));
+                differ += u64::from(occupied != bit);
+                set += u64::from(bit);
+            }
+        }
+    }
+    (differ, set)
+}
+
+#[test]
+fn dynamic_occluders_far_apart_resolve_into_the_texture_where_they_are_and_were() {
+    let _gpu = gpu_lock();
+    // Eight small movers at the corners of a cube: the box around them is most of the grid, so their own
+    // bricks (now and last frame) are resolved instead of it.
+    let mut app = headless_app(|app| {
+        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+            commands.spawn(volume(4.0, 32, VoxelInjection::Centroid));
+            commands.spawn((
+                Mesh3d(meshes.add(Plane3d::default().mesh().size(6.0, 6.0))),
+                Transform::from_xyz(0.0, -3.5, 0.0),
+            ));
+            let cube = meshes.add(Cuboid::new(0.3, 0.3, 0.3));
+            for i in 0..8 {
+                let corner = Vec3::new([-2.5, 2.5][i & 1], [-2.5, 2.5][i >> 1 & 1], [-2.5, 2.5][i >> 2]);
+                commands.spawn((Mesh3d(cube.clone()), Transform::from_translation(corner), DynamicOccluder, Mover));
+            }
+        });
+    });
+    run(&mut app, 6);
+    for step in 1..=3 {
+        let mut q = app.world_mut().query_filtered::<&mut Transform, With<Mover>>();
+        for mut t in q.iter_mut(app.world_mut()) {
+            t.translation.x += if step == 2 { -0.6 } else { 0.35 };
+        }
+        app.update();
+        let (differ, set) = texture_differs_from_occupancy(&mut app);
+        println!("step {step}: {set} voxels set, {differ} differ in the texture");
+        assert!(set > 8 * 8, "the movers and the floor are voxelized: {set}");
+        assert_eq!(differ, 0, "step {step}: the texture holds the occupancy where the movers are and were");
+    }
     assert!(take_render_errors().is_empty());
 }

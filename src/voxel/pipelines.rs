@@ -111,7 +111,7 @@ pub(crate) struct GpuVoxelizeParams {
     pub _pad_c: u32,
 }
 
-/// A box of one level to resolve into the texture, at one mip (WGSL `LevelRegion`).
+/// A box (or a list of bricks) of one level to resolve into the texture, at one mip (WGSL `LevelRegion`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub(crate) struct GpuLevelRegion {
@@ -120,7 +120,8 @@ pub(crate) struct GpuLevelRegion {
     pub region_max: IVec3,
     pub voxel_base: u32,
     pub window_min: IVec3,
-    pub _pad0: u32,
+    /// 1 in a pass over a list of bricks (the region then clips), 0 in a pass over the region.
+    pub brick_pass: u32,
     pub wrap: UVec3,
     /// Words of a voxel's record in the frame's point-count buffer (resolve: attributes where it is
     /// `SAMPLE_WORDS`).
@@ -312,6 +313,7 @@ impl FromWorld for VoxelizePipelines {
                     storage_buffer_read_only_sized(false, None),
                     texture_storage_3d(ATTRIBUTE_FORMATS[0], StorageTextureAccess::WriteOnly),
                     texture_storage_3d(ATTRIBUTE_FORMATS[1], StorageTextureAccess::WriteOnly),
+                    storage_buffer_read_only_sized(false, None),
                 ),
             ),
         );
@@ -323,6 +325,7 @@ impl FromWorld for VoxelizePipelines {
                     uniform_buffer::<GpuLevelRegion>(false),
                     texture_3d(TextureSampleType::Float { filterable: false }),
                     texture_storage_3d(texture_format, StorageTextureAccess::WriteOnly),
+                    storage_buffer_read_only_sized(false, None),
                 ),
             ),
         );

@@ -1,8 +1,9 @@
 // One mip level of one level of the voxel texture, over a box of its texels (in the level's lattice, at
-// this mip): the maximum of the eight children one mip down. A level's window starts on a multiple of the
-// coarsest mip's texel, so the children of a stored texel are the stored children of its lattice texel.
+// this mip) or a list of bricks of them: the maximum of the eight children one mip down. A level's window
+// starts on a multiple of the coarsest mip's texel, so the children of a stored texel are the stored
+// children of its lattice texel.
 
-#import bevy_hao::voxelize_common::LevelRegion
+#import bevy_hao::voxelize_common::{LevelRegion, region_texel}
 
 @group(0) @binding(0) var<uniform> mip: LevelRegion;
 @group(0) @binding(1) var source: texture_3d<f32>;
@@ -11,13 +12,24 @@
 #else
 @group(0) @binding(2) var destination: texture_storage_3d<r32float, write>;
 #endif
+// The bricks of a brick pass (at the pass's mip, in units of BRICK_CELLS texels, in xyz; a placeholder for
+// a box pass).
+@group(0) @binding(3) var<storage, read> bricks: array<vec4<i32>>;
 
 @compute @workgroup_size(4, 4, 4)
-fn downsample_max(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let texel = mip.region_min + vec3<i32>(gid);
-    if any(texel >= mip.region_max) {
+fn downsample_max(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_id) local: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+) {
+    // Read whatever the pass (no branch on the uniform: lavapipe would compile a variant of the shader
+    // for each value of a uniform that a branch tests, every frame).
+    let brick = bricks[min(wid.z, arrayLength(&bricks) - 1u)].xyz;
+    let t = region_texel(mip, gid, local, brick);
+    if t.w == 0 {
         return;
     }
+    let texel = t.xyz;
     let physical = (vec3<u32>(texel - mip.window_min) + mip.wrap) % mip.size;
     let source_size = mip.size * 2u;
     var m = 0.0;

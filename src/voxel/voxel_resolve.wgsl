@@ -1,10 +1,11 @@
 // Resolve: the frame's occupancy bits (static geometry plus this frame's dynamic geometry) become the 3D
-// voxel texture that sampling passes read (1 = occupied, 0 = empty), over a box of one level that changed.
+// voxel texture that sampling passes read (1 = occupied, 0 = empty), over a box or a list of bricks of one
+// level that changed.
 // The box is in the level's lattice; each cell goes where the level stores it (toroidally for a cascade),
 // and the level sits at its own z in the texture (see `voxel_grid.wgsl`). Where the volume keeps attributes,
 // the voxels' records become their average albedo and normal in two more textures of the same layout.
 
-#import bevy_hao::voxelize_common::{LevelRegion, SAMPLE_WORDS, ALBEDO_SCALE, NORMAL_SCALE}
+#import bevy_hao::voxelize_common::{LevelRegion, SAMPLE_WORDS, ALBEDO_SCALE, NORMAL_SCALE, region_texel}
 
 @group(0) @binding(0) var<uniform> resolve: LevelRegion;
 @group(0) @binding(1) var<storage, read> occupancy: array<u32>;
@@ -18,6 +19,8 @@
 @group(0) @binding(3) var<storage, read> records: array<u32>;
 @group(0) @binding(4) var albedo_texture: texture_storage_3d<rgba8unorm, write>;
 @group(0) @binding(5) var normal_texture: texture_storage_3d<rgba8snorm, write>;
+// The bricks of a brick pass (at the pass's mip, in units of BRICK_CELLS texels, in xyz; a placeholder for a box pass).
+@group(0) @binding(6) var<storage, read> bricks: array<vec4<i32>>;
 
 // attributes.rs: resolve_sample. The average albedo (rgb; a = 1 where the voxel has points) and normal of
 // the record at `base`.
@@ -39,11 +42,19 @@ fn resolve_sample(base: u32) -> Resolved {
 }
 
 @compute @workgroup_size(4, 4, 4)
-fn resolve_occupancy(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let cell = resolve.region_min + vec3<i32>(gid);
-    if any(cell >= resolve.region_max) {
+fn resolve_occupancy(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_id) local: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+) {
+    // Read whatever the pass (no branch on the uniform: lavapipe would compile a variant of the shader
+    // for each value of a uniform that a branch tests, every frame).
+    let brick = bricks[min(wid.z, arrayLength(&bricks) - 1u)].xyz;
+    let t = region_texel(resolve, gid, local, brick);
+    if t.w == 0 {
         return;
     }
+    let cell = t.xyz;
     let physical = (vec3<u32>(cell - resolve.window_min) + resolve.wrap) % resolve.size;
     // A single grid's texture is padded past its cells: empty there.
     var bit = 0u;

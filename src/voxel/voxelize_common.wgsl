@@ -89,7 +89,9 @@ struct LevelRegion {
     region_max: vec3<i32>,
     voxel_base: u32,
     window_min: vec3<i32>,
-    pad_a: u32,
+    // 1 for a pass over a list of bricks (then the region is the window at this mip, a clip), 0 for a pass
+    // over the region.
+    brick_pass: u32,
     wrap: vec3<u32>,
     // Words of a voxel's record in the frame's `point_counts` (see `VoxelizeParams`; the resolve pass).
     sample_words: u32,
@@ -99,6 +101,19 @@ struct LevelRegion {
     // Texels of the level at this mip (dims padded to the coarsest mip's texel).
     size: vec3<u32>,
     pad_d: u32,
+}
+
+// src/voxel/prepare/levels.rs: `BRICK_CELLS`. Texels along a side of a brick at the pass's mip: one
+// workgroup of 4x4x4.
+const BRICK_CELLS: i32 = 4;
+
+// The texel (xyz) that invocation `gid` of a pass over `region` handles, and whether it handles one (w): a
+// box pass covers the region from its min corner; a brick pass runs one workgroup per brick (`brick`, in
+// units of BRICK_CELLS texels at the pass's mip), clipped to the region.
+fn region_texel(region: LevelRegion, gid: vec3<u32>, local: vec3<u32>, brick: vec3<i32>) -> vec4<i32> {
+    let texel = select(region.region_min + vec3<i32>(gid), brick * BRICK_CELLS + vec3<i32>(local), region.brick_pass != 0u);
+    let inside = all(texel >= region.region_min) && all(texel < region.region_max);
+    return vec4<i32>(texel, select(0, 1, inside));
 }
 
 // A triangle that needs more than one point or crosses the grid boundary, queued by the classify pass for

@@ -291,7 +291,8 @@ impl TrackedInstance {
             && a.solid == b.solid
             && a.albedo == b.albedo
             && a.world_bounds == b.world_bounds
-            && a.world_from_local.to_cols_array().map(f32::to_bits) == b.world_from_local.to_cols_array().map(f32::to_bits)
+            && a.world_from_local.to_cols_array().map(f32::to_bits)
+                == b.world_from_local.to_cols_array().map(f32::to_bits)
     }
 }
 
@@ -330,6 +331,8 @@ pub(crate) struct ResolvedOccluders {
     /// Static occluders added and not yet voxelized: added to the static grid within the streaming budget,
     /// nearest the focus first.
     queued: EntityHashSet,
+    /// Occluders filled solid (`VoxelFill::Solid`), resolved or not.
+    solid: EntityHashSet,
     /// Occluders resolved in the last frame.
     pub resolved_last_frame: u64,
     warned_meshes: HashSet<(AssetId<Mesh>, WarnedFor)>,
@@ -382,7 +385,8 @@ impl ResolvedOccluders {
             .iter()
             .filter_map(|e| {
                 let t = self.instances.get(e)?;
-                let distance = t.occluder.world_bounds.map_or(0.0, |(lo, hi)| ((lo + hi) * 0.5).distance_squared(focus));
+                let distance =
+                    t.occluder.world_bounds.map_or(0.0, |(lo, hi)| ((lo + hi) * 0.5).distance_squared(focus));
                 Some((distance, *e, t.resolved.as_ref().map_or(0, |r| r.gpu.triangle_count as u64)))
             })
             .collect();
@@ -410,7 +414,7 @@ impl ResolvedOccluders {
 
     /// Whether any occluder is filled solid.
     pub fn any_solid(&self) -> bool {
-        self.instances.values().any(|t| t.occluder.solid)
+        !self.solid.is_empty()
     }
 
     /// Brings the resolution up to date with this frame's extraction and mesh uploads, and says which static
@@ -478,6 +482,7 @@ impl ResolvedOccluders {
         self.per_frame.remove(&entity);
         self.dynamics.remove(&entity);
         self.skipped.remove(&entity);
+        self.solid.remove(&entity);
         // In the static grid already (not waiting in the queue).
         let queued = self.queued.remove(&entity);
         let was_static = old.as_ref().is_some_and(|o| o.is_static()) && !queued;
@@ -525,6 +530,9 @@ impl ResolvedOccluders {
         }
         if o.skin_joints.is_some() || o.morphed {
             self.per_frame.insert(entity);
+        }
+        if o.solid {
+            self.solid.insert(entity);
         }
         self.by_mesh.entry(o.mesh).or_default().insert(entity);
         self.instances.insert(entity, now);

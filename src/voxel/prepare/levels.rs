@@ -4,6 +4,7 @@
 use super::super::volume::VoxelGridAssets;
 use crate::cpu::{self, VoxelGrid};
 use bevy::math::{Affine3A, IVec3};
+use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
 
 /// A box of lattice cells, `[min, max)`.
@@ -25,6 +26,32 @@ pub(super) fn groups4(b: CellBox) -> UVec3 {
 
 pub(super) fn cells(b: CellBox) -> u64 {
     (b.1 - b.0).max(IVec3::ZERO).as_u64vec3().element_product()
+}
+
+/// Cells along each side of a brick (texels, at a mip): the unit in which small scattered changes (dynamic
+/// occluders, static ones streamed in) are resolved into the texture, so that a few occluders far apart
+/// cost their own cells rather than the box around them all; one workgroup of 4x4x4 each. WGSL:
+/// `voxelize_common.wgsl`, `BRICK_CELLS`.
+pub(super) const BRICK_CELLS: i32 = 4;
+
+/// Adds the bricks (lattice cell / `BRICK_CELLS`) a box of cells touches to `out`.
+pub(super) fn add_bricks(b: CellBox, out: &mut HashSet<IVec3>) {
+    let lo = b.0.div_euclid(IVec3::splat(BRICK_CELLS));
+    let hi = (b.1 - IVec3::ONE).div_euclid(IVec3::splat(BRICK_CELLS));
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                out.insert(IVec3::new(x, y, z));
+            }
+        }
+    }
+}
+
+/// The bricks a box of cells touches, without listing them.
+pub(super) fn brick_count(b: CellBox) -> u64 {
+    let lo = b.0.div_euclid(IVec3::splat(BRICK_CELLS));
+    let hi = (b.1 - IVec3::ONE).div_euclid(IVec3::splat(BRICK_CELLS));
+    (hi - lo + IVec3::ONE).max(IVec3::ZERO).as_u64vec3().element_product()
 }
 
 /// One level of the volume as placed this frame: a single grid, or a cascade with its window.
@@ -136,4 +163,3 @@ pub(crate) fn place_levels(assets: &VoxelGridAssets, focus: Option<Vec3>) -> Opt
         }
     }
 }
-

@@ -7,10 +7,12 @@
 //! - [`levels`]: where the levels are this frame, and boxes of their cells;
 //! - [`instances`]: what changed, the occluders resolved to slabs and kept across frames;
 //! - [`upload`]: a pass's instances uploaded and grouped into classify dispatches;
+//! - [`resolve`]: the occupancy bits resolved into the voxel texture and its mips where they changed;
 //! - this file: the passes planned, and their buffers and bind groups.
 
 mod instances;
 mod levels;
+mod resolve;
 mod upload;
 
 pub(crate) use levels::{CellBox, LevelLayout, place_levels};
@@ -20,11 +22,12 @@ use super::pipelines::*;
 use super::stats::{CascadeLevelStats, VoxelizationStats};
 use super::stats::{STATIC_REGION_SLOTS, counter_base};
 use crate::cpu::{self, InjectionMode, SubdivisionPattern};
+use bevy::ecs::entity::EntityHashSet;
 use bevy::math::IVec3;
 use bevy::pbr::SkinUniforms;
 #[cfg(feature = "morph")]
 use bevy::pbr::{MorphIndices, MorphUniforms};
-use bevy::ecs::entity::EntityHashSet;
+use bevy::platform::collections::HashSet;
 use bevy::prelude::*;
 use bevy::render::mesh::RenderMesh;
 use bevy::render::mesh::allocator::MeshAllocator;
@@ -34,8 +37,10 @@ use bevy::render::renderer::RenderDevice;
 use bevy::render::storage::GpuShaderBuffer;
 use bevy::render::texture::GpuImage;
 use instances::{ResolvedInstance, ResolvedOccluders, Skins};
-use levels::{cells, groups4, intersect, union};
-use upload::{build_slab_dispatches, instances_in, settings_buffer, uniform};
+use levels::{add_bricks, brick_count, cells, groups4, intersect, union};
+pub use resolve::ResolveWork;
+use resolve::{MAX_BRICKS, ResolveBindings, brick_and_box_texels, brick_mips};
+use upload::{build_slab_dispatches, instances_in, settings_buffer};
 
 /// State kept across frames.
 #[derive(Resource, Default)]
@@ -46,6 +51,8 @@ pub struct VoxelizeState {
     /// The occluders resolved to mesh slabs.
     occluders: ResolvedOccluders,
     prev_dynamic: Vec<Option<CellBox>>,
+    /// Per level, the bricks the dynamic occluders touched last frame (`None`: too many, `prev_dynamic`).
+    prev_dynamic_bricks: Vec<Option<HashSet<IVec3>>>,
     had_dynamic: bool,
     /// World boxes of the dynamic occluders this frame (`None`: one without bounds, anywhere).
     dynamic_world: Vec<Option<(Vec3, Vec3)>>,
@@ -128,16 +135,6 @@ pub struct StaticPass {
     pub pass: VoxelizePass,
 }
 
-/// One box of one level to resolve into the texture.
-pub struct ResolveWork {
-    /// Bits to mip 0.
-    pub bind_group: BindGroup,
-    /// Workgroups of 4x4x4.
-    pub workgroups: UVec3,
-    /// One per further mip level.
-    pub mips: Vec<(BindGroup, UVec3)>,
-}
-
 /// Everything the voxelize system records this frame; absent on frames with nothing to do.
 #[derive(Resource)]
 pub struct VoxelizeFrame {
@@ -191,6 +188,7 @@ pub fn prepare_voxelize(
     let invalidate = |state: &mut VoxelizeState| {
         state.levels.clear();
         state.prev_dynamic.clear();
+        state.prev_dynamic_bricks.clear();
         state.dynamic_world.clear();
         state.prev_dynamic_world.clear();
     };
@@ -244,7 +242,7 @@ pub fn prepare_voxelize(
     };
     // The solid pipelines too once a solid occluder exists: a static level built without its fill would stay
     // hollow until it is rebuilt.
-    let solid_wanted = state.occluders.any_solid() || occluders.occluders.values().any(|o| o.solid);
+    let solid_wanted = state.occluders.any_solid();
     let solid_ids = [pipelines.solid_crossings, pipelines.solid_fill];
     if [pipelines.classify, pipelines.scan, pipelines.expand, pipelines.clear, pipelines.resolve, pipelines.mip]
         .iter()
@@ -337,6 +335,11 @@ pub fn prepare_voxelize(
         dynamic_boxes.push(b);
     }
 
+    // Per level: the bricks of the dynamic occluders (`None` where they touch too many), and those of last frame.
+    let dynamic_bricks: Vec<Option<HashSet<IVec3>>> =
+        levels.iter().map(|level| bricks_of(state.occluders.dynamics().map(|(o, _)| o.world_bounds), level)).collect();
+    let prev_dynamic_bricks = std::mem::replace(&mut state.prev_dynamic_bricks, dynamic_bricks.clone());
+
     // Per level not rebuilt whole: the box the added occluders cover (they are voxelized into it, the rest
     // of the static grid kept).
     let added_boxes: Vec<Option<CellBox>> = levels
@@ -346,12 +349,20 @@ pub fn prepare_voxelize(
             if *whole {
                 return None;
             }
-            state.occluders.some(&added).filter_map(|(o, _)| match o.world_bounds {
-                Some((lo, hi)) => level.cells_of_box(lo, hi),
-                None => Some(level.window()),
-            })
-            .reduce(union)
+            state
+                .occluders
+                .some(&added)
+                .filter_map(|(o, _)| match o.world_bounds {
+                    Some((lo, hi)) => level.cells_of_box(lo, hi),
+                    None => Some(level.window()),
+                })
+                .reduce(union)
         })
+        .collect();
+
+    let added_bricks: Vec<Option<HashSet<IVec3>>> = levels
+        .iter()
+        .map(|level| bricks_of(state.occluders.some(&added).map(|(o, _)| o.world_bounds), level))
         .collect();
 
     let any_static = level_regions.iter().any(|(b, _, _)| !b.is_empty()) || added_boxes.iter().any(Option::is_some);
@@ -606,74 +617,57 @@ pub fn prepare_voxelize(
     };
     let [albedo_view, normal_view] = attribute_views.as_ref().unwrap_or(&pipelines.dummy_attributes);
     let records = counts.as_ref().map_or(&pipelines.dummy, |c| &c.1);
-    let resolve_layout = cache.get_bind_group_layout(&pipelines.resolve_layout);
-    let mip_layout = cache.get_bind_group_layout(&pipelines.mip_layout);
+    let bindings = ResolveBindings {
+        device: &device,
+        resolve_layout: &cache.get_bind_group_layout(&pipelines.resolve_layout),
+        mip_layout: &cache.get_bind_group_layout(&pipelines.mip_layout),
+        views: &views,
+        occupancy: &occupancy.buffer,
+        records,
+        albedo: albedo_view,
+        normal: normal_view,
+        sample_words: if counts.is_some() { assets.sample_words } else { 0 },
+        dummy: &pipelines.dummy,
+    };
     let mut resolve = Vec::new();
     for (l, level) in levels.iter().enumerate() {
         let (boxes, whole, _) = &level_regions[l];
-        let mut list: Vec<CellBox> = Vec::new();
         if *whole {
             // The padding past the grid too, so that it reads as empty.
-            list.push((level.window_min, level.window_min + level.size.as_ivec3()));
-        } else {
-            list.extend(boxes.iter().copied());
-            list.extend(added_boxes[l]);
-            for b in [dynamic_boxes[l], prev_dynamic.get(l).copied().flatten()].into_iter().flatten() {
-                if let Some(b) = intersect(b, level.window()) {
-                    list.push(b);
-                }
-            }
-            if list.len() > STATIC_REGION_SLOTS as usize + 2 {
-                let u = list.iter().copied().reduce(union).expect("not empty");
-                list = vec![u];
-            }
+            resolve.push(bindings.resolve_box(level, (level.window_min, level.window_min + level.size.as_ivec3())));
+            continue;
         }
-        for b in list {
-            let params = |mip: u32, b: CellBox| GpuLevelRegion {
-                region_min: b.0,
-                texture_z: level.texture_z >> mip,
-                region_max: b.1,
-                voxel_base: level.voxel_base,
-                window_min: level.window_min >> mip as i32,
-                _pad0: 0,
-                wrap: level.wrap() >> mip,
-                sample_words: if counts.is_some() { assets.sample_words } else { 0 },
-                dims: level.dims,
-                _pad2: 0,
-                size: level.size >> mip,
-                _pad3: 0,
-            };
-            let p0 = uniform(&device, "hao_voxel_resolve_params", &params(0, b));
-            let bind_group = device.create_bind_group(
-                "hao_voxel_resolve_bind_group",
-                &resolve_layout,
-                &BindGroupEntries::sequential((
-                    p0.as_entire_binding(),
-                    occupancy.buffer.as_entire_binding(),
-                    &views[0],
-                    records.as_entire_binding(),
-                    albedo_view,
-                    normal_view,
-                )),
-            );
-            let mut mips = Vec::new();
-            for mip in 1..assets.mip_levels {
-                let s = 1i32 << mip;
-                let mb = (b.0.div_euclid(IVec3::splat(s)), (b.1 + IVec3::splat(s - 1)).div_euclid(IVec3::splat(s)));
-                let pm = uniform(&device, "hao_voxel_mip_params", &params(mip, mb));
-                let bind_group = device.create_bind_group(
-                    "hao_voxel_mip_bind_group",
-                    &mip_layout,
-                    &BindGroupEntries::sequential((
-                        pm.as_entire_binding(),
-                        &views[mip as usize - 1],
-                        &views[mip as usize],
-                    )),
-                );
-                mips.push((bind_group, groups4(mb)));
-            }
-            resolve.push(ResolveWork { bind_group, workgroups: groups4(b), mips });
+        for b in boxes {
+            resolve.push(bindings.resolve_box(level, *b));
         }
+        // Scattered changes: the occluders added, and dynamic geometry now and last frame, as bricks or as
+        // the box around them, whichever writes fewer texels.
+        let Some(around) = [added_boxes[l], dynamic_boxes[l], prev_dynamic.get(l).copied().flatten()]
+            .into_iter()
+            .flatten()
+            .filter_map(|b| intersect(b, level.window()))
+            .reduce(union)
+        else {
+            continue;
+        };
+        // All three brick sets, or `None` where any of them had too many bricks to list.
+        let no_bricks = Some(HashSet::default());
+        let scattered = [&added_bricks[l], &dynamic_bricks[l], prev_dynamic_bricks.get(l).unwrap_or(&no_bricks)];
+        let bricks = scattered.into_iter().try_fold(HashSet::default(), |mut all: HashSet<IVec3>, set| {
+            all.extend(set.as_ref()?.iter().copied());
+            Some(all)
+        });
+        let lists = bricks
+            .filter(|b| !b.is_empty() && b.len() <= MAX_BRICKS)
+            .map(|b| brick_mips(&b, assets.mip_levels))
+            .filter(|lists| {
+                let (bricks, boxes) = brick_and_box_texels(lists, around);
+                bricks < boxes
+            });
+        resolve.push(match lists {
+            Some(lists) => bindings.resolve_bricks(level, &lists),
+            None => bindings.resolve_box(level, around),
+        });
     }
     let empty_bind_group = device.create_bind_group(
         "hao_voxelize_empty_bind_group",
@@ -713,3 +707,18 @@ pub fn prepare_voxelize(
     });
 }
 
+/// The bricks of `level` that boxes of occluders (`None`: one without bounds, anywhere) touch, or `None`
+/// where they are more than a brick pass takes.
+fn bricks_of(bounds: impl Iterator<Item = Option<(Vec3, Vec3)>>, level: &LevelLayout) -> Option<HashSet<IVec3>> {
+    let mut set = HashSet::default();
+    let mut touched = 0u64;
+    for b in bounds {
+        let Some(cells) = b.map_or(Some(level.window()), |(lo, hi)| level.cells_of_box(lo, hi)) else { continue };
+        touched += brick_count(cells);
+        if touched > MAX_BRICKS as u64 {
+            return None;
+        }
+        add_bricks(cells, &mut set);
+    }
+    Some(set)
+}

@@ -1,11 +1,11 @@
 //! Instance upload: the occluders of a pass, placed in a level's lattice and grouped by the mesh slabs they
 //! read, as one instance buffer and one classify dispatch per slab group.
 
-use super::instances::ResolvedInstance;
-use super::levels::LevelLayout;
 use super::super::extract::ExtractedOccluder;
 use super::super::pipelines::*;
 use super::SlabDispatch;
+use super::instances::ResolvedInstance;
+use super::levels::LevelLayout;
 use bevy::prelude::*;
 use bevy::render::render_resource::encase::internal::WriteInto;
 use bevy::render::render_resource::*;
@@ -17,7 +17,11 @@ pub(super) fn uniform<T: ShaderType + WriteInto>(device: &RenderDevice, label: &
 
 /// A buffer of per-dispatch settings, bound as a uniform or a read-only storage buffer as the pipelines
 /// chose (see `VoxelizePipelines::params_in_storage`).
-pub(super) fn settings_buffer<T: ShaderType + WriteInto>(device: &RenderDevice, label: &'static str, value: &T) -> Buffer {
+pub(super) fn settings_buffer<T: ShaderType + WriteInto>(
+    device: &RenderDevice,
+    label: &'static str,
+    value: &T,
+) -> Buffer {
     crate::gpu::uniform_buffer(device, label, value, BufferUsages::STORAGE)
 }
 
@@ -137,4 +141,3 @@ pub(super) fn instances_in<'a>(
         })
         .collect()
 }
-
