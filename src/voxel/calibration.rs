@@ -2,12 +2,12 @@
 //! occluders by [`crate::cpu::calibrate`] whenever the static set, the target or the cell size changes.
 
 use super::budget::mesh_triangles;
-use super::components::*;
 use super::changes::OccluderChanges;
+use super::components::*;
 use super::stats::VoxelizationStats;
 use crate::cpu::{self, SubdivisionPattern};
-use bevy::prelude::*;
 use bevy::platform::hash::FixedHasher;
+use bevy::prelude::*;
 use std::hash::BuildHasher;
 
 /// The gamma chosen for the volume's target bias, if it has one.
@@ -51,7 +51,9 @@ pub(crate) fn choose_gamma_for_target(
     };
     let pattern: SubdivisionPattern = volume.subdivision.into();
     for event in mesh_events.read() {
-        if let AssetEvent::Added { .. } | AssetEvent::Modified { .. } | AssetEvent::LoadedWithDependencies { .. } = event {
+        if let AssetEvent::Added { .. } | AssetEvent::Modified { .. } | AssetEvent::LoadedWithDependencies { .. } =
+            event
+        {
             *mesh_epoch += 1;
         }
     }

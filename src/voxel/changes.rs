@@ -68,22 +68,33 @@ impl OccluderChanges {
     }
 }
 
-/// The components whose changes make an occluder's voxels out of date.
-type OccluderChanged = Or<(
-    Changed<GlobalTransform>,
-    Changed<Mesh3d>,
-    Changed<InheritedVisibility>,
-    Changed<Aabb>,
+/// The components every mesh entity has whose changes make an occluder's voxels out of date. Each term of
+/// an `Or` is checked for every entity the query matches, so the components few entities have are queried
+/// apart: those queries match only the archetypes that have them.
+type MeshChanged = Or<(Changed<GlobalTransform>, Changed<Mesh3d>, Changed<InheritedVisibility>, Changed<Aabb>)>;
+
+/// The markers, added or changed.
+type MarkersChanged = Or<(
     Changed<StaticOccluder>,
     Changed<DynamicOccluder>,
     Changed<PromotedToDynamic>,
     Changed<NoVoxelOcclusion>,
     Changed<VoxelFill>,
     Changed<PnTriangles>,
-    Changed<MeshMaterial3d<StandardMaterial>>,
-    Changed<SkinnedMesh>,
-    Added<MeshMorphWeights>,
 )>;
+
+/// Skins and morph targets, added or changed.
+type AnimationChanged = Or<(Changed<SkinnedMesh>, Added<MeshMorphWeights>)>;
+
+/// The queries of the entities that changed, by how many entities have the components.
+#[derive(bevy::ecs::system::SystemParam)]
+pub(crate) struct OccluderChangedQueries<'w, 's> {
+    mesh: Query<'w, 's, Entity, (With<Mesh3d>, MeshChanged)>,
+    markers: Query<'w, 's, Entity, (With<Mesh3d>, MarkersChanged)>,
+    animation: Query<'w, 's, Entity, (With<Mesh3d>, AnimationChanged)>,
+    /// Read only where the volume keeps attributes (albedo comes from the material).
+    material: Query<'w, 's, Entity, (With<Mesh3d>, Changed<MeshMaterial3d<StandardMaterial>>)>,
+}
 
 /// Removals that change whether or how an entity occludes.
 #[derive(bevy::ecs::system::SystemParam)]
@@ -133,7 +144,7 @@ type OccluderQueryData = (
 pub(crate) fn track_occluders(
     mut commands: Commands,
     mut changes: ResMut<OccluderChanges>,
-    changed: Query<Entity, (With<Mesh3d>, OccluderChanged)>,
+    changed: OccluderChangedQueries,
     occluders: Query<OccluderQueryData, (With<Mesh3d>, Without<NoVoxelOcclusion>)>,
     mut removals: OccluderRemovals,
     mut material_events: MessageReader<AssetEvent<StandardMaterial>>,
@@ -145,13 +156,26 @@ pub(crate) fn track_occluders(
     let _span = stats.cpu_span(|t| &mut t.track_occluders);
     let changes = &mut *changes;
     changes.changed.clear();
-    changes.changed.extend(changed.iter());
-    changes.changed.extend(removals.read());
     // Albedo comes from materials only where the volume keeps attributes.
     let attributes = volumes.iter().next().is_some_and(|v| v.attributes);
+    changes.changed.extend(changed.mesh.iter());
+    changes.changed.extend(changed.markers.iter());
+    changes.changed.extend(changed.animation.iter());
+    if attributes {
+        changes.changed.extend(changed.material.iter());
+    }
+    changes.changed.extend(removals.read());
+    // An entity met twice is looked at once.
+    if changes.changed.len() > 1 {
+        changes.changed.sort_unstable();
+        changes.changed.dedup();
+    }
     // (A material or texture that loads or changes: the albedo of every occluder may change.)
-    let material_changed = material_events.read().any(|e| !matches!(e, AssetEvent::Removed { .. } | AssetEvent::Unused { .. }))
-        | image_events.read().any(|e| matches!(e, AssetEvent::Added { .. } | AssetEvent::LoadedWithDependencies { .. }));
+    let material_changed =
+        material_events.read().any(|e| !matches!(e, AssetEvent::Removed { .. } | AssetEvent::Unused { .. }))
+            | image_events
+                .read()
+                .any(|e| matches!(e, AssetEvent::Added { .. } | AssetEvent::LoadedWithDependencies { .. }));
     changes.all_changed =
         (attributes && material_changed) || attributes != std::mem::replace(&mut *had_attributes, attributes);
     let mut static_changed = false;

@@ -37,8 +37,8 @@ pub(crate) mod volume;
 
 pub use bindings::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
 pub use extract::RebuildStaticVoxels;
-pub use stats::{VoxelizeCounters, VoxelizeCpuTime};
 pub use stats::{CascadeLevelStats, LevelBytes, VoxelizationStats, VoxelizationStatsData};
+pub use stats::{VoxelizeCounters, VoxelizeCpuTime};
 pub use volume::VoxelGridAssets;
 
 use bevy::asset::embedded_asset;

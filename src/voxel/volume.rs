@@ -134,7 +134,7 @@ pub(crate) fn update_voxel_volume(
     occluders: Query<(&GlobalTransform, &Aabb)>,
     changes: Res<OccluderChanges>,
     mut fitted: Local<Option<(u64, Option<(Vec3, Vec3)>)>>,
-    current: Option<Res<VoxelGridAssets>>,
+    mut current: Option<ResMut<VoxelGridAssets>>,
     device: Option<Res<RenderDevice>>,
     adapter: Option<Res<RenderAdapter>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
@@ -286,16 +286,19 @@ pub(crate) fn update_voxel_volume(
         settings.gamma = gamma;
     }
     let texture_format = voxel_texture_format(&adapter);
-    if let Some(cur) = &current
+    if let Some(cur) = &mut current
         && cur.grid == grid
         && cur.levels == levels
         && cur.cascades == shape
         && cur.sample_words == sample_words
         && cur.settings == settings
         && cur.point_budget == volume.point_budget
-        && cur.stream_budget == volume.stream_budget
         && cur.texture_format == texture_format
     {
+        // The streaming budget changes no voxel: the same grid, with the new budget.
+        if cur.stream_budget != volume.stream_budget {
+            cur.stream_budget = volume.stream_budget;
+        }
         return;
     }
     *generation += 1;
