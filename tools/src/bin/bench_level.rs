@@ -2,18 +2,22 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_level -- [--statics 1000,10000,100000]
-//!     [--movers 0,100,1000] [--frames 30] [--size 64x48] [--stream 10000]
+//!     [--movers 0,100,1000] [--frames 30] [--size 64x48] [--stream 10000] [--stream-budget N]
 //! ```
 //!
-//! A level of unmarked static cubes (one mesh, one material, laid on a square grid one unit apart), a
-//! camera with `HybridAmbientOcclusion::default()` (the default cascades follow it) looking over them at a
-//! small off-screen target (so that the GPU's share of the frame stays small), and `--movers` cubes marked
-//! `DynamicOccluder` circling above them. For each level size and number of movers, two apps are measured
-//! one after the other in the same process: Bevy alone, and Bevy with `HaoPlugin`. Each runs a warm-up,
-//! then `--frames` frames; the table prints the median wall time of `App::update` of each, the difference,
-//! the plugin's own CPU time per frame in the main world and in the render world (medians of
-//! `VoxelizeCpuTime`, each system measured around its body), and the median GPU time of the voxel passes
-//! (`hao/voxelize_static`, `hao/voxelize_dynamic`, `hao/resolve`, from Bevy's render diagnostics).
+//! A level of unmarked static cubes (one mesh, one material, laid on a square grid one unit apart) on a
+//! floor, a camera with `HybridAmbientOcclusion::default()` (the default cascades follow it) looking over
+//! them at a small off-screen target (so that the GPU's share of the frame stays small), and `--movers`
+//! cubes marked `DynamicOccluder` circling above them. For each level size and number of movers, three
+//! apps are built in the same process: Bevy alone, Bevy with the depth and normal prepasses on the camera
+//! (which HAO, like Bevy's SSAO, needs: their cost is Bevy's, and the plugin's is measured against it), and
+//! Bevy with `HaoPlugin`. After a warm-up, their frames are run interleaved (one frame of each in turn) so
+//! that the machine's drift falls on all three alike. The table prints the median wall time of
+//! `App::update` of each, the plugin's addition over Bevy with prepasses, the plugin's own CPU time per
+//! frame in the main world and in the render world (medians of `VoxelizeCpuTime`, each system measured
+//! around its body), and the median GPU time of the voxel passes (`hao/voxelize_static`,
+//! `hao/voxelize_dynamic`, `hao/resolve`, from Bevy's render diagnostics). `--stream-budget` sets
+//! `VoxelVolume::stream_budget` in the streaming table (default: the component's default).
 //!
 //! With `--stream N`, a last table spawns N more static cubes in one frame (a chunk of a level arriving)
 //! into the largest level without movers, and prints the usual frame, the worst of the next 60 frames, and
@@ -22,6 +26,7 @@
 //! upper bound, and quote ratios of one run.
 
 use bevy::camera::RenderTarget;
+use bevy::core_pipeline::prepass::{DepthPrepass, NormalPrepass};
 use bevy::prelude::*;
 use bevy_hao::VoxelizationStats;
 use bevy_hao::prelude::*;
@@ -48,6 +53,10 @@ struct Cli {
     /// Static cubes spawned in one frame for the streaming table (0: no streaming table).
     #[arg(long, default_value_t = 10000)]
     stream: usize,
+    /// `VoxelVolume::stream_budget` (triangles a frame) of the streaming table; the default volume's when
+    /// not given.
+    #[arg(long)]
+    stream_budget: Option<u32>,
 }
 
 #[derive(Component)]
@@ -59,6 +68,10 @@ struct Level {
     movers: usize,
     size: UVec2,
     hao: bool,
+    /// The depth and normal prepasses HAO requires, on the camera of an app without the plugin.
+    prepass: bool,
+    /// A volume with this streaming budget (else the default volume).
+    stream_budget: Option<u32>,
 }
 
 /// Places `n` cubes on a square grid one unit apart, centred on the origin, from index `first`.
@@ -83,9 +96,22 @@ fn setup(
     let side = side_of(level.statics);
     commands.spawn_batch(
         (0..level.statics)
-            .map(move |i| (Mesh3d(cube.clone()), MeshMaterial3d(material.clone()), Transform::from_translation(grid_position(i, side))))
+            .map(move |i| {
+                (
+                    Mesh3d(cube.clone()),
+                    MeshMaterial3d(material.clone()),
+                    Transform::from_translation(grid_position(i, side)),
+                )
+            })
             .collect::<Vec<_>>(),
     );
+    // The floor the level stands on, wider than the view, so that every level size fills the image and the
+    // per-pixel passes cost the same whatever the size.
+    commands.spawn((
+        Mesh3d(meshes.add(Cuboid::new(1000.0, 0.5, 1000.0))),
+        MeshMaterial3d(materials.add(StandardMaterial::default())),
+        Transform::from_xyz(0.0, -0.5, 0.0),
+    ));
     let cube = meshes.add(Cuboid::new(0.4, 0.4, 0.4));
     let material = materials.add(StandardMaterial::default());
     for i in 0..level.movers {
@@ -105,8 +131,14 @@ fn setup(
         Msaa::Off,
         Transform::from_xyz(0.0, 6.0, 12.0).looking_at(Vec3::ZERO, Vec3::Y),
     ));
+    if level.prepass {
+        camera.insert((DepthPrepass, NormalPrepass));
+    }
     if level.hao {
         camera.insert(HybridAmbientOcclusion::default());
+        if let Some(stream_budget) = level.stream_budget {
+            commands.spawn(VoxelVolume { stream_budget, ..default() });
+        }
     }
 }
 
@@ -126,11 +158,15 @@ fn app(level: Level) -> App {
     let mut app = headless_app_with(hao, |app| {
         app.insert_resource(level).add_systems(Startup, setup).add_systems(Update, move_movers);
     });
-    for _ in 0..8 {
+    // Bevy's first frames after a level spawns are slow (pipelines, buffers growing): past them.
+    for _ in 0..WARM_UP {
         app.update();
     }
     app
 }
+
+/// Frames each app runs before it is measured.
+const WARM_UP: usize = 30;
 
 /// What one app measured: median frame wall time, and with the plugin its CPU and GPU times.
 #[derive(Default)]
@@ -145,55 +181,67 @@ fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }
 
-fn measure(level: Level, frames: usize) -> Measured {
-    let hao = level.hao;
-    let mut app = app(level);
-    let (mut walls, mut main, mut render, mut gpu) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+/// Measures the apps of `levels` side by side: each warmed up, then their frames interleaved (one frame of
+/// each in turn), so that a drift of the machine's speed falls on all of them alike.
+fn measure(levels: Vec<Level>, frames: usize) -> Vec<Measured> {
+    let mut apps: Vec<(bool, App)> = levels.into_iter().map(|l| (l.hao, app(l))).collect();
+    let mut samples: Vec<[Vec<f64>; 4]> = apps.iter().map(|_| Default::default()).collect();
     for _ in 0..frames {
-        let t = Instant::now();
-        app.update();
-        walls.push(ms(t.elapsed()));
-        // GPU spans arrive a few frames late, and only for passes that ran: count those measured since.
-        if hao {
-            let cpu = app.world().resource::<VoxelizationStats>().get().cpu_time;
-            main.push(ms(cpu.main_world()));
-            render.push(ms(cpu.render_world()));
-            gpu.push(
-                ["hao/voxelize_static", "hao/voxelize_dynamic", "hao/resolve"]
-                    .iter()
-                    .filter_map(|p| diagnostic_measurement(&app, &format!("render/{p}/elapsed_gpu")))
-                    .filter(|(at, _)| *at >= t)
-                    .map(|(_, v)| v)
-                    .sum(),
-            );
+        for ((hao, app), [walls, main, render, gpu]) in apps.iter_mut().zip(&mut samples) {
+            let t = Instant::now();
+            app.update();
+            walls.push(ms(t.elapsed()));
+            if *hao {
+                let cpu = app.world().resource::<VoxelizationStats>().get().cpu_time;
+                main.push(ms(cpu.main_world()));
+                render.push(ms(cpu.render_world()));
+                // GPU spans arrive a few frames late, and only for passes that ran: those measured since.
+                gpu.push(
+                    ["hao/voxelize_static", "hao/voxelize_dynamic", "hao/resolve"]
+                        .iter()
+                        .filter_map(|p| diagnostic_measurement(app, &format!("render/{p}/elapsed_gpu")))
+                        .filter(|(at, _)| *at >= t)
+                        .fold(0.0, |sum, (_, v)| sum + v),
+                );
+            }
         }
     }
-    Measured {
-        frame: median(walls).unwrap_or(f64::NAN),
-        main: median(main).unwrap_or(0.0),
-        render: median(render).unwrap_or(0.0),
-        gpu: median(gpu).unwrap_or(0.0),
-    }
+    samples
+        .into_iter()
+        .map(|[walls, main, render, gpu]| Measured {
+            frame: median(walls).unwrap_or(f64::NAN),
+            main: median(main).unwrap_or(0.0),
+            render: median(render).unwrap_or(0.0),
+            gpu: median(gpu).unwrap_or(0.0),
+        })
+        .collect()
 }
 
 fn main() {
     let cli = Cli::parse();
-    println!("Level of unmarked static cubes, camera {}x{}; medians of {} frames (ms)\n", cli.size.x, cli.size.y, cli.frames);
     println!(
-        "| static entities | moving occluders | Bevy alone | Bevy + HaoPlugin | added | added / Bevy | plugin CPU, main world | plugin CPU, render world | voxel passes GPU |"
+        "Level of unmarked static cubes, camera {}x{}; medians of {} frames (ms)\n",
+        cli.size.x, cli.size.y, cli.frames
     );
-    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!(
+        "| static entities | moving occluders | Bevy alone | Bevy, prepasses | Bevy + HaoPlugin | added | added / Bevy, prepasses | plugin CPU, main world | plugin CPU, render world | voxel passes GPU |"
+    );
+    println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for &statics in &cli.statics {
         let mut bevy_still = None;
         for &movers in &cli.movers {
-            let alone = measure(Level { statics, movers, size: cli.size, hao: false }, cli.frames);
-            let with = measure(Level { statics, movers, size: cli.size, hao: true }, cli.frames);
-            let added = with.frame - alone.frame;
+            let level = |hao, prepass| Level { statics, movers, size: cli.size, hao, prepass, stream_budget: None };
+            let [alone, prepasses, with]: [Measured; 3] =
+                measure(vec![level(false, false), level(false, true), level(true, false)], cli.frames)
+                    .try_into()
+                    .unwrap_or_else(|_| unreachable!("three apps"));
+            let added = with.frame - prepasses.frame;
             println!(
-                "| {statics} | {movers} | {:.2} | {:.2} | {added:.2} | {:.1} % | {:.3} | {:.3} | {:.3} |",
+                "| {statics} | {movers} | {:.2} | {:.2} | {:.2} | {added:.2} | {:.1} % | {:.3} | {:.3} | {:.3} |",
                 alone.frame,
+                prepasses.frame,
                 with.frame,
-                100.0 * added / alone.frame,
+                100.0 * added / prepasses.frame,
                 with.main,
                 with.render,
                 with.gpu
@@ -212,10 +260,13 @@ fn main() {
     if cli.stream > 0 {
         let statics = cli.statics.iter().copied().max().unwrap_or(1000);
         println!("\nStreaming: {} static cubes spawned in one frame into a level of {statics} (ms)\n", cli.stream);
-        println!("| | usual frame (median) | worst of the next 60 frames | worst / usual | frames until the static work is done |");
+        println!(
+            "| | usual frame (median) | worst of the next 60 frames | worst / usual | frames until the static work is done |"
+        );
         println!("|---|---:|---:|---:|---:|");
         for hao in [false, true] {
-            let mut app = app(Level { statics, movers: 0, size: cli.size, hao });
+            let mut app =
+                app(Level { statics, movers: 0, size: cli.size, hao, prepass: !hao, stream_budget: cli.stream_budget });
             let mut usual = Vec::new();
             for _ in 0..cli.frames {
                 let t = Instant::now();
