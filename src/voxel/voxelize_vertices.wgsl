@@ -9,7 +9,7 @@
     grid_space_position, is_finite3, normalize_or_zero, corner_albedo, MIRRORED_BIT, TWO_SIDED_BIT,
 }
 
-// One mesh instance (src/voxel/prepare.rs: `GpuOccluderInstance`).
+// One mesh instance (src/voxel/pipelines.rs: `GpuOccluderInstance`).
 struct OccluderInstance {
     grid_from_local: mat4x3<f32>,
     vertex_start: u32,

@@ -106,7 +106,11 @@ fn main() {
         );
     });
     let mut warm = 0;
-    while bevy_hao_tools::harness::stats(&app).static_rebuilds == 0 && warm < 300 {
+    // Until the scene is voxelized and no static occluder waits to stream in.
+    while warm < 300 && {
+        let s = bevy_hao_tools::harness::stats(&app);
+        s.static_rebuilds == 0 || s.static_queue > 0
+    } {
         app.update();
         warm += 1;
     }

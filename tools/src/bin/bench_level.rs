@@ -11,7 +11,7 @@
 //! cubes marked `DynamicOccluder` circling above them. For each level size and number of movers, three
 //! apps are built in the same process: Bevy alone, Bevy with the depth and normal prepasses on the camera
 //! (which HAO, like Bevy's SSAO, needs: their cost is Bevy's, and the plugin's is measured against it), and
-//! Bevy with `HaoPlugin`. After a warm-up, their frames are run interleaved (one frame of each in turn) so
+//! Bevy with `HaoPlugin`. After a warm-up (with the plugin, until the level has streamed in), their frames are run interleaved (one frame of each in turn) so
 //! that the machine's drift falls on all three alike. The table prints the median wall time of
 //! `App::update` of each, the plugin's addition over Bevy with prepasses, the plugin's own CPU time per
 //! frame in the main world and in the render world (medians of `VoxelizeCpuTime`, each system measured
@@ -158,12 +158,20 @@ fn app(level: Level) -> App {
     let mut app = headless_app_with(hao, |app| {
         app.insert_resource(level).add_systems(Startup, setup).add_systems(Update, move_movers);
     });
-    // Bevy's first frames after a level spawns are slow (pipelines, buffers growing): past them.
-    for _ in 0..WARM_UP {
+    // Bevy's first frames after a level spawns are slow (pipelines, buffers growing): past them, and with
+    // the plugin past the frames that stream the level in (`VoxelVolume::stream_budget` a frame).
+    for frame in 0.. {
+        let streaming = hao && app.world().resource::<VoxelizationStats>().get().static_queue > 0;
+        if frame >= WARM_UP && (!streaming || frame >= MAX_WARM_UP) {
+            break;
+        }
         app.update();
     }
     app
 }
+
+/// Frames an app with the plugin runs at most before it is measured, waiting for the level to stream in.
+const MAX_WARM_UP: usize = 600;
 
 /// Frames each app runs before it is measured.
 const WARM_UP: usize = 30;
