@@ -409,27 +409,8 @@ fn ao_dims_indirect_light_only_and_removing_it_restores_bevys_behaviour() {
 /// the background).
 fn view_samples(app: &mut App) -> (u32, u32, Vec<Option<(Vec3, Vec3)>>) {
     let targets = app.world().resource::<Targets>().clone();
-    let (w, h, depth) = read_image_f32(app, targets.debug.depth.clone(), 0);
-    let (_, _, _, normal_bytes) = read_image(app, targets.debug.normal.clone(), 0);
-    let mut q = app.world_mut().query_filtered::<(&Camera, &GlobalTransform), With<TheCamera>>();
-    let (cam, transform) = q.single(app.world()).unwrap();
-    let world_from_clip = transform.to_matrix() * cam.clip_from_view().inverse();
-    let mut samples = Vec::with_capacity((w * h) as usize);
-    for y in 0..h {
-        for x in 0..w {
-            let i = (y * w + x) as usize;
-            if depth[i] <= 0.0 {
-                samples.push(None);
-                continue;
-            }
-            let ndc =
-                Vec3::new((x as f32 + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / h as f32 * 2.0, depth[i]);
-            let n = &normal_bytes[i * 8..i * 8 + 6];
-            let normal = Vec3::new(f16_at(n, 0), f16_at(n, 2), f16_at(n, 4)).normalize();
-            samples.push(Some((world_from_clip.project_point3(ndc), normal)));
-        }
-    }
-    (w, h, samples)
+    let camera = app.world_mut().query_filtered::<Entity, With<TheCamera>>().single(app.world()).unwrap();
+    bevy_hao_tools::harness::view_samples(app, camera, &targets.debug)
 }
 
 /// The CPU twin's noisy AO of every pixel with the noise of `frame` (NaN for the background), and the level
@@ -441,17 +422,8 @@ fn cpu_trace(
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
 ) -> (Vec<f32>, Vec<usize>) {
-    use bevy_hao::cpu::ao::{TraceSettings, ray_rotation, ray_start_level, voxel_ambient_occlusion};
-    let (rays, steps, _) = settings.trace_parameters();
-    let trace = TraceSettings {
-        rays,
-        steps,
-        max_distance: settings.max_distance,
-        falloff: settings.falloff,
-        intensity: settings.intensity,
-        start_offset: settings.start_offset,
-        ignore_back_hits: settings.ignore_back_hits,
-    };
+    use bevy_hao::cpu::ao::{ray_rotation, ray_start_level, voxel_ambient_occlusion};
+    let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     let mut ao = vec![f32::NAN; samples.len()];
     let mut start = vec![0; samples.len()];
     for (i, s) in samples.iter().enumerate() {

@@ -281,6 +281,21 @@ pub fn march_cascades(
     t_end: f32,
     steps: u32,
 ) -> Option<(f32, usize)> {
+    march_cascades_counted(levels, origin, dir, start, t_start, t_end, steps, &mut TraceWork::default())
+}
+
+/// [`march_cascades`], adding the texel visits it made to `work` (and whether it ran out of steps).
+#[allow(clippy::too_many_arguments)]
+fn march_cascades_counted(
+    levels: &[TraceLevel],
+    origin: Vec3,
+    dir: Vec3,
+    start: usize,
+    t_start: f32,
+    t_end: f32,
+    steps: u32,
+    work: &mut TraceWork,
+) -> Option<(f32, usize)> {
     let inv = safe_inverse(dir);
     let mut level = start;
     let mut t0 = t_start;
@@ -290,11 +305,16 @@ pub fn march_cascades(
         let o = lv.level_position(origin);
         let t1 = t_end / lv.cell_size;
         let r = lv.mips.march_level(o, dir, t0, t1, 2, left);
+        work.texel_visits += u64::from(left - r.steps_left);
         if let Some(t) = r.hit {
             return Some((t * lv.cell_size, level));
         }
         left = r.steps_left;
-        if left == 0 || level + 1 >= levels.len() {
+        if left == 0 {
+            work.out_of_steps += 1;
+            return None;
+        }
+        if level + 1 >= levels.len() {
             return None;
         }
         let exit = ray_box(o, inv, Vec3::ZERO, lv.mips.dims().as_vec3()).y;
@@ -305,6 +325,22 @@ pub fn march_cascades(
         t0 = exit.max(t0) * lv.cell_size / next.cell_size;
         level += 1;
     }
+}
+
+/// The work of a trace, counted by the CPU twin: a measure of its cost that does not depend on the device
+/// (the GPU does the same loads; see `bench_ao`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct TraceWork {
+    /// Rays traced.
+    pub rays: u64,
+    /// Voxel texels the marches loaded (one occupancy load per visit, at some mip).
+    pub texel_visits: u64,
+    /// Average normals loaded to tell the backs of surfaces ([`TraceSettings::ignore_back_hits`]).
+    pub normal_loads: u64,
+    /// Rays that hit an occupied voxel.
+    pub hits: u64,
+    /// Marches stopped by the step budget before reaching `max_distance` or leaving the volume.
+    pub out_of_steps: u64,
 }
 
 /// A voxel whose average normal has at least this cosine with a ray (facing along it) is the back of a
@@ -359,22 +395,35 @@ pub fn voxel_ambient_occlusion(
     rotation: Vec2,
     s: &TraceSettings,
 ) -> f32 {
+    voxel_ambient_occlusion_counted(levels, world, normal, rotation, s, &mut TraceWork::default())
+}
+
+/// [`voxel_ambient_occlusion`], adding the work it did to `work`.
+pub fn voxel_ambient_occlusion_counted(
+    levels: &[TraceLevel],
+    world: Vec3,
+    normal: Vec3,
+    rotation: Vec2,
+    s: &TraceSettings,
+    work: &mut TraceWork,
+) -> f32 {
     let mut occlusion = 0.0;
     let basis = orthonormal_basis(normal);
+    work.rays += u64::from(s.rays);
     for i in 0..s.rays {
         let dir = hemisphere_direction(basis, i, s.rays, rotation);
         let start = ray_start_level(levels, world, i, rotation);
         let origin = world + normal * (s.start_offset * levels[start].cell_size);
-        let mut hit = march_cascades(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps);
+        let mut hit = march_cascades_counted(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps, work);
         // Through the backs of surfaces, a few times at most.
         for _ in 0..MAX_BACK_HITS {
-            let Some(exit) = hit.filter(|_| s.ignore_back_hits).and_then(|h| back_hit_exit(levels, origin, dir, h))
-            else {
-                break;
-            };
-            hit = march_cascades(levels, origin, dir, hit.expect("a hit").1, exit, s.max_distance, s.steps);
+            let Some(h) = hit.filter(|_| s.ignore_back_hits) else { break };
+            work.normal_loads += 1;
+            let Some(exit) = back_hit_exit(levels, origin, dir, h) else { break };
+            hit = march_cascades_counted(levels, origin, dir, h.1, exit, s.max_distance, s.steps, work);
         }
         if let Some((t, level)) = hit {
+            work.hits += 1;
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
             let d = (origin + dir * (t + 0.5 * levels[level].cell_size) - world).length();
             occlusion += ao_falloff(d, s.max_distance, s.falloff);
@@ -424,6 +473,46 @@ mod tests {
         assert_eq!(ao_falloff(1.0, 2.0, 1.0), 0.5);
         assert_eq!(ao_falloff(3.0, 2.0, 1.0), 0.0);
         assert_eq!(ao_falloff(1.0, 2.0, 2.0), 0.25);
+    }
+
+    #[test]
+    fn the_work_counted_is_the_marches_loads() {
+        // A 32^3 grid with a floor at z = 0: rays from above it, looking down, hit but for the most grazing
+        // (past max_distance); looking up, none do.
+        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(32)).unwrap();
+        let occ = VoxelOccupancy::new(grid, false);
+        for y in 0..32 {
+            for x in 0..32 {
+                occ.set(UVec3::new(x, y, 0));
+            }
+        }
+        let mips = VoxelMips::new(&occ, 4);
+        let level = [TraceLevel { origin: Vec3::ZERO, cell_size: 1.0, window_min: IVec3::ZERO, mips: &mips }];
+        let s = trace_settings(1.0, false);
+        let p = Vec3::new(16.2, 16.3, 4.5);
+        let mut down = TraceWork::default();
+        let ao = voxel_ambient_occlusion_counted(&level, p, Vec3::NEG_Z, Vec2::new(0.3, 0.7), &s, &mut down);
+        assert_eq!(ao, voxel_ambient_occlusion(&level, p, Vec3::NEG_Z, Vec2::new(0.3, 0.7), &s));
+        assert_eq!((down.rays, down.out_of_steps, down.normal_loads), (64, 0, 0));
+        assert!(down.hits >= 48, "{down:?}");
+        // Each ray's visits: at least the descent to the hit, at most the budget.
+        assert!(down.texel_visits >= 64 * 3 && down.texel_visits <= 64 * 64, "{down:?}");
+        let mut up = TraceWork::default();
+        voxel_ambient_occlusion_counted(&level, p, Vec3::Z, Vec2::new(0.3, 0.7), &s, &mut up);
+        assert_eq!((up.rays, up.hits), (64, 0));
+        // Empty space is stepped over on the mips: fewer visits than the 8 cells each ray crosses.
+        assert!(up.texel_visits < 64 * 8, "{up:?}");
+        // One step a ray: every march runs out of steps.
+        let mut starved = TraceWork::default();
+        voxel_ambient_occlusion_counted(
+            &level,
+            p,
+            Vec3::NEG_Z,
+            Vec2::ZERO,
+            &TraceSettings { steps: 1, ..s },
+            &mut starved,
+        );
+        assert_eq!((starved.texel_visits, starved.out_of_steps, starved.hits), (64, 64, 0));
     }
 
     #[test]

@@ -231,6 +231,86 @@ pub fn read_cascades(app: &mut App, static_only: bool) -> Vec<CascadeReadback> {
         .collect()
 }
 
+/// The frame's voxels as the trace reads them, one entry per level (one for a single grid): the level's
+/// origin, cell size and window, and its occupancy pyramid. Borrow them as
+/// [`bevy_hao::cpu::ao::TraceLevel`]s with [`trace_levels`].
+pub fn read_trace_voxels(app: &mut App) -> Vec<(Vec3, f32, IVec3, bevy_hao::cpu::ao::VoxelMips)> {
+    let assets = grid_assets(app).expect("no voxel grid");
+    if assets.cascades.is_none() {
+        let occupancy = read_occupancy(app);
+        let mips = bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels);
+        return vec![(assets.grid.origin, assets.grid.cell_size, IVec3::ZERO, mips)];
+    }
+    read_cascades(app, false)
+        .into_iter()
+        .map(|c| {
+            let mips = bevy_hao::cpu::ao::VoxelMips::new(&c.occupancy, assets.mip_levels);
+            (Vec3::ZERO, c.level.cell_size, c.level.window_min, mips)
+        })
+        .collect()
+}
+
+/// The levels of [`read_trace_voxels`] as the CPU twin of the trace takes them.
+pub fn trace_levels(
+    voxels: &[(Vec3, f32, IVec3, bevy_hao::cpu::ao::VoxelMips)],
+) -> Vec<bevy_hao::cpu::ao::TraceLevel<'_>> {
+    voxels
+        .iter()
+        .map(|(origin, cell_size, window_min, mips)| bevy_hao::cpu::ao::TraceLevel {
+            origin: *origin,
+            cell_size: *cell_size,
+            window_min: *window_min,
+            mips,
+        })
+        .collect()
+}
+
+/// The settings the CPU twin of the trace takes for `settings`, with the rays and steps it traces a frame.
+pub fn cpu_trace_settings(settings: &bevy_hao::HybridAmbientOcclusion) -> bevy_hao::cpu::ao::TraceSettings {
+    let (rays, steps, _) = settings.trace_parameters();
+    bevy_hao::cpu::ao::TraceSettings {
+        rays,
+        steps,
+        max_distance: settings.max_distance,
+        falloff: settings.falloff,
+        intensity: settings.intensity,
+        start_offset: settings.start_offset,
+        ignore_back_hits: settings.ignore_back_hits,
+    }
+}
+
+/// The surface each pixel of `camera` shows (world position and normal; `None` for the background), from
+/// the depth and normal its [`bevy_hao::HaoDebugImages`] copied: the trace's inputs. Returns the width, the
+/// height and the samples in rows.
+pub fn view_samples(
+    app: &mut App,
+    camera: Entity,
+    debug: &bevy_hao::HaoDebugImages,
+) -> (u32, u32, Vec<Option<(Vec3, Vec3)>>) {
+    let (w, h, depth) = read_image_f32(app, debug.depth.clone(), 0);
+    let (_, _, _, normal_bytes) = read_image(app, debug.normal.clone(), 0);
+    let world = app.world();
+    let (cam, transform) =
+        (world.get::<Camera>(camera).expect("a camera"), world.get::<GlobalTransform>(camera).expect("a transform"));
+    let world_from_clip = transform.to_matrix() * cam.clip_from_view().inverse();
+    let mut samples = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let i = (y * w + x) as usize;
+            if depth[i] <= 0.0 {
+                samples.push(None);
+                continue;
+            }
+            let ndc =
+                Vec3::new((x as f32 + 0.5) / w as f32 * 2.0 - 1.0, 1.0 - (y as f32 + 0.5) / h as f32 * 2.0, depth[i]);
+            let n = &normal_bytes[i * 8..i * 8 + 6];
+            let normal = Vec3::new(f16_at(n, 0), f16_at(n, 2), f16_at(n, 4)).normalize();
+            samples.push(Some((world_from_clip.project_point3(ndc), normal)));
+        }
+    }
+    (w, h, samples)
+}
+
 /// How a test mesh stores its data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Layout {
