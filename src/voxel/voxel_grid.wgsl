@@ -79,24 +79,34 @@ fn level_position(level: u32, world: vec3<f32>) -> vec3<f32> {
     return (world - l.origin) / l.cell_size - vec3<f32>(l.window_min);
 }
 
-// Whether texel `texel` (of the window, at mip `mip`, clamped to it) is occupied. Mesa 22's lavapipe
-// returns wrong textureDimensions for levels >= 2 of 3D textures, so sizes are computed.
+// Where a texel of a level's window (clamped to it; `size`: the level's texels at this mip) is stored: its
+// window texel plus the wrap, taken back once past the end (both are below `size`, which every mip divides,
+// so one subtraction is the remainder, without a division).
+fn wrapped_texel(l: VoxelLevel, texel: vec3<i32>, mip: u32, size: vec3<u32>) -> vec3<i32> {
+    let t = vec3<u32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1)));
+    let s = t + (l.wrap >> vec3<u32>(mip));
+    var physical = select(s, s - size, s >= size);
+    physical.z += l.texture_z >> mip;
+    return vec3<i32>(physical);
+}
+
+// Whether texel `texel` of level `l`'s window at mip `mip` (clamped to it; `size`: its texels at this mip)
+// is occupied. Mesa 22's lavapipe returns wrong textureDimensions for levels >= 2 of 3D textures, so sizes
+// are computed.
+fn level_occupied(l: VoxelLevel, texel: vec3<i32>, mip: u32, size: vec3<u32>) -> bool {
+    return textureLoad(voxel_texture, wrapped_texel(l, texel, mip, size), i32(mip)).r > 0.0;
+}
+
+// Whether texel `texel` (of the window, at mip `mip`, clamped to it) of a level is occupied.
 fn voxel_occupied(level: u32, texel: vec3<i32>, mip: u32) -> bool {
     let l = voxel_grid.levels[level];
-    let size = l.size >> vec3<u32>(mip);
-    let t = vec3<u32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1)));
-    var physical = (t + (l.wrap >> vec3<u32>(mip))) % size;
-    physical.z += l.texture_z >> mip;
-    return textureLoad(voxel_texture, vec3<i32>(physical), i32(mip)).r > 0.0;
+    return level_occupied(l, texel, mip, l.size >> vec3<u32>(mip));
 }
 
 // Where cell `texel` (of the window, clamped to it) of a level is stored in the textures' mip 0.
 fn voxel_texel(level: u32, texel: vec3<i32>) -> vec3<i32> {
     let l = voxel_grid.levels[level];
-    let t = vec3<u32>(clamp(texel, vec3<i32>(0), vec3<i32>(l.size) - vec3<i32>(1)));
-    var physical = (t + l.wrap) % l.size;
-    physical.z += l.texture_z;
-    return vec3<i32>(physical);
+    return wrapped_texel(l, texel, 0u, l.size);
 }
 
 // The average albedo of a cell of the window of a level (rgb), and 1 in a where it has points; zero where
@@ -126,9 +136,10 @@ struct MarchResult {
 // window) to the first occupied cell within [t_start, t_end]: start at mip `start_mip`, step over empty
 // texels whole, descend into occupied ones; at most `steps` texel visits.
 fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32, start_mip: u32, steps: u32) -> MarchResult {
+    // The level's record, read once.
+    let l = voxel_grid.levels[level];
     let inv = safe_inverse(dir);
-    let dims = vec3<f32>(voxel_grid.levels[level].dims);
-    let span = ray_box(origin, inv, vec3<f32>(0.0), dims);
+    let span = ray_box(origin, inv, vec3<f32>(0.0), vec3<f32>(l.dims));
     var t = max(t_start, span.x);
     let t_max = min(t_end, span.y);
     let top = voxel_grid.mip_levels - 1u;
@@ -141,15 +152,15 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
         left -= 1u;
         let p = origin + dir * t;
         let scale = f32(1u << mip);
+        let size = l.size >> vec3<u32>(mip);
         let texel = vec3<i32>(floor(p * (1.0 / scale)));
-        if voxel_occupied(level, texel, mip) {
+        if level_occupied(l, texel, mip, size) {
             if mip == 0u {
                 return MarchResult(t, left);
             }
             mip -= 1u;
         } else {
-            let size = vec3<i32>(voxel_grid.levels[level].size >> vec3<u32>(mip));
-            let lo = vec3<f32>(clamp(texel, vec3<i32>(0), size - vec3<i32>(1))) * scale;
+            let lo = vec3<f32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1))) * scale;
             let exit = ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y;
             t = max(exit, t) + 1.0e-3;
             mip = min(mip + 1u, top);
