@@ -3,7 +3,7 @@
 // starts on a multiple of the coarsest mip's texel, so the children of a stored texel are the stored
 // children of its lattice texel.
 
-#import bevy_hao::voxelize_common::{LevelRegion, region_texel}
+#import bevy_hao::voxelize_common::{LevelRegion, region_texel, stored_texel}
 
 @group(0) @binding(0) var<uniform> mip: LevelRegion;
 @group(0) @binding(1) var source: texture_3d<f32>;
@@ -30,7 +30,7 @@ fn downsample_max(
         return;
     }
     let texel = t.xyz;
-    let physical = (vec3<u32>(texel - mip.window_min) + mip.wrap) % mip.size;
+    let physical = stored_texel(mip, texel);
     let source_size = mip.size * 2u;
     var m = 0.0;
     for (var k = 0u; k < 8u; k++) {

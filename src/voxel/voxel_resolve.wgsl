@@ -5,7 +5,7 @@
 // and the level sits at its own z in the texture (see `voxel_grid.wgsl`). Where the volume keeps attributes,
 // the voxels' records become their average albedo and normal in two more textures of the same layout.
 
-#import bevy_hao::voxelize_common::{LevelRegion, SAMPLE_WORDS, ALBEDO_SCALE, NORMAL_SCALE, region_texel}
+#import bevy_hao::voxelize_common::{LevelRegion, SAMPLE_WORDS, ALBEDO_SCALE, NORMAL_SCALE, region_texel, stored_texel}
 
 @group(0) @binding(0) var<uniform> resolve: LevelRegion;
 @group(0) @binding(1) var<storage, read> occupancy: array<u32>;
@@ -55,7 +55,7 @@ fn resolve_occupancy(
         return;
     }
     let cell = t.xyz;
-    let physical = (vec3<u32>(cell - resolve.window_min) + resolve.wrap) % resolve.size;
+    let physical = stored_texel(resolve, cell);
     // A single grid's texture is padded past its cells: empty there.
     var bit = 0u;
     var sample = Resolved(vec4<f32>(0.0), vec4<f32>(0.0));

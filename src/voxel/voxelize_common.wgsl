@@ -107,6 +107,14 @@ struct LevelRegion {
 // workgroup of 4x4x4.
 const BRICK_CELLS: i32 = 4;
 
+// Where texel `texel` of the region's level (in its window, at the pass's mip) is stored: toroidally, the
+// window texel plus the wrap taken back once past the size (both below it: one subtraction, no division).
+// voxel_grid.wgsl: `wrapped_texel`.
+fn stored_texel(region: LevelRegion, texel: vec3<i32>) -> vec3<u32> {
+    let s = vec3<u32>(texel - region.window_min) + region.wrap;
+    return select(s, s - region.size, s >= region.size);
+}
+
 // The texel (xyz) that invocation `gid` of a pass over `region` handles, and whether it handles one (w): a
 // box pass covers the region from its min corner; a brick pass runs one workgroup per brick (`brick`, in
 // units of BRICK_CELLS texels at the pass's mip), clipped to the region.
