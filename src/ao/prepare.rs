@@ -101,7 +101,7 @@ pub fn prepare_hao_textures(
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
         let (hao, _) = hao.sanitized();
         let hao = &hao;
-        let (rays, steps, half) = hao.trace_parameters();
+        let (rays, steps, half) = hao.trace_parameters_at(view_size);
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
         let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
             cache.get(

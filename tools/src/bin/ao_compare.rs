@@ -23,6 +23,8 @@
 //! against the reference, over all pixels that show geometry and over the pixels whose reference occlusion
 //! comes mostly (over half) from occluders the view cannot see (off screen or hidden behind what it shows),
 //! and writes the four AO images side by side (HAO, HAO + near field, SSAO, reference) as one PNG.
+//! `--sparse N` traces the reference at every Nth pixel of each row and column only and measures the errors
+//! there (the PNG's reference shows each block's sampled pixel), so that 1920x1080 stays affordable.
 
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -102,6 +104,10 @@ struct Args {
     /// default and acts only with --attributes).
     #[arg(long, requires = "attributes")]
     stop_at_back_hits: bool,
+    /// Trace the reference (and measure the errors) at every Nth pixel of each row and column only: a
+    /// sparse set that keeps the reference affordable at 1920x1080 and above.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    sparse: u32,
     /// The PNG written: HAO, HAO + near field, SSAO and the reference side by side.
     #[arg(long, default_value = "ao_compare.png")]
     out: String,
@@ -345,7 +351,10 @@ fn main() {
         let d = depth[(py * w + px) as usize];
         d > 0.0 && linear(ndc.z) > linear(d) * 1.02 + epsilon * 10.0
     };
-    let pixels: Vec<usize> = (0..(w * h) as usize).filter(|&i| depth[i] > 0.0 && normals[i] != Vec3::ZERO).collect();
+    let sparse = args.sparse as usize;
+    let sampled = |i: usize| (i % w as usize).is_multiple_of(sparse) && (i / w as usize).is_multiple_of(sparse);
+    let pixels: Vec<usize> =
+        (0..(w * h) as usize).filter(|&i| sampled(i) && depth[i] > 0.0 && normals[i] != Vec3::ZERO).collect();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let bar = bevy_hao_tools::harness::progress_bar(pixels.len() as u64, "reference");
     let results: Vec<(usize, f32, f32)> = std::thread::scope(|s| {
@@ -394,12 +403,20 @@ fn main() {
             offscreen.push(i);
         }
     }
+    // Sparse: each pixel shows its block's sampled pixel in the picture.
+    if sparse > 1 {
+        for i in 0..(w * h) as usize {
+            let (x, y) = (i % w as usize, i / w as usize);
+            reference[i] = reference[(y - y % sparse) * w as usize + x - x % sparse];
+        }
+    }
     let mae = |img: &[f32], set: &[usize]| {
         set.iter().map(|&i| (img[i] - reference[i]).abs()).sum::<f32>() / set.len().max(1) as f32
     };
     println!(
-        "scene: {} | view {w}x{h}, {} pixels of geometry, {} of them occluded mostly by what the view cannot see",
+        "scene: {} | view {w}x{h}{}, {} pixels of geometry, {} of them occluded mostly by what the view cannot see",
         args.scene,
+        if sparse > 1 { format!(" (every {sparse}th pixel of each row and column)") } else { String::new() },
         pixels.len(),
         offscreen.len()
     );
