@@ -319,51 +319,24 @@ pub fn prepare_voxelize(
 
     state.prev_dynamic_world = std::mem::take(&mut state.dynamic_world);
     state.dynamic_world = state.occluders.dynamics().map(|(o, _)| o.world_bounds).collect();
-    // Per level: where dynamic geometry is now and where it was last frame.
-    let mut dynamic_boxes: Vec<Option<CellBox>> = Vec::with_capacity(levels.len());
-    for level in &levels {
-        let mut b: Option<CellBox> = None;
-        for (o, _) in state.occluders.dynamics() {
-            let r = match o.world_bounds {
-                Some((lo, hi)) => level.cells_of_box(lo, hi),
-                None => Some(level.window()),
-            };
-            if let Some(r) = r {
-                b = Some(b.map_or(r, |x| union(x, r)));
-            }
-        }
-        dynamic_boxes.push(b);
-    }
-
-    // Per level: the bricks of the dynamic occluders (`None` where they touch too many), and those of last frame.
-    let dynamic_bricks: Vec<Option<HashSet<IVec3>>> =
-        levels.iter().map(|level| bricks_of(state.occluders.dynamics().map(|(o, _)| o.world_bounds), level)).collect();
+    // Per level: where dynamic geometry is now (the box around it, and its bricks: `None` where it touches too
+    // many), and where it was last frame.
+    let (dynamic_boxes, dynamic_bricks): (Vec<Option<CellBox>>, Vec<Option<HashSet<IVec3>>>) =
+        levels.iter().map(|level| touched(state.occluders.dynamics().map(|(o, _)| o.world_bounds), level)).unzip();
     let prev_dynamic_bricks = std::mem::replace(&mut state.prev_dynamic_bricks, dynamic_bricks.clone());
 
-    // Per level not rebuilt whole: the box the added occluders cover (they are voxelized into it, the rest
-    // of the static grid kept).
-    let added_boxes: Vec<Option<CellBox>> = levels
+    // Per level not rebuilt whole: the box and the bricks the added occluders cover (they are voxelized into
+    // it, the rest of the static grid kept).
+    let (added_boxes, added_bricks): (Vec<Option<CellBox>>, Vec<Option<HashSet<IVec3>>>) = levels
         .iter()
         .zip(&level_regions)
         .map(|(level, (_, whole, _))| {
             if *whole {
-                return None;
+                return (None, None);
             }
-            state
-                .occluders
-                .some(&added)
-                .filter_map(|(o, _)| match o.world_bounds {
-                    Some((lo, hi)) => level.cells_of_box(lo, hi),
-                    None => Some(level.window()),
-                })
-                .reduce(union)
+            touched(state.occluders.some(&added).map(|(o, _)| o.world_bounds), level)
         })
-        .collect();
-
-    let added_bricks: Vec<Option<HashSet<IVec3>>> = levels
-        .iter()
-        .map(|level| bricks_of(state.occluders.some(&added).map(|(o, _)| o.world_bounds), level))
-        .collect();
+        .unzip();
 
     let any_static = level_regions.iter().any(|(b, _, _)| !b.is_empty()) || added_boxes.iter().any(Option::is_some);
     let has_dynamic = dynamic_boxes.iter().any(|b| b.is_some());
@@ -707,18 +680,24 @@ pub fn prepare_voxelize(
     });
 }
 
-/// The bricks of `level` that boxes of occluders (`None`: one without bounds, anywhere) touch, or `None`
-/// where they are more than a brick pass takes.
-fn bricks_of(bounds: impl Iterator<Item = Option<(Vec3, Vec3)>>, level: &LevelLayout) -> Option<HashSet<IVec3>> {
-    let mut set = HashSet::default();
-    let mut touched = 0u64;
+/// The cells of `level` that boxes of occluders (`None`: one without bounds, anywhere) touch: the box around
+/// them, and their bricks (`None` where they are more than a brick pass takes).
+fn touched(
+    bounds: impl Iterator<Item = Option<(Vec3, Vec3)>>,
+    level: &LevelLayout,
+) -> (Option<CellBox>, Option<HashSet<IVec3>>) {
+    let (mut around, mut bricks) = (None, Some(HashSet::default()));
+    let mut count = 0u64;
     for b in bounds {
         let Some(cells) = b.map_or(Some(level.window()), |(lo, hi)| level.cells_of_box(lo, hi)) else { continue };
-        touched += brick_count(cells);
-        if touched > MAX_BRICKS as u64 {
-            return None;
+        around = Some(around.map_or(cells, |a| union(a, cells)));
+        count += brick_count(cells);
+        if count > MAX_BRICKS as u64 {
+            bricks = None;
         }
-        add_bricks(cells, &mut set);
+        if let Some(set) = &mut bricks {
+            add_bricks(cells, set);
+        }
     }
-    Some(set)
+    (around, bricks)
 }
