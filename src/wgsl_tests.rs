@@ -166,6 +166,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
             "HaoSettings",
             GpuHaoSettings,
             [
+                previous_clip_from_world,
                 rays,
                 steps,
                 max_distance,
@@ -178,6 +179,10 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 denoise_radius,
                 accumulation_frames,
                 back_hits,
+                history_valid,
+                _pad0,
+                _pad1,
+                _pad2,
             ]
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),

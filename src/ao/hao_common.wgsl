@@ -5,6 +5,8 @@
 
 // src/ao/prepare.rs: `GpuHaoSettings`
 struct HaoSettings {
+    // The previous frame's clip_from_world with its TAA jitter (PreviousViewData's has none).
+    previous_clip_from_world: mat4x4<f32>,
     rays: u32,
     steps: u32,
     max_distance: f32,
@@ -19,6 +21,11 @@ struct HaoSettings {
     accumulation_frames: u32,
     // 1: rays pass through voxels whose average normal faces along them (`ignore_back_hits`).
     back_hits: u32,
+    // 0: the view is new, resized or was off last frame, and its history is not read.
+    history_valid: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 const PI: f32 = 3.141592653589793;

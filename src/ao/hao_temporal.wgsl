@@ -70,7 +70,9 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
     let w = view.world_from_clip * vec4<f32>(ndc, depth, 1.0);
     let world = w.xyz / w.w;
-    let clip = previous_view.clip_from_world * vec4<f32>(world, 1.0);
+    // The previous frame as it was rendered: with its own TAA jitter, as this frame's world_from_clip has
+    // this frame's.
+    let clip = settings.previous_clip_from_world * vec4<f32>(world, 1.0);
     let expected_depth = -(previous_view.view_from_world * vec4<f32>(world, 1.0)).z;
     var history_ao = 0.0;
     var history_count = 0.0;
@@ -101,7 +103,9 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         if weight > 0.01 {
             history_ao = ao / weight;
-            history_count = count / weight;
+            // No history where the view is new, resized or was off: the texels may be another frame's
+            // (multiplied, not branched on: lavapipe compiles a variant per value of a uniform in a branch).
+            history_count = count / weight * f32(min(settings.history_valid, 1u));
         }
     }
     var blended = vec2<f32>(center.x, 1.0);

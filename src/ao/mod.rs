@@ -25,14 +25,21 @@ mod pipelines;
 pub(crate) mod prepare;
 
 use bevy::asset::embedded_asset;
+use bevy::camera::visibility::RenderLayers;
 use bevy::core_pipeline::core_3d::main_opaque_pass_3d;
 use bevy::core_pipeline::prepass::{DepthPrepass, NormalPrepass};
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
-use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel, SsaoPipelineId};
+use bevy::pbr::{
+    ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel, ScreenSpaceAmbientOcclusionResources,
+    SsaoBindGroups, SsaoPipelineId,
+};
 use bevy::prelude::*;
+use bevy::render::camera::{ExtractedCamera, MipBias, TemporalJitter};
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::render_resource::PipelineCache;
 use bevy::render::renderer::RenderDevice;
+use bevy::render::sync_world::MainEntity;
+use bevy::render::view::{ExtractedView, NoIndirectDrawing, RenderVisibleEntities, ViewUniformOffset};
 use bevy::render::{GpuResourceAppExt, Render, RenderApp, RenderSystems};
 use bevy::shader::load_shader_library;
 
@@ -66,6 +73,10 @@ impl Plugin for HybridAmbientOcclusionPlugin {
             .init_gpu_resource::<pipelines::HaoPipelines>()
             .add_systems(
                 Render,
+                skip_unsupported_views.after(RenderSystems::ExtractCommands).before(RenderSystems::PrepareAssets),
+            )
+            .add_systems(
+                Render,
                 (
                     prepare::prepare_hao_textures.in_set(RenderSystems::PrepareResources),
                     prepare::prepare_hao_bind_groups.in_set(RenderSystems::PrepareBindGroups),
@@ -82,6 +93,79 @@ impl Plugin for HybridAmbientOcclusionPlugin {
                     .before(main_opaque_pass_3d)
                     .before(bevy::pbr::deferred::deferred_lighting),
             );
+    }
+}
+
+/// The smallest viewport side, in pixels, that HAO runs on: Bevy's SSAO textures, which carry HAO's result
+/// to PBR, hold a depth mip chain of 5 levels, which a viewport needs 16 pixels on its longer side for (and
+/// no texture has a side of 0). Smaller viewports (a window dragged tiny, a minimized or zero-size one) get
+/// no ambient occlusion for as long as they are that small, with one warning per camera.
+pub const MIN_VIEWPORT_PIXELS: u32 = 16;
+
+/// Whether HAO (and Bevy's SSAO textures with it) can run on a viewport of `size` pixels.
+pub fn viewport_supported(size: UVec2) -> bool {
+    size.min_element() >= 1 && size.max_element() >= MIN_VIEWPORT_PIXELS
+}
+
+/// Takes HAO and the SSAO it brings off this frame's render-world view where they cannot work, with one
+/// warning per camera and reason, before the views' pipeline keys are made (so PBR does not expect the
+/// texture either); the main world is untouched, so AO comes back when the view allows it again:
+/// - a viewport too small for Bevy's SSAO textures (see [`MIN_VIEWPORT_PIXELS`]); one with a side of 0 is
+///   not rendered at all this frame;
+/// - a viewport that does not start at the target's corner: Bevy's PBR reads the AO texture (viewport-sized)
+///   at the pixel's position in the target, so any AO there would land on the wrong pixels (Bevy's SSAO has
+///   the same flaw).
+fn skip_unsupported_views(
+    mut commands: Commands,
+    views: Query<(Entity, &MainEntity, &ExtractedCamera), With<HybridAmbientOcclusion>>,
+    mut warned: Local<bevy::platform::collections::HashSet<(MainEntity, bool)>>,
+) {
+    for (entity, main, camera) in &views {
+        let size = camera.physical_viewport_size.unwrap_or_default();
+        let corner = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
+        let offset = corner != UVec2::ZERO;
+        if viewport_supported(size) && !offset {
+            continue;
+        }
+        if warned.insert((*main, offset)) {
+            if offset {
+                warn!(
+                    "bevy_hao: camera {}'s viewport starts at pixel {corner} of its target: no ambient occlusion on it (Bevy 0.19's PBR reads the AO texture at target coordinates, so only viewports at (0, 0) get it; give each split-screen camera its own target image)",
+                    main.id()
+                );
+            } else {
+                warn!(
+                    "bevy_hao: camera {}'s viewport is {}x{} pixels: no ambient occlusion while a side is 0 or both are under {MIN_VIEWPORT_PIXELS} (Bevy's SSAO textures, which carry it to PBR, cannot be that small)",
+                    main.id(),
+                    size.x,
+                    size.y
+                );
+            }
+        }
+        if size.min_element() == 0 {
+            // Nothing of a zero-size viewport is seen: the view is not rendered this frame, as Bevy does for a
+            // zero-size target (Bevy's clustering would make a texture of side 0 for it).
+            commands.entity(entity).remove::<(
+                ExtractedCamera,
+                ExtractedView,
+                RenderVisibleEntities,
+                TemporalJitter,
+                MipBias,
+                RenderLayers,
+                Projection,
+                NoIndirectDrawing,
+                ViewUniformOffset,
+            )>();
+        }
+        commands.entity(entity).remove::<(
+            HybridAmbientOcclusion,
+            prepare::HaoViewResources,
+            prepare::HaoBindGroups,
+            ScreenSpaceAmbientOcclusion,
+            ScreenSpaceAmbientOcclusionResources,
+            SsaoPipelineId,
+            SsaoBindGroups,
+        )>();
     }
 }
 

@@ -2,8 +2,9 @@
 
 use super::HybridAmbientOcclusion;
 use super::pipelines::HaoPipelines;
-use bevy::core_pipeline::prepass::{PreviousViewUniforms, ViewPrepassTextures};
+use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
 use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
+use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::render_resource::*;
@@ -16,6 +17,9 @@ use bytemuck::{Pod, Zeroable};
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
 pub struct GpuHaoSettings {
+    /// The previous frame's `clip_from_world` with the previous frame's TAA jitter (Bevy's
+    /// `PreviousViewData` holds it without), so the history is read where it was traced.
+    pub previous_clip_from_world: Mat4,
     /// Rays per pixel.
     pub rays: u32,
     /// Texel visits per ray.
@@ -40,6 +44,39 @@ pub struct GpuHaoSettings {
     pub accumulation_frames: u32,
     /// 1 to pass through voxels whose average normal faces along the ray.
     pub back_hits: u32,
+    /// 0 when the history must not be read: the view is new, was resized or was off last frame.
+    pub history_valid: u32,
+    /// Padding to the WGSL struct's 16-byte multiple (uniform arrays need a 16-byte stride, so fields).
+    pub _pad0: u32,
+    /// Padding.
+    pub _pad1: u32,
+    /// Padding.
+    pub _pad2: u32,
+}
+
+/// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, and when.
+#[derive(Clone, Copy)]
+pub struct ViewHistory {
+    jitter: Vec2,
+    view_size: UVec2,
+    trace_size: UVec2,
+    frame: u32,
+}
+
+impl ViewHistory {
+    /// Whether a view traced at `trace_size` in frame `frame` may read the history this record describes:
+    /// only one written the frame before, at the same size (a resize, or a view that was off, restarts it).
+    pub fn continues(&self, view_size: UVec2, trace_size: UVec2, frame: u32) -> bool {
+        self.frame.wrapping_add(1) == frame && self.view_size == view_size && self.trace_size == trace_size
+    }
+}
+
+/// The previous frame's `clip_from_world` as that frame was rendered: with its TAA jitter (at its viewport
+/// size), which Bevy's `PreviousViewData` leaves out.
+pub fn previous_clip_from_world(previous: &PreviousViewData, jitter: Vec2, view_size: UVec2) -> Mat4 {
+    let mut clip_from_view = previous.clip_from_view;
+    TemporalJitter { offset: jitter }.jitter_projection(&mut clip_from_view, view_size.as_vec2());
+    clip_from_view * previous.view_from_world
 }
 
 /// A view's HAO textures and settings.
@@ -92,11 +129,18 @@ pub fn prepare_hao_textures(
     mut commands: Commands,
     mut texture_cache: ResMut<TextureCache>,
     device: Res<RenderDevice>,
-    views: Query<(Entity, &ExtractedCamera, &HybridAmbientOcclusion, Has<TemporalJitter>)>,
+    views: Query<(
+        Entity,
+        &ExtractedCamera,
+        &HybridAmbientOcclusion,
+        Option<&TemporalJitter>,
+        Option<&PreviousViewData>,
+    )>,
     mut frame: Local<u32>,
+    mut histories: Local<HashMap<Entity, ViewHistory>>,
 ) {
     *frame = frame.wrapping_add(1);
-    for (entity, camera, hao, jitter) in &views {
+    for (entity, camera, hao, jitter, previous_view) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
         let (hao, _) = hao.sanitized();
@@ -127,7 +171,18 @@ pub fn prepare_hao_textures(
         let b = texture(&mut texture_cache, "hao_history_b_texture", trace_size, TextureFormat::Rgba32Float);
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
+        let jitter_offset = jitter.map_or(Vec2::ZERO, |j| j.offset);
+        let last =
+            histories.insert(entity, ViewHistory { jitter: jitter_offset, view_size, trace_size, frame: *frame });
+        let history_valid = last.is_some_and(|l| l.continues(view_size, trace_size, *frame));
+        let previous_clip_from_world = match (previous_view, last) {
+            (Some(previous), Some(last)) => previous_clip_from_world(previous, last.jitter, last.view_size),
+            (Some(previous), None) => previous.clip_from_world,
+            // No previous view (its first frame): the history is not read.
+            (None, _) => Mat4::IDENTITY,
+        };
         let settings = GpuHaoSettings {
+            previous_clip_from_world,
             rays,
             steps,
             max_distance: hao.max_distance,
@@ -135,12 +190,16 @@ pub fn prepare_hao_textures(
             intensity: hao.intensity,
             start_offset: hao.start_offset,
             // The noise turns every frame when frames are accumulated (or TAA averages them).
-            frame: if jitter || hao.accumulation_frames > 1 { *frame } else { 0 },
+            frame: if jitter.is_some() || hao.accumulation_frames > 1 { *frame } else { 0 },
             near_field: hao.near_field as u32,
             half_resolution: half as u32,
             denoise_radius: hao.denoise_radius,
             accumulation_frames: hao.accumulation_frames,
             back_hits: hao.ignore_back_hits as u32,
+            history_valid: (history_valid && previous_view.is_some()) as u32,
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         };
         let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {
@@ -154,6 +213,9 @@ pub fn prepare_hao_textures(
             view_size,
         });
     }
+    // Views not prepared this frame (off, removed, despawned) are forgotten; when they come back their
+    // history starts again.
+    histories.retain(|_, h| h.frame == *frame);
 }
 
 /// Creates the per-view bind groups.
@@ -241,5 +303,47 @@ pub fn prepare_hao_bind_groups(
             upsample,
             apply,
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn history_continues_only_from_the_frame_before_at_the_same_size() {
+        let h =
+            ViewHistory { jitter: Vec2::ZERO, view_size: UVec2::new(64, 48), trace_size: UVec2::new(32, 24), frame: 7 };
+        assert!(h.continues(UVec2::new(64, 48), UVec2::new(32, 24), 8));
+        // A resize of the view or of the traced resolution, a frame missed (off, skipped), the same frame.
+        assert!(!h.continues(UVec2::new(65, 48), UVec2::new(33, 24), 8));
+        assert!(!h.continues(UVec2::new(64, 48), UVec2::new(64, 48), 8));
+        assert!(!h.continues(UVec2::new(64, 48), UVec2::new(32, 24), 9));
+        assert!(!h.continues(UVec2::new(64, 48), UVec2::new(32, 24), 7));
+        let wrapping = ViewHistory { frame: u32::MAX, ..h };
+        assert!(wrapping.continues(UVec2::new(64, 48), UVec2::new(32, 24), 0));
+    }
+
+    #[test]
+    fn the_previous_view_gets_its_own_jitter() {
+        let projection = Mat4::perspective_infinite_reverse_rh(1.0, 1.5, 0.1);
+        let view_from_world = Mat4::from_translation(Vec3::new(0.0, 0.0, -5.0));
+        let previous = PreviousViewData {
+            view_from_world,
+            clip_from_world: projection * view_from_world,
+            clip_from_view: projection,
+            world_from_clip: (projection * view_from_world).inverse(),
+            view_from_clip: projection.inverse(),
+        };
+        let size = UVec2::new(100, 50);
+        let at = |m: Mat4| {
+            let c = m * Vec4::new(0.3, 0.2, 0.0, 1.0);
+            (c.truncate().truncate() / c.w) * Vec2::new(0.5, -0.5) * size.as_vec2()
+        };
+        assert_eq!(previous_clip_from_world(&previous, Vec2::ZERO, size), previous.clip_from_world);
+        // A jitter of (0.25, -0.5) pixels moves every point by that much in pixels (y down).
+        let moved = at(previous_clip_from_world(&previous, Vec2::new(0.25, -0.5), size)) - at(previous.clip_from_world);
+        // (Bevy's jitter moves the image against the offset in x and with it in y.)
+        assert!((moved - Vec2::new(-0.25, 0.5)).length() < 1e-3, "{moved}");
     }
 }

@@ -122,7 +122,12 @@ fn prepare_debug_images(
     cache: Res<PipelineCache>,
     images: Res<RenderAssets<GpuImage>>,
     views: Query<(Entity, &HaoDebugImages, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
+    stale: Query<Entity, (With<DebugImagesBindGroup>, Without<ScreenSpaceAmbientOcclusionResources>)>,
 ) {
+    // A view whose AO texture is gone this frame (HAO skipped on a viewport too small) copies nothing.
+    for entity in &stale {
+        commands.entity(entity).remove::<DebugImagesBindGroup>();
+    }
     for (entity, debug, prepass, ssao) in &views {
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
         let (Some(ao), Some(d), Some(n)) = (images.get(&debug.ao), images.get(&debug.depth), images.get(&debug.normal))
