@@ -38,6 +38,7 @@ fn bevy_render_root() -> std::path::PathBuf {
 /// Entry shaders and the shader-def sets they are compiled with.
 fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
     let texture_variants = vec![vec![("VOXEL_TEXTURE_R8", ShaderDefValue::Bool(true))], vec![]];
+    let multisampled = vec![vec![("MULTISAMPLED", ShaderDefValue::Bool(true))], vec![]];
     vec![
         ("src/voxel/voxelize_classify.wgsl", vec![vec![]]),
         ("src/voxel/voxelize_scan.wgsl", vec![vec![]]),
@@ -56,12 +57,12 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxel_clear.wgsl", vec![vec![]]),
         ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
         ("src/voxel/voxel_mip.wgsl", texture_variants),
-        ("src/ao/hao_trace.wgsl", vec![vec![]]),
-        ("src/ao/hao_temporal.wgsl", vec![vec![]]),
+        ("src/ao/hao_trace.wgsl", multisampled.clone()),
+        ("src/ao/hao_temporal.wgsl", multisampled.clone()),
         ("src/ao/hao_denoise.wgsl", vec![vec![]]),
-        ("src/ao/hao_upsample.wgsl", vec![vec![]]),
+        ("src/ao/hao_upsample.wgsl", multisampled.clone()),
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),
-        ("src/debug/debug_images.wgsl", vec![vec![]]),
+        ("src/debug/debug_images.wgsl", multisampled),
         ("src/debug/debug_view.wgsl", vec![vec![]]),
     ]
 }
@@ -158,7 +159,7 @@ macro_rules! layout {
 /// Every `#[repr(C)]` struct the passes upload, with its WGSL twin and a shader that declares it.
 fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
     use crate::ao::prepare::GpuHaoSettings;
-    use crate::debug::GpuDebugSettings;
+    use crate::debug::{GpuDebugCopy, GpuDebugSettings};
     use crate::voxel::pipelines::{GpuLevelRegion, GpuOccluderInstance, GpuSlabGroup, GpuVoxelizeParams};
     vec![
         layout!(
@@ -180,12 +181,13 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 accumulation_frames,
                 back_hits,
                 history_valid,
-                _pad0,
-                _pad1,
-                _pad2,
+                origin_x,
+                origin_y,
+                padding,
             ]
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),
+        layout!("src/debug/debug_images.wgsl", "DebugCopy", GpuDebugCopy, [ao_origin, prepass_origin]),
         layout!(
             "src/voxel/voxelize_classify.wgsl",
             "OccluderInstance",

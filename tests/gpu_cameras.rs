@@ -328,9 +328,9 @@ fn split_screen_of_four_cameras_with_and_without_hao() {
     let mut hao_cameras: Vec<(Entity, isize)> = q.iter(app.world()).map(|(e, c)| (e, c.order)).collect();
     hao_cameras.sort_by_key(|c| c.1);
     let [(first, _), (third, _)] = hao_cameras[..] else { panic!("two HAO cameras") };
-    // The top-left player has AO; the bottom-left one's viewport starts at (0, 32), where Bevy's PBR would
-    // read the AO texture at the wrong pixels, so it is rendered without (README, known limits).
+    // Both players with HAO have their AO, the bottom-left one in a viewport that starts at (0, 32).
     assert_ao_back(&mut app, first, "four cameras");
+    assert_ao_back(&mut app, third, "four cameras, the bottom-left player");
     // The split changes: the first player leaves (camera off), the third takes the whole target.
     app.world_mut().get_mut::<Camera>(first).unwrap().is_active = false;
     set_viewport(&mut app, third, Some((UVec2::ZERO, SIZE)));
@@ -378,4 +378,152 @@ fn meshes_on_other_render_layers_occlude_and_hidden_meshes_do_not() {
     assert!(under_layer_1 < open - 0.2, "the roof on layer 1: {under_layer_1} against open {open}");
     assert!((under_hidden - open).abs() < 0.05, "the hidden roof: {under_hidden} against open {open}");
     assert_no_render_errors("render layers and hidden meshes");
+}
+
+/// The scene (after its first frame, which spawns it) without its moving box, so that two apps render the
+/// same frames.
+fn still(mut app: App) -> App {
+    run(&mut app, 1);
+    let mut q = app.world_mut().query_filtered::<Entity, With<Mover>>();
+    let movers: Vec<Entity> = q.iter(app.world()).collect();
+    for e in movers {
+        app.world_mut().despawn(e);
+    }
+    app
+}
+
+/// The AO debug image of `camera` (the AO PBR reads, at the viewport's pixels).
+fn ao_image(app: &mut App, camera: Entity) -> Vec<f32> {
+    let images = app.world().get::<HaoDebugImages>(camera).expect("debug images").clone();
+    read_image_f32(app, images.ao, 4).2
+}
+
+fn mean_difference(a: &[f32], b: &[f32]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len() as f32
+}
+
+/// Whether the device can render this many samples into the formats a camera with Bevy's prepasses uses.
+fn msaa_supported(samples: u32) -> bool {
+    use bevy::render::render_resource::TextureFormat;
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapters = bevy::tasks::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
+    let Some(adapter) = adapters.first() else { return false };
+    [TextureFormat::Rgba8UnormSrgb, TextureFormat::Depth32Float, TextureFormat::Rgb10a2Unorm]
+        .iter()
+        .all(|f| adapter.get_texture_format_features(*f).flags.sample_count_supported(samples))
+}
+
+#[test]
+fn cameras_with_msaa_keep_it_and_get_the_ao_of_a_camera_without() {
+    let _gpu = gpu_lock();
+    take_render_errors();
+    let ao_with = |msaa: Msaa| {
+        let mut app = still(app(move |commands, images, target| {
+            let camera = hao_camera(commands, images, target, SIZE);
+            commands.entity(camera).insert(msaa);
+        }));
+        run(&mut app, 2);
+        let camera = the_camera(&mut app);
+        assert_ao_back(&mut app, camera, &format!("{msaa:?}"));
+        assert_eq!(*app.world().get::<Msaa>(camera).unwrap(), msaa, "the camera's MSAA was changed");
+        let ao = ao_image(&mut app, camera);
+        assert_no_render_errors(&format!("{msaa:?}"));
+        ao
+    };
+    let reference = ao_with(Msaa::Off);
+    // WebGPU guarantees 4 samples; 2 and 8 where the device has them.
+    for msaa in [Msaa::Sample4, Msaa::Sample2, Msaa::Sample8] {
+        if msaa != Msaa::Sample4 && !msaa_supported(msaa.samples()) {
+            println!("{msaa:?}: not supported by this device");
+            continue;
+        }
+        let ao = ao_with(msaa);
+        let difference = mean_difference(&ao, &reference);
+        println!("{msaa:?}: mean AO difference from Msaa::Off {difference:.4}");
+        // The trace reads sample 0 of each pixel (the same surface but for edges, where it may be the other
+        // side's): the same AO but along edges.
+        assert!(difference < 0.01, "{msaa:?}: AO {difference} from the camera without MSAA");
+    }
+}
+
+#[test]
+fn viewports_away_from_the_corner_get_the_ao_of_one_at_it() {
+    let _gpu = gpu_lock();
+    take_render_errors();
+    let size = UVec2::new(64, 44);
+    // The same view (its projection depends on the viewport's size only) at the target's corner and inside
+    // it, and with no AO; the final image and the AO PBR read compared where the viewport lies.
+    let render = |at: UVec2, hao_on: bool| {
+        let mut app = still(app(move |commands, images, target| {
+            let camera = hao_camera(commands, images, target, size);
+            commands.entity(camera).insert(Camera {
+                viewport: Some(Viewport { physical_position: at, physical_size: size, ..default() }),
+                ..default()
+            });
+            if !hao_on {
+                commands.entity(camera).remove::<HybridAmbientOcclusion>();
+            }
+        }));
+        // Grey, so that PBR's multi-bounce AO (which lightens AO on white surfaces) shows it well.
+        for (_, m) in app.world_mut().resource_mut::<Assets<StandardMaterial>>().iter_mut() {
+            m.base_color = Color::linear_rgb(0.2, 0.2, 0.2);
+        }
+        run(&mut app, 14);
+        let camera = the_camera_or_any(&mut app);
+        let ao = ao_image(&mut app, camera);
+        let target = app.world().resource::<Target>().0.clone();
+        let (w, _, texel, color) = read_image(&mut app, target, 4);
+        assert_no_render_errors(&format!("a viewport at {at}"));
+        // The viewport's pixels, as luminance-ish sums of the colour channels.
+        let mut pixels = Vec::new();
+        for y in at.y..at.y + size.y {
+            for x in at.x..at.x + size.x {
+                let i = ((y * w + x) * texel) as usize;
+                pixels.push(color[i..i + 3].iter().map(|c| *c as f32 / 255.0).sum::<f32>() / 3.0);
+            }
+        }
+        (ao, pixels)
+    };
+    let (ao_corner, color_corner) = render(UVec2::ZERO, true);
+    let (ao_inside, color_inside) = render(UVec2::new(27, 13), true);
+    let (_, color_no_ao) = render(UVec2::new(27, 13), false);
+    let ao_difference = mean_difference(&ao_inside, &ao_corner);
+    // Where the AO is marked (below 0.8), the colour with HAO inside the target against at its corner, and
+    // against no AO.
+    let occluded: Vec<usize> = (0..ao_inside.len()).filter(|&i| ao_inside[i] < 0.8).collect();
+    let over = |f: &dyn Fn(usize) -> f32| occluded.iter().map(|&i| f(i)).sum::<f32>() / occluded.len().max(1) as f32;
+    let color_difference = over(&|i| (color_inside[i] - color_corner[i]).abs());
+    let darkening = over(&|i| color_no_ao[i] - color_inside[i]);
+    println!(
+        "viewport inside the target against one at its corner: AO {ao_difference:.4}; where the AO is under 0.8 ({} pixels), colour {color_difference:.4}, darkened by the AO {darkening:.4}",
+        occluded.len()
+    );
+    assert!(ao_difference < 0.005, "the AO of a viewport inside the target differs by {ao_difference}");
+    assert!(occluded.len() > 50, "only {} occluded pixels", occluded.len());
+    // PBR shaded the viewport with its own AO (on the wrong pixels the images would differ by about as much
+    // as AO and no AO do).
+    assert!(darkening > 0.02, "HAO darkened the occluded pixels by only {darkening}");
+    assert!(color_difference < 0.2 * darkening, "colour {color_difference} against AO's darkening {darkening}");
+}
+
+fn the_camera_or_any(app: &mut App) -> Entity {
+    let mut q = app.world_mut().query_filtered::<Entity, With<HaoDebugImages>>();
+    q.iter(app.world()).next().expect("a camera")
+}
+
+#[test]
+fn an_hdr_camera_gets_its_ao() {
+    let _gpu = gpu_lock();
+    take_render_errors();
+    let mut app = app(|commands, images, target| {
+        let camera = hao_camera(commands, images, target, SIZE);
+        commands.entity(camera).insert(bevy::camera::Hdr);
+    });
+    run(&mut app, 3);
+    let camera = the_camera(&mut app);
+    assert_ao_back(&mut app, camera, "HDR");
+    assert_no_render_errors("an HDR camera");
 }

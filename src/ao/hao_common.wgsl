@@ -23,9 +23,16 @@ struct HaoSettings {
     back_hits: u32,
     // 0: the view is new, resized or was off last frame, and its history is not read.
     history_valid: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    // The view's first pixel in its render target (its viewport's corner): where the view's pixels lie in
+    // the prepass textures and in the AO texture PBR reads, which are the target's size.
+    origin_x: u32,
+    origin_y: u32,
+    padding: u32,
+}
+
+// Where pixel `p` of the view (0 at its viewport's corner) lies in the render target.
+fn target_pixel(settings: HaoSettings, p: vec2<u32>) -> vec2<u32> {
+    return p + vec2<u32>(settings.origin_x, settings.origin_y);
 }
 
 const PI: f32 = 3.141592653589793;

@@ -8,7 +8,7 @@
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, octahedral_decode, pack_normal, unpack_normal, history_accepts, neighborhood_window,
-    temporal_blend,
+    temporal_blend, target_pixel,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
 
@@ -23,7 +23,12 @@ struct PreviousViewData {
 
 @group(0) @binding(0) var noisy: texture_2d<f32>;
 @group(0) @binding(1) var history: texture_2d<f32>;
+// The depth prepass, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
+#ifdef MULTISAMPLED
+@group(0) @binding(2) var depth_texture: texture_depth_multisampled_2d;
+#else
 @group(0) @binding(2) var depth_texture: texture_depth_2d;
+#endif
 @group(0) @binding(3) var<uniform> settings: HaoSettings;
 @group(0) @binding(4) var history_out: texture_storage_2d<rgba32float, write>;
 @group(1) @binding(0) var<uniform> view: View;
@@ -64,8 +69,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
 
     // Where this surface was: the traced pixel's world position in the previous view.
     let scale = select(1u, 2u, settings.half_resolution != 0u);
-    let pixel = min(gid.xy * scale, textureDimensions(depth_texture) - vec2<u32>(1u));
-    let depth = textureLoad(depth_texture, pixel, 0);
+    let pixel = min(gid.xy * scale, vec2<u32>(view.viewport.zw) - vec2<u32>(1u));
+    let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
     let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
     let w = view.world_from_clip * vec4<f32>(ndc, depth, 1.0);

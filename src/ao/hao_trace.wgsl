@@ -7,14 +7,20 @@
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff,
-    octahedral_encode, half_resolution_offset, history_accepts,
+    octahedral_encode, half_resolution_offset, history_accepts, target_pixel,
 }
 #import bevy_hao::voxel_grid::{
     voxel_grid, ray_start_level, march_cascades, level_position, voxel_normal_at, safe_inverse, ray_box,
 }
 
+// The prepasses, the target's size: the view's pixel p is at target_pixel(p). With MSAA, sample 0.
+#ifdef MULTISAMPLED
+@group(0) @binding(0) var depth_texture: texture_depth_multisampled_2d;
+@group(0) @binding(1) var normal_texture: texture_multisampled_2d<f32>;
+#else
 @group(0) @binding(0) var depth_texture: texture_depth_2d;
 @group(0) @binding(1) var normal_texture: texture_2d<f32>;
+#endif
 @group(0) @binding(2) var<uniform> settings: HaoSettings;
 @group(0) @binding(3) var ao_out: texture_storage_2d<rgba16float, write>;
 @group(1) @binding(0) var<uniform> view: View;
@@ -52,17 +58,17 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let scale = select(1u, 2u, settings.half_resolution != 0u);
-    let last = textureDimensions(depth_texture) - vec2<u32>(1u);
+    let last = vec2<u32>(view.viewport.zw) - vec2<u32>(1u);
     // The block's first pixel: its depth and normal are the block's for the passes after this one.
     let block_pixel = min(gid.xy * scale, last);
-    let block_depth = textureLoad(depth_texture, block_pixel, 0);
+    let block_depth = textureLoad(depth_texture, target_pixel(settings, block_pixel), 0);
     if block_depth <= 0.0 {
         // Background: depth 0 tells the denoiser to skip it.
         textureStore(ao_out, gid.xy, vec4<f32>(1.0, 0.0, 0.0, 0.0));
         return;
     }
     let block_world = world_position(block_pixel, block_depth);
-    let block_normal = normalize(textureLoad(normal_texture, block_pixel, 0).xyz * 2.0 - 1.0);
+    let block_normal = normalize(textureLoad(normal_texture, target_pixel(settings, block_pixel), 0).xyz * 2.0 - 1.0);
     let view_depth = -(view.view_from_world * vec4<f32>(block_world, 1.0)).z;
     let packed_normal = octahedral_encode(block_normal);
     // At half resolution the rays start from a pixel of the block that turns every frame (the first pixel
@@ -72,10 +78,10 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     var normal = block_normal;
     if scale == 2u {
         let p = min(block_pixel + half_resolution_offset(settings.frame), last);
-        let d = textureLoad(depth_texture, p, 0);
+        let d = textureLoad(depth_texture, target_pixel(settings, p), 0);
         if d > 0.0 {
             let w = world_position(p, d);
-            let n = normalize(textureLoad(normal_texture, p, 0).xyz * 2.0 - 1.0);
+            let n = normalize(textureLoad(normal_texture, target_pixel(settings, p), 0).xyz * 2.0 - 1.0);
             let vd = -(view.view_from_world * vec4<f32>(w, 1.0)).z;
             if history_accepts(view_depth, vd, dot(block_normal, n)) {
                 pixel = p;

@@ -6,13 +6,19 @@
 // `bevy_hao::cpu::denoise::upsample_taps`). With the near field on, the result is the minimum with Bevy's
 // screen-space AO.
 #import bevy_render::view::View
-#import bevy_hao::hao_common::{HaoSettings, unpack_normal, bilateral_weight, bilateral_line}
+#import bevy_hao::hao_common::{HaoSettings, unpack_normal, bilateral_weight, bilateral_line, target_pixel}
 
 // ao, view depth, packed normal, frames (at the traced resolution): filtered across at full resolution,
 // both ways at half resolution
 @group(0) @binding(0) var denoised: texture_2d<f32>;
+// The prepasses, the target's size: the view's pixel p is at target_pixel(p). With MSAA, sample 0.
+#ifdef MULTISAMPLED
+@group(0) @binding(1) var depth_texture: texture_depth_multisampled_2d;
+@group(0) @binding(2) var normal_texture: texture_multisampled_2d<f32>;
+#else
 @group(0) @binding(1) var depth_texture: texture_depth_2d;
 @group(0) @binding(2) var normal_texture: texture_2d<f32>;
+#endif
 @group(0) @binding(3) var screen_space_ao: texture_2d<f32>;
 @group(0) @binding(4) var<uniform> settings: HaoSettings;
 @group(0) @binding(5) var ao_out: texture_storage_2d<r32float, write>;
@@ -26,7 +32,7 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let pixel = gid.xy;
     var ao = 1.0;
-    let depth = textureLoad(depth_texture, pixel, 0);
+    let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     if depth > 0.0 {
         if settings.half_resolution == 0u {
             ao = bilateral_line(denoised, pixel, vec2<i32>(0, 1), settings.denoise_radius).x;
@@ -34,7 +40,7 @@ fn upsample(@builtin(global_invocation_id) gid: vec3<u32>) {
             let denoised_size = vec2<i32>(textureDimensions(denoised));
             let p = view.view_from_clip * vec4<f32>(0.0, 0.0, depth, 1.0);
             let d0 = -p.z / p.w;
-            let n0 = normalize(textureLoad(normal_texture, pixel, 0).xyz * 2.0 - 1.0);
+            let n0 = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
             let u = (vec2<f32>(pixel) + 0.5) * 0.5 - 0.5;
             let base = vec2<i32>(floor(u));
             let f = u - floor(u);

@@ -21,6 +21,7 @@
 //! The CPU twins: [`crate::cpu::ao`] (trace), [`crate::cpu::temporal`], [`crate::cpu::denoise`].
 
 pub(crate) mod node;
+pub(crate) mod pbr_texture;
 mod pipelines;
 pub(crate) mod prepare;
 
@@ -40,7 +41,7 @@ use bevy::render::render_resource::PipelineCache;
 use bevy::render::renderer::RenderDevice;
 use bevy::render::sync_world::MainEntity;
 use bevy::render::view::{ExtractedView, NoIndirectDrawing, RenderVisibleEntities, ViewUniformOffset};
-use bevy::render::{GpuResourceAppExt, Render, RenderApp, RenderSystems};
+use bevy::render::{ExtractSchedule, GpuResourceAppExt, Render, RenderApp, RenderSystems};
 use bevy::shader::load_shader_library;
 
 /// Renders [`HybridAmbientOcclusion`] (added by [`crate::HaoPlugin`]).
@@ -71,6 +72,7 @@ impl Plugin for HybridAmbientOcclusionPlugin {
         }
         render_app
             .init_gpu_resource::<pipelines::HaoPipelines>()
+            .add_systems(ExtractSchedule, pbr_texture::extract_multisampled_views)
             .add_systems(
                 Render,
                 skip_unsupported_views.after(RenderSystems::ExtractCommands).before(RenderSystems::PrepareAssets),
@@ -79,6 +81,10 @@ impl Plugin for HybridAmbientOcclusionPlugin {
                 Render,
                 (
                     prepare::prepare_hao_textures.in_set(RenderSystems::PrepareResources),
+                    pbr_texture::hold_ao_textures.in_set(RenderSystems::PrepareResourcesFlush),
+                    pbr_texture::return_held_ao_textures
+                        .in_set(RenderSystems::Prepare)
+                        .after(RenderSystems::PrepareBindGroups),
                     prepare::prepare_hao_bind_groups.in_set(RenderSystems::PrepareBindGroups),
                     skip_unused_ssao
                         .in_set(RenderSystems::PrepareBindGroups)
@@ -107,40 +113,27 @@ pub fn viewport_supported(size: UVec2) -> bool {
     size.min_element() >= 1 && size.max_element() >= MIN_VIEWPORT_PIXELS
 }
 
-/// Takes HAO and the SSAO it brings off this frame's render-world view where they cannot work, with one
-/// warning per camera and reason, before the views' pipeline keys are made (so PBR does not expect the
-/// texture either); the main world is untouched, so AO comes back when the view allows it again:
-/// - a viewport too small for Bevy's SSAO textures (see [`MIN_VIEWPORT_PIXELS`]); one with a side of 0 is
-///   not rendered at all this frame;
-/// - a viewport that does not start at the target's corner: Bevy's PBR reads the AO texture (viewport-sized)
-///   at the pixel's position in the target, so any AO there would land on the wrong pixels (Bevy's SSAO has
-///   the same flaw).
+/// Takes HAO and the SSAO it brings off this frame's render-world view where its viewport is too small for
+/// Bevy's SSAO textures (see [`MIN_VIEWPORT_PIXELS`]), with one warning per camera, before the views'
+/// pipeline keys are made (so PBR does not expect the texture either); a view with a side of 0 is not
+/// rendered at all this frame. The main world is untouched, so AO comes back when the view allows it again.
 fn skip_unsupported_views(
     mut commands: Commands,
     views: Query<(Entity, &MainEntity, &ExtractedCamera), With<HybridAmbientOcclusion>>,
-    mut warned: Local<bevy::platform::collections::HashSet<(MainEntity, bool)>>,
+    mut warned: Local<bevy::platform::collections::HashSet<MainEntity>>,
 ) {
     for (entity, main, camera) in &views {
         let size = camera.physical_viewport_size.unwrap_or_default();
-        let corner = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
-        let offset = corner != UVec2::ZERO;
-        if viewport_supported(size) && !offset {
+        if viewport_supported(size) {
             continue;
         }
-        if warned.insert((*main, offset)) {
-            if offset {
-                warn!(
-                    "bevy_hao: camera {}'s viewport starts at pixel {corner} of its target: no ambient occlusion on it (Bevy 0.19's PBR reads the AO texture at target coordinates, so only viewports at (0, 0) get it; give each split-screen camera its own target image)",
-                    main.id()
-                );
-            } else {
-                warn!(
-                    "bevy_hao: camera {}'s viewport is {}x{} pixels: no ambient occlusion while a side is 0 or both are under {MIN_VIEWPORT_PIXELS} (Bevy's SSAO textures, which carry it to PBR, cannot be that small)",
-                    main.id(),
-                    size.x,
-                    size.y
-                );
-            }
+        if warned.insert(*main) {
+            warn!(
+                "bevy_hao: camera {}'s viewport is {}x{} pixels: no ambient occlusion while a side is 0 or both are under {MIN_VIEWPORT_PIXELS} (Bevy's SSAO textures, which carry it to PBR, cannot be that small)",
+                main.id(),
+                size.x,
+                size.y
+            );
         }
         if size.min_element() == 0 {
             // Nothing of a zero-size viewport is seen: the view is not rendered this frame, as Bevy does for a
@@ -165,6 +158,7 @@ fn skip_unsupported_views(
             ScreenSpaceAmbientOcclusionResources,
             SsaoPipelineId,
             SsaoBindGroups,
+            pbr_texture::HeldAoTexture,
         )>();
     }
 }
@@ -176,27 +170,19 @@ fn skip_unsupported_views(
 /// grid and the pipelines are ready); otherwise SSAO fills the texture as before.
 fn skip_unused_ssao(
     mut commands: Commands,
-    views: Query<(Entity, &HybridAmbientOcclusion), (With<SsaoPipelineId>, With<prepare::HaoBindGroups>)>,
+    views: Query<(Entity, &prepare::HaoViewResources), (With<SsaoPipelineId>, With<prepare::HaoBindGroups>)>,
     pipelines: Res<pipelines::HaoPipelines>,
     voxel_grid: Option<Res<crate::voxel::VoxelGridBindings>>,
     cache: Res<PipelineCache>,
 ) {
-    let ready = voxel_grid.is_some()
-        && [
-            pipelines.trace,
-            pipelines.temporal,
-            pipelines.denoise_horizontal,
-            pipelines.denoise_vertical,
-            pipelines.upsample,
-            pipelines.apply,
-        ]
-        .iter()
-        .all(|id| cache.get_compute_pipeline(*id).is_some());
-    if !ready {
+    if voxel_grid.is_none() {
         return;
     }
-    for (entity, hao) in &views {
-        if !hao.near_field {
+    for (entity, res) in &views {
+        let ready = pipelines
+            .view_pipelines(res.samples)
+            .is_some_and(|ids| ids.iter().all(|id| cache.get_compute_pipeline(*id).is_some()));
+        if ready && !res.near_field {
             commands.entity(entity).remove::<SsaoPipelineId>();
         }
     }
@@ -216,27 +202,44 @@ fn ssao_for(hao: &HybridAmbientOcclusion) -> ScreenSpaceAmbientOcclusion {
     }
 }
 
-/// Gives HAO cameras what they need: Bevy's SSAO (added and removed with HAO unless the user put it there)
-/// and `Msaa::Off`.
+/// Gives HAO cameras Bevy's SSAO, whose texture carries HAO's result to PBR (added and removed with HAO
+/// unless the user put it there). Not on a camera with MSAA, which Bevy's SSAO refuses: there the render world
+/// gets it (see `pbr_texture`). Warns once per camera where the near field cannot run.
 fn configure_hao_cameras(
     mut commands: Commands,
     cameras: Query<(
         Entity,
+        &Camera,
         Ref<HybridAmbientOcclusion>,
         Option<&ScreenSpaceAmbientOcclusion>,
         Has<HaoAddedSsao>,
-        &Msaa,
+        Ref<Msaa>,
     )>,
     mut removed: RemovedComponents<HybridAmbientOcclusion>,
     added_ssao: Query<(), With<HaoAddedSsao>>,
+    mut warned: Local<bevy::platform::collections::HashSet<(Entity, &'static str)>>,
 ) {
-    for (entity, hao, ssao, we_added, msaa) in &cameras {
-        if *msaa != Msaa::Off {
-            warn!("bevy_hao: {entity} has HybridAmbientOcclusion, which needs Msaa::Off; turning MSAA off");
-            commands.entity(entity).insert(Msaa::Off);
+    for (entity, camera, hao, ssao, we_added, msaa) in &cameras {
+        let multisampled = *msaa != Msaa::Off;
+        let offset = camera.viewport.as_ref().is_some_and(|v| v.physical_position != UVec2::ZERO);
+        if hao.near_field && (multisampled || offset) {
+            let why = if multisampled { "MSAA" } else { "a viewport that does not start at the target's corner" };
+            if warned.insert((entity, why)) {
+                warn!(
+                    "bevy_hao: camera {entity}: HybridAmbientOcclusion::near_field needs Bevy's SSAO, which cannot run with {why}; HAO runs without the near field"
+                );
+            }
         }
         match ssao {
-            None => {
+            Some(_) if multisampled && we_added => {
+                commands.entity(entity).remove::<(ScreenSpaceAmbientOcclusion, HaoAddedSsao)>();
+            }
+            Some(_) if multisampled && msaa.is_changed() => {
+                warn!(
+                    "bevy_hao: camera {entity} has MSAA and Bevy's ScreenSpaceAmbientOcclusion, which needs Msaa::Off; HAO runs with MSAA without it (remove it, or use the near field with Msaa::Off)"
+                );
+            }
+            None if !multisampled => {
                 commands.entity(entity).insert((ssao_for(&hao), HaoAddedSsao));
             }
             Some(current) if we_added && hao.is_changed() => {
@@ -275,9 +278,11 @@ fn report_invalid_settings(
 /// they shadow. The result replaces the ambient occlusion Bevy's PBR shading reads: it dims indirect light
 /// (ambient, environment maps, irradiance volumes) only, in forward and deferred rendering.
 ///
-/// Adding it to a camera is enough: it requires the depth and normal prepasses, turns MSAA off (AO needs
-/// `Msaa::Off`, as Bevy's SSAO does) and adds Bevy's `ScreenSpaceAmbientOcclusion`, whose texture is where
-/// PBR reads AO and which provides the optional near field. Removing it removes what it added.
+/// Adding it to a camera is enough: it requires the depth and normal prepasses and adds Bevy's
+/// `ScreenSpaceAmbientOcclusion`, whose texture is where PBR reads AO and which provides the optional near
+/// field (on a camera with MSAA, which Bevy's SSAO refuses, the plugin gives the texture to the render world's
+/// view itself, and there is no near field). The camera keeps its MSAA, TAA, viewport and HDR. Removing it
+/// removes what it added.
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
@@ -305,7 +310,8 @@ pub struct HybridAmbientOcclusion {
     /// closer than that are the near field's job. 1 measured best against the ray-traced reference.
     pub start_offset: f32,
     /// Combine with Bevy's screen-space AO (the minimum of both) for contact detail finer than a voxel.
-    /// Off by default: against a ray-traced reference the minimum measured worse than HAO alone on the
+    /// Needs what Bevy's SSAO needs: `Msaa::Off` and a viewport at the target's corner (elsewhere HAO runs
+    /// without it, with a warning). Off by default: against a ray-traced reference the minimum measured worse than HAO alone on the
     /// built-in cathedral, Sibenik and Sponza (Bevy's SSAO darkens open surfaces; see `ao_compare`).
     pub near_field: bool,
     /// The quality of Bevy's SSAO when it provides the near field. Without the near field the plugin keeps
@@ -326,7 +332,7 @@ pub struct HybridAmbientOcclusion {
     /// there (see `bevy_hao::cpu::ao::back_hit_exit`). Voxels of double-sided materials have no normal and
     /// always stop rays; single-sided geometry seen from behind does not. On by default: against the
     /// ray-traced reference it lowered HAO's error on the cathedral, Sibenik and Sponza in a fitted grid and
-    /// in cascades (README). No effect without attributes.
+    /// in cascades (docs/figures.md). No effect without attributes.
     pub ignore_back_hits: bool,
 }
 
@@ -437,7 +443,7 @@ pub enum HaoQuality {
     /// 32 steps, 2 rays a frame accumulated (6 without): the default. Accumulated, its error against the
     /// ray-traced reference is below that of 6 rays a frame without accumulation on the scenes measured.
     /// On views of [`HALF_RESOLUTION_PIXELS`] (1920x1080) or more it traces at half resolution like `Low`,
-    /// a quarter of the rays, at the same error there (README).
+    /// a quarter of the rays, at the same error there (docs/figures.md).
     #[default]
     Medium,
     /// 48 steps, 4 rays a frame accumulated (8 without).

@@ -26,14 +26,14 @@ pub fn hao(
 ) {
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let (Some(trace), Some(temporal), Some(horizontal), Some(vertical), Some(upsample), Some(apply)) = (
-        cache.get_compute_pipeline(pipelines.trace),
-        cache.get_compute_pipeline(pipelines.temporal),
-        cache.get_compute_pipeline(pipelines.denoise_horizontal),
-        cache.get_compute_pipeline(pipelines.denoise_vertical),
-        cache.get_compute_pipeline(pipelines.upsample),
-        cache.get_compute_pipeline(pipelines.apply),
-    ) else {
+    let Some([trace, temporal, horizontal, vertical, upsample, apply]) =
+        pipelines.view_pipelines(res.samples).map(|ids| ids.map(|id| cache.get_compute_pipeline(id)))
+    else {
+        return;
+    };
+    let (Some(trace), Some(temporal), Some(horizontal), Some(vertical), Some(upsample), Some(apply)) =
+        (trace, temporal, horizontal, vertical, upsample, apply)
+    else {
         return;
     };
     let diagnostics = ctx.diagnostic_recorder();

@@ -6,47 +6,168 @@ use crate::voxel::voxel_grid_layout;
 use bevy::asset::load_embedded_asset;
 use bevy::core_pipeline::prepass::PreviousViewData;
 use bevy::prelude::*;
-use bevy::render::render_resource::binding_types::{texture_2d, texture_depth_2d, texture_storage_2d, uniform_buffer};
+use bevy::render::render_resource::binding_types::{
+    texture_2d, texture_2d_multisampled, texture_depth_2d, texture_depth_2d_multisampled, texture_storage_2d,
+    uniform_buffer,
+};
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderAdapter;
 use bevy::render::view::ViewUniform;
+use bevy::shader::ShaderDefVal;
+
+/// The passes that read the depth and normal prepasses (trace, temporal, upsample), for one kind of prepass
+/// texture: single-sampled, or multisampled on a camera with MSAA (they read sample 0).
+pub struct PrepassReaders {
+    /// Group 0 of trace.
+    pub trace_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the temporal pass.
+    pub temporal_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the upsample.
+    pub upsample_layout: BindGroupLayoutDescriptor,
+    /// Rays through the voxels.
+    pub trace: CachedComputePipelineId,
+    /// Temporal accumulation.
+    pub temporal: CachedComputePipelineId,
+    /// To full resolution, and the near field.
+    pub upsample: CachedComputePipelineId,
+}
 
 /// The HAO pipelines and layouts.
 #[derive(Resource)]
 pub struct HaoPipelines {
     /// Group 1 of trace and upsample: the view uniform.
     pub view_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of trace.
-    pub trace_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the temporal pass.
-    pub temporal_layout: BindGroupLayoutDescriptor,
     /// Group 1 of the temporal pass: the view and the previous view.
     pub temporal_view_layout: BindGroupLayoutDescriptor,
     /// Group 0 of both halves of the denoiser.
     pub denoise_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the upsample.
-    pub upsample_layout: BindGroupLayoutDescriptor,
     /// Group 0 of apply.
     pub apply_layout: BindGroupLayoutDescriptor,
-    /// Rays through the voxels.
-    pub trace: CachedComputePipelineId,
-    /// Temporal accumulation.
-    pub temporal: CachedComputePipelineId,
+    /// The passes reading single-sampled prepasses.
+    pub single: PrepassReaders,
+    /// The passes reading multisampled prepasses, queued when the first view with MSAA needs them.
+    pub multisampled: Option<PrepassReaders>,
     /// Bilateral filter, horizontal half.
     pub denoise_horizontal: CachedComputePipelineId,
     /// Bilateral filter, vertical half.
     pub denoise_vertical: CachedComputePipelineId,
-    /// To full resolution, and the near field.
-    pub upsample: CachedComputePipelineId,
     /// Into the texture PBR reads.
     pub apply: CachedComputePipelineId,
+    /// The format of Bevy's SSAO texture, which PBR reads (and of the plugin's own in its place).
+    pub ao_format: TextureFormat,
+    shaders: [Handle<Shader>; 3],
+}
+
+impl HaoPipelines {
+    /// The prepass readers for a view with `samples` MSAA samples, once queued (see
+    /// [`queue_multisampled`](Self::queue_multisampled)).
+    pub fn readers(&self, samples: u32) -> Option<&PrepassReaders> {
+        if samples > 1 { self.multisampled.as_ref() } else { Some(&self.single) }
+    }
+
+    /// Queues the multisampled prepass readers, once.
+    pub fn queue_multisampled(&mut self, cache: &PipelineCache) {
+        if self.multisampled.is_none() {
+            let view_layout = self.view_layout.clone();
+            let temporal_view_layout = self.temporal_view_layout.clone();
+            self.multisampled = Some(prepass_readers(cache, &self.shaders, &view_layout, &temporal_view_layout, true));
+        }
+    }
+
+    /// The ids of every pipeline a view with `samples` MSAA samples runs (none until its readers are queued).
+    pub fn view_pipelines(&self, samples: u32) -> Option<[CachedComputePipelineId; 6]> {
+        let r = self.readers(samples)?;
+        Some([r.trace, r.temporal, self.denoise_horizontal, self.denoise_vertical, r.upsample, self.apply])
+    }
+}
+
+/// The layouts and pipelines of the passes that read the prepasses, `multisampled` or not.
+fn prepass_readers(
+    cache: &PipelineCache,
+    [trace_shader, temporal_shader, upsample_shader]: &[Handle<Shader>; 3],
+    view_layout: &BindGroupLayoutDescriptor,
+    temporal_view_layout: &BindGroupLayoutDescriptor,
+    multisampled: bool,
+) -> PrepassReaders {
+    let unfilterable = TextureSampleType::Float { filterable: false };
+    let (depth, normal) = if multisampled {
+        (texture_depth_2d_multisampled(), texture_2d_multisampled(unfilterable))
+    } else {
+        (texture_depth_2d(), texture_2d(unfilterable))
+    };
+    let defs: Vec<ShaderDefVal> = if multisampled { vec!["MULTISAMPLED".into()] } else { vec![] };
+    let label = |single: &'static str, multi: &'static str| if multisampled { multi } else { single };
+    let trace_layout = BindGroupLayoutDescriptor::new(
+        label("hao_trace_layout", "hao_trace_multisampled_layout"),
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                depth,
+                normal,
+                uniform_buffer::<GpuHaoSettings>(false),
+                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
+    let temporal_layout = BindGroupLayoutDescriptor::new(
+        label("hao_temporal_layout", "hao_temporal_multisampled_layout"),
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                texture_2d(unfilterable),
+                texture_2d(unfilterable),
+                depth,
+                uniform_buffer::<GpuHaoSettings>(false),
+                texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
+    let upsample_layout = BindGroupLayoutDescriptor::new(
+        label("hao_upsample_layout", "hao_upsample_multisampled_layout"),
+        &BindGroupLayoutEntries::sequential(
+            ShaderStages::COMPUTE,
+            (
+                texture_2d(unfilterable),
+                depth,
+                normal,
+                texture_2d(unfilterable),
+                uniform_buffer::<GpuHaoSettings>(false),
+                texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+            ),
+        ),
+    );
+    let trace = queue_compute(
+        cache,
+        label("hao_trace", "hao_trace_multisampled"),
+        vec![trace_layout.clone(), view_layout.clone(), voxel_grid_layout()],
+        trace_shader.clone(),
+        "trace",
+        defs.clone(),
+    );
+    let temporal = queue_compute(
+        cache,
+        label("hao_temporal", "hao_temporal_multisampled"),
+        vec![temporal_layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()],
+        temporal_shader.clone(),
+        "temporal",
+        defs.clone(),
+    );
+    let upsample = queue_compute(
+        cache,
+        label("hao_upsample", "hao_upsample_multisampled"),
+        vec![upsample_layout.clone(), view_layout.clone()],
+        upsample_shader.clone(),
+        "upsample",
+        defs,
+    );
+    PrepassReaders { trace_layout, temporal_layout, upsample_layout, trace, temporal, upsample }
 }
 
 impl FromWorld for HaoPipelines {
     fn from_world(world: &mut World) -> Self {
         let adapter = world.resource::<RenderAdapter>();
         // The same rule as bevy_pbr's SsaoPipelines.
-        let ssao_format = if adapter
+        let ao_format = if adapter
             .get_texture_format_features(TextureFormat::R16Float)
             .allowed_usages
             .contains(TextureUsages::STORAGE_BINDING)
@@ -59,31 +180,6 @@ impl FromWorld for HaoPipelines {
         let view_layout = BindGroupLayoutDescriptor::new(
             "hao_view_layout",
             &BindGroupLayoutEntries::single(ShaderStages::COMPUTE, uniform_buffer::<ViewUniform>(true)),
-        );
-        let trace_layout = BindGroupLayoutDescriptor::new(
-            "hao_trace_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    texture_depth_2d(),
-                    texture_2d(unfilterable),
-                    uniform_buffer::<GpuHaoSettings>(false),
-                    texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
-                ),
-            ),
-        );
-        let temporal_layout = BindGroupLayoutDescriptor::new(
-            "hao_temporal_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    texture_2d(unfilterable),
-                    texture_2d(unfilterable),
-                    texture_depth_2d(),
-                    uniform_buffer::<GpuHaoSettings>(false),
-                    texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
-                ),
-            ),
         );
         let temporal_view_layout = BindGroupLayoutDescriptor::new(
             "hao_temporal_view_layout",
@@ -103,87 +199,56 @@ impl FromWorld for HaoPipelines {
                 ),
             ),
         );
-        let upsample_layout = BindGroupLayoutDescriptor::new(
-            "hao_upsample_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    texture_2d(unfilterable),
-                    texture_depth_2d(),
-                    texture_2d(unfilterable),
-                    texture_2d(unfilterable),
-                    uniform_buffer::<GpuHaoSettings>(false),
-                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
-                ),
-            ),
-        );
         let apply_layout = BindGroupLayoutDescriptor::new(
             "hao_apply_layout",
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
-                (texture_2d(unfilterable), texture_storage_2d(ssao_format, StorageTextureAccess::WriteOnly)),
+                (
+                    texture_2d(unfilterable),
+                    uniform_buffer::<GpuHaoSettings>(false),
+                    texture_storage_2d(ao_format, StorageTextureAccess::WriteOnly),
+                ),
             ),
         );
-        let cache = world.resource::<PipelineCache>();
-        let queue_pipeline =
-            |label, layout, shader, entry, defs| queue_compute(cache, label, layout, shader, entry, defs);
-        let trace = queue_pipeline(
-            "hao_trace",
-            vec![trace_layout.clone(), view_layout.clone(), voxel_grid_layout()],
+        let shaders = [
             load_embedded_asset!(world, "hao_trace.wgsl"),
-            "trace",
-            vec![],
-        );
-        let temporal = queue_pipeline(
-            "hao_temporal",
-            vec![temporal_layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()],
             load_embedded_asset!(world, "hao_temporal.wgsl"),
-            "temporal",
-            vec![],
-        );
-        let denoise_horizontal = queue_pipeline(
+            load_embedded_asset!(world, "hao_upsample.wgsl"),
+        ];
+        let denoise_shader = load_embedded_asset!(world, "hao_denoise.wgsl");
+        let apply_shader = load_embedded_asset!(world, "hao_apply.wgsl");
+        let cache = world.resource::<PipelineCache>();
+        let single = prepass_readers(cache, &shaders, &view_layout, &temporal_view_layout, false);
+        let denoise_horizontal = queue_compute(
+            cache,
             "hao_denoise_horizontal",
             vec![denoise_layout.clone()],
-            load_embedded_asset!(world, "hao_denoise.wgsl"),
+            denoise_shader.clone(),
             "denoise_horizontal",
             vec![],
         );
-        let denoise_vertical = queue_pipeline(
+        let denoise_vertical = queue_compute(
+            cache,
             "hao_denoise_vertical",
             vec![denoise_layout.clone()],
-            load_embedded_asset!(world, "hao_denoise.wgsl"),
+            denoise_shader,
             "denoise_vertical",
             vec![],
         );
-        let upsample = queue_pipeline(
-            "hao_upsample",
-            vec![upsample_layout.clone(), view_layout.clone()],
-            load_embedded_asset!(world, "hao_upsample.wgsl"),
-            "upsample",
-            vec![],
-        );
-        let apply_defs = if ssao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
-        let apply = queue_pipeline(
-            "hao_apply",
-            vec![apply_layout.clone()],
-            load_embedded_asset!(world, "hao_apply.wgsl"),
-            "apply",
-            apply_defs,
-        );
+        let apply_defs = if ao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
+        let apply = queue_compute(cache, "hao_apply", vec![apply_layout.clone()], apply_shader, "apply", apply_defs);
         Self {
             view_layout,
-            trace_layout,
-            temporal_layout,
             temporal_view_layout,
             denoise_layout,
-            upsample_layout,
             apply_layout,
-            trace,
-            temporal,
+            single,
+            multisampled: None,
             denoise_horizontal,
             denoise_vertical,
-            upsample,
             apply,
+            ao_format,
+            shaders,
         }
     }
 }

@@ -1,16 +1,16 @@
 //! Per-view textures, settings and bind groups of the HAO passes.
 
 use super::HybridAmbientOcclusion;
+use super::pbr_texture::PbrAoTexture;
 use super::pipelines::HaoPipelines;
 use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
-use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderDevice;
 use bevy::render::texture::{CachedTexture, TextureCache};
-use bevy::render::view::ViewUniforms;
+use bevy::render::view::{Msaa, ViewUniforms};
 use bytemuck::{Pod, Zeroable};
 
 /// The WGSL `HaoSettings`.
@@ -46,12 +46,12 @@ pub struct GpuHaoSettings {
     pub back_hits: u32,
     /// 0 when the history must not be read: the view is new, was resized or was off last frame.
     pub history_valid: u32,
-    /// Padding to the WGSL struct's 16-byte multiple (uniform arrays need a 16-byte stride, so fields).
-    pub _pad0: u32,
-    /// Padding.
-    pub _pad1: u32,
-    /// Padding.
-    pub _pad2: u32,
+    /// The view's first pixel in its render target (its viewport's corner), x.
+    pub origin_x: u32,
+    /// And y.
+    pub origin_y: u32,
+    /// Padding to the WGSL struct's 16-byte multiple.
+    pub padding: u32,
 }
 
 /// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, and when.
@@ -101,6 +101,15 @@ pub struct HaoViewResources {
     pub trace_size: UVec2,
     /// Size of the view.
     pub view_size: UVec2,
+    /// MSAA samples of the view's prepasses (1: none).
+    pub samples: u32,
+    /// Whether the minimum with Bevy's SSAO is taken: the near field asked for, on a view Bevy's SSAO can run
+    /// on (no MSAA, a viewport at the target's corner).
+    pub near_field: bool,
+    /// The texture PBR reads AO from in place of Bevy's SSAO texture, the target's size, where the viewport
+    /// does not start at the target's corner (PBR reads it at target coordinates; Bevy's is the viewport's
+    /// size). See `pbr_texture`.
+    pub pbr_texture: Option<CachedTexture>,
 }
 
 /// A view's HAO bind groups.
@@ -125,14 +134,18 @@ pub struct HaoBindGroups {
 }
 
 /// Creates the per-view textures and settings.
+#[allow(clippy::too_many_arguments)]
 pub fn prepare_hao_textures(
     mut commands: Commands,
     mut texture_cache: ResMut<TextureCache>,
     device: Res<RenderDevice>,
+    mut pipelines: ResMut<HaoPipelines>,
+    cache: Res<PipelineCache>,
     views: Query<(
         Entity,
         &ExtractedCamera,
         &HybridAmbientOcclusion,
+        &Msaa,
         Option<&TemporalJitter>,
         Option<&PreviousViewData>,
     )>,
@@ -140,8 +153,13 @@ pub fn prepare_hao_textures(
     mut histories: Local<HashMap<Entity, ViewHistory>>,
 ) {
     *frame = frame.wrapping_add(1);
-    for (entity, camera, hao, jitter, previous_view) in &views {
+    for (entity, camera, hao, msaa, jitter, previous_view) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
+        let samples = msaa.samples();
+        if samples > 1 {
+            pipelines.queue_multisampled(&cache);
+        }
+        let origin = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
         let (hao, _) = hao.sanitized();
         let hao = &hao;
@@ -171,6 +189,9 @@ pub fn prepare_hao_textures(
         let b = texture(&mut texture_cache, "hao_history_b_texture", trace_size, TextureFormat::Rgba32Float);
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
+        let pbr_texture = (origin != UVec2::ZERO)
+            .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
+        let near_field = hao.near_field && samples == 1 && origin == UVec2::ZERO;
         let jitter_offset = jitter.map_or(Vec2::ZERO, |j| j.offset);
         let last =
             histories.insert(entity, ViewHistory { jitter: jitter_offset, view_size, trace_size, frame: *frame });
@@ -191,15 +212,15 @@ pub fn prepare_hao_textures(
             start_offset: hao.start_offset,
             // The noise turns every frame when frames are accumulated (or TAA averages them).
             frame: if jitter.is_some() || hao.accumulation_frames > 1 { *frame } else { 0 },
-            near_field: hao.near_field as u32,
+            near_field: near_field as u32,
             half_resolution: half as u32,
             denoise_radius: hao.denoise_radius,
             accumulation_frames: hao.accumulation_frames,
             back_hits: hao.ignore_back_hits as u32,
             history_valid: (history_valid && previous_view.is_some()) as u32,
-            _pad0: 0,
-            _pad1: 0,
-            _pad2: 0,
+            origin_x: origin.x,
+            origin_y: origin.y,
+            padding: 0,
         };
         let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {
@@ -211,6 +232,9 @@ pub fn prepare_hao_textures(
             settings,
             trace_size,
             view_size,
+            samples,
+            near_field,
+            pbr_texture,
         });
     }
     // Views not prepared this frame (off, removed, despawned) are forgotten; when they come back their
@@ -227,13 +251,14 @@ pub fn prepare_hao_bind_groups(
     cache: Res<PipelineCache>,
     view_uniforms: Res<ViewUniforms>,
     previous_view_uniforms: Res<PreviousViewUniforms>,
-    views: Query<(Entity, &HaoViewResources, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
+    views: Query<(Entity, &HaoViewResources, &ViewPrepassTextures, PbrAoTexture)>,
 ) {
     let Some(view_binding) = view_uniforms.uniforms.binding() else { return };
     let Some(previous_view_binding) = previous_view_uniforms.uniforms.binding() else { return };
-    for (entity, res, prepass, ssao) in &views {
+    for (entity, res, prepass, pbr_ao) in &views {
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
-        let ssao_view = &ssao.screen_space_ambient_occlusion_texture.default_view;
+        let Some(ssao_view) = pbr_ao.view() else { continue };
+        let Some(readers) = pipelines.readers(res.samples) else { continue };
         let view = device.create_bind_group(
             "hao_view_bind_group",
             &cache.get_bind_group_layout(&pipelines.view_layout),
@@ -241,7 +266,7 @@ pub fn prepare_hao_bind_groups(
         );
         let trace = device.create_bind_group(
             "hao_trace_bind_group",
-            &cache.get_bind_group_layout(&pipelines.trace_layout),
+            &cache.get_bind_group_layout(&readers.trace_layout),
             &BindGroupEntries::sequential((depth, normal, res.settings.as_entire_binding(), &res.noisy.default_view)),
         );
         let temporal_view = device.create_bind_group(
@@ -251,7 +276,7 @@ pub fn prepare_hao_bind_groups(
         );
         let temporal = device.create_bind_group(
             "hao_temporal_bind_group",
-            &cache.get_bind_group_layout(&pipelines.temporal_layout),
+            &cache.get_bind_group_layout(&readers.temporal_layout),
             &BindGroupEntries::sequential((
                 &res.noisy.default_view,
                 &res.history.default_view,
@@ -278,7 +303,7 @@ pub fn prepare_hao_bind_groups(
         let upsample_input = res.filtered.as_ref().unwrap_or(&res.history);
         let upsample = device.create_bind_group(
             "hao_upsample_bind_group",
-            &cache.get_bind_group_layout(&pipelines.upsample_layout),
+            &cache.get_bind_group_layout(&readers.upsample_layout),
             &BindGroupEntries::sequential((
                 &upsample_input.default_view,
                 depth,
@@ -291,7 +316,7 @@ pub fn prepare_hao_bind_groups(
         let apply = device.create_bind_group(
             "hao_apply_bind_group",
             &cache.get_bind_group_layout(&pipelines.apply_layout),
-            &BindGroupEntries::sequential((&res.result.default_view, ssao_view)),
+            &BindGroupEntries::sequential((&res.result.default_view, res.settings.as_entire_binding(), ssao_view)),
         );
         commands.entity(entity).insert(HaoBindGroups {
             view,

@@ -346,7 +346,7 @@ pub struct TraceWork {
 /// A voxel whose average normal has at least this cosine with a ray (facing along it) is the back of a
 /// surface to that ray: with [`TraceSettings::ignore_back_hits`] the ray passes through it. Only clearly
 /// back-facing voxels: both faces of a thin wall in one voxel cancel to a short normal, which occludes.
-/// (0.25 was also measured; see the README.)
+/// (0.25 was also measured; see docs/figures.md.)
 pub const BACK_HIT_COS: f32 = 0.5;
 /// How many backs of surfaces a ray passes through at most; the next voxel it hits occludes. Each pass
 /// restarts the march with the full `steps` budget, so a ray may visit up to `(MAX_BACK_HITS + 1) * steps`

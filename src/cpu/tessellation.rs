@@ -873,7 +873,7 @@ mod tests {
         assert_eq!(subdivision(v, 1.0, SubdivisionPattern::Strips), Subdivision::uniform(10));
     }
 
-    /// The README's figure of both patterns on one sliver, drawn from this module: cells, sub-triangles and
+    /// The figure of both patterns (docs/how-it-works.md) on one sliver, drawn from this module: cells, sub-triangles and
     /// their centroids (the cells they set shaded).
     fn pattern_figure() -> String {
         let v = [Vec3::new(0.3, 0.4, 0.0), Vec3::new(12.6, 1.1, 0.0), Vec3::new(12.2, 2.4, 0.0)];

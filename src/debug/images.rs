@@ -1,19 +1,24 @@
 //! [`HaoDebugImages`]: what a view's ambient occlusion was computed from and what it came to, copied into
 //! images after the HAO passes (`debug_images.wgsl`).
 
+use crate::ao::pbr_texture::PbrAoTexture;
+use crate::ao::prepare::HaoViewResources;
 use crate::gpu::{SCREEN_WORKGROUP, queue_compute};
 use bevy::asset::{embedded_asset, load_embedded_asset};
 use bevy::core_pipeline::prepass::ViewPrepassTextures;
 use bevy::core_pipeline::schedule::{Core3d, Core3dSystems};
-use bevy::pbr::ScreenSpaceAmbientOcclusionResources;
 use bevy::prelude::*;
 use bevy::render::camera::ExtractedCamera;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::render_asset::RenderAssets;
-use bevy::render::render_resource::binding_types::{texture_2d, texture_depth_2d, texture_storage_2d};
+use bevy::render::render_resource::binding_types::{
+    texture_2d, texture_2d_multisampled, texture_depth_2d, texture_depth_2d_multisampled, texture_storage_2d,
+    uniform_buffer,
+};
 use bevy::render::render_resource::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, ViewQuery};
 use bevy::render::texture::GpuImage;
+use bevy::render::view::Msaa;
 use bevy::render::{GpuResourceAppExt, Render, RenderApp, RenderSystems};
 
 /// Put on a camera to get what its ambient occlusion was computed from and what it came to, in images that
@@ -74,79 +79,136 @@ pub(crate) fn finish(app: &mut App) {
         );
 }
 
-/// The copy's layout and pipeline.
+/// The copy's layouts and pipelines: for single-sampled prepasses, and multisampled ones (queued when the
+/// first camera with MSAA asks for debug images).
 #[derive(Resource)]
 struct DebugImagesPipeline {
-    layout: BindGroupLayoutDescriptor,
-    pipeline: CachedComputePipelineId,
+    single: (BindGroupLayoutDescriptor, CachedComputePipelineId),
+    multisampled: Option<(BindGroupLayoutDescriptor, CachedComputePipelineId)>,
+    shader: Handle<Shader>,
 }
 
-impl FromWorld for DebugImagesPipeline {
-    fn from_world(world: &mut World) -> Self {
+impl DebugImagesPipeline {
+    fn queue(
+        cache: &PipelineCache,
+        shader: &Handle<Shader>,
+        multisampled: bool,
+    ) -> (BindGroupLayoutDescriptor, CachedComputePipelineId) {
         let unfilterable = TextureSampleType::Float { filterable: false };
+        let (depth, normal) = if multisampled {
+            (texture_depth_2d_multisampled(), texture_2d_multisampled(unfilterable))
+        } else {
+            (texture_depth_2d(), texture_2d(unfilterable))
+        };
         let layout = BindGroupLayoutDescriptor::new(
-            "hao_debug_images_layout",
+            if multisampled { "hao_debug_images_multisampled_layout" } else { "hao_debug_images_layout" },
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
                     texture_2d(unfilterable),
-                    texture_depth_2d(),
-                    texture_2d(unfilterable),
+                    depth,
+                    normal,
+                    uniform_buffer::<GpuDebugCopy>(false),
                     texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
                     texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
                     texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
                 ),
             ),
         );
-        let shader = load_embedded_asset!(world, "debug_images.wgsl");
         let pipeline = queue_compute(
-            world.resource::<PipelineCache>(),
-            "hao_debug_images",
+            cache,
+            if multisampled { "hao_debug_images_multisampled" } else { "hao_debug_images" },
             vec![layout.clone()],
-            shader,
+            shader.clone(),
             "debug_copy",
-            vec![],
+            if multisampled { vec!["MULTISAMPLED".into()] } else { vec![] },
         );
-        Self { layout, pipeline }
+        (layout, pipeline)
     }
 }
 
-/// A view's bind group of the copy.
+impl FromWorld for DebugImagesPipeline {
+    fn from_world(world: &mut World) -> Self {
+        let shader = load_embedded_asset!(world, "debug_images.wgsl");
+        let single = Self::queue(world.resource::<PipelineCache>(), &shader, false);
+        Self { single, multisampled: None, shader }
+    }
+}
+
+/// The WGSL `DebugCopy`: where the view's pixels lie in the AO texture and in the prepasses.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable, ShaderType)]
+pub(crate) struct GpuDebugCopy {
+    /// The view's first pixel in the AO texture (its viewport's corner where HAO wrote it, else 0).
+    pub ao_origin: UVec2,
+    /// The view's first pixel in the prepasses (its viewport's corner).
+    pub prepass_origin: UVec2,
+}
+
+/// A view's bind group of the copy, and whether its prepasses are multisampled.
 #[derive(Component)]
-struct DebugImagesBindGroup(BindGroup);
+struct DebugImagesBindGroup(BindGroup, bool);
 
 fn prepare_debug_images(
     mut commands: Commands,
     device: Res<RenderDevice>,
-    pipeline: Res<DebugImagesPipeline>,
+    mut pipeline: ResMut<DebugImagesPipeline>,
     cache: Res<PipelineCache>,
     images: Res<RenderAssets<GpuImage>>,
-    views: Query<(Entity, &HaoDebugImages, &ViewPrepassTextures, &ScreenSpaceAmbientOcclusionResources)>,
-    stale: Query<Entity, (With<DebugImagesBindGroup>, Without<ScreenSpaceAmbientOcclusionResources>)>,
+    views: Query<(
+        Entity,
+        &HaoDebugImages,
+        &ExtractedCamera,
+        &Msaa,
+        &ViewPrepassTextures,
+        PbrAoTexture,
+        Option<&HaoViewResources>,
+    )>,
+    stale: Query<Entity, With<DebugImagesBindGroup>>,
 ) {
     // A view whose AO texture is gone this frame (HAO skipped on a viewport too small) copies nothing.
     for entity in &stale {
-        commands.entity(entity).remove::<DebugImagesBindGroup>();
+        if views.get(entity).is_err() {
+            commands.entity(entity).remove::<DebugImagesBindGroup>();
+        }
     }
-    for (entity, debug, prepass, ssao) in &views {
+    for (entity, debug, camera, msaa, prepass, pbr_ao, hao) in &views {
+        let Some(ao_texture) = pbr_ao.view() else {
+            commands.entity(entity).remove::<DebugImagesBindGroup>();
+            continue;
+        };
         let (Some(depth), Some(normal)) = (prepass.depth_view(), prepass.normal_view()) else { continue };
         let (Some(ao), Some(d), Some(n)) = (images.get(&debug.ao), images.get(&debug.depth), images.get(&debug.normal))
         else {
             continue;
         };
+        let multisampled = msaa.samples() > 1;
+        if multisampled && pipeline.multisampled.is_none() {
+            pipeline.multisampled = Some(DebugImagesPipeline::queue(&cache, &pipeline.shader, true));
+        }
+        let layout = if multisampled { &pipeline.multisampled.as_ref().unwrap().0 } else { &pipeline.single.0 };
+        let prepass_origin = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
+        let ao_origin = if hao.is_some_and(|h| h.pbr_texture.is_some()) { prepass_origin } else { UVec2::ZERO };
+        let settings = crate::gpu::uniform_buffer(
+            &device,
+            "hao_debug_images_settings",
+            &GpuDebugCopy { ao_origin, prepass_origin },
+            BufferUsages::UNIFORM,
+        );
         let bind_group = device.create_bind_group(
             "hao_debug_images_bind_group",
-            &cache.get_bind_group_layout(&pipeline.layout),
+            &cache.get_bind_group_layout(layout),
             &BindGroupEntries::sequential((
-                &ssao.screen_space_ambient_occlusion_texture.default_view,
+                ao_texture,
                 depth,
                 normal,
+                settings.as_entire_binding(),
                 &ao.texture_view,
                 &d.texture_view,
                 &n.texture_view,
             )),
         );
-        commands.entity(entity).insert(DebugImagesBindGroup(bind_group));
+        commands.entity(entity).insert(DebugImagesBindGroup(bind_group, multisampled));
     }
 }
 
@@ -159,7 +221,8 @@ fn copy_debug_images(
 ) {
     let (bind_group, camera) = view.into_inner();
     let Some(size) = camera.physical_viewport_size else { return };
-    let Some(pipeline) = cache.get_compute_pipeline(pipeline.pipeline) else { return };
+    let id = if bind_group.1 { pipeline.multisampled.as_ref().map(|m| m.1) } else { Some(pipeline.single.1) };
+    let Some(pipeline) = id.and_then(|id| cache.get_compute_pipeline(id)) else { return };
     let mut pass = ctx
         .command_encoder()
         .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_debug_images"), timestamp_writes: None });

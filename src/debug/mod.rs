@@ -7,6 +7,8 @@
 
 mod images;
 
+#[cfg(test)]
+pub(crate) use images::GpuDebugCopy;
 pub use images::HaoDebugImages;
 
 use crate::voxel::extract::ExtractedVoxelGrid;
