@@ -201,7 +201,6 @@ fn setup(
     }
     let mut camera = commands.spawn((
         Camera3d::default(),
-        Msaa::Off,
         Transform::from_xyz(3.5, 4.5, 9.0).looking_at(Vec3::new(-2.0, 0.5, -1.0), Vec3::Y),
         HybridAmbientOcclusion::default(),
         view.0,

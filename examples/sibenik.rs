@@ -142,7 +142,6 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                 }
                 let mut cam = commands.spawn((
                     Camera3d::default(),
-                    Msaa::Off,
                     camera,
                     args.view,
                     FlyCamera { yaw, pitch, speed: 4.0 },
@@ -154,11 +153,12 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                     "hao" => {
                         cam.insert(HybridAmbientOcclusion::default());
                     }
+                    // Bevy's SSAO, alone or as HAO's near field, needs MSAA off; HAO alone keeps Bevy's default.
                     "both" => {
-                        cam.insert(HybridAmbientOcclusion { near_field: true, ..default() });
+                        cam.insert((HybridAmbientOcclusion { near_field: true, ..default() }, Msaa::Off));
                     }
                     "ssao" => {
-                        cam.insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
+                        cam.insert((bevy::pbr::ScreenSpaceAmbientOcclusion::default(), Msaa::Off));
                     }
                     _ => {}
                 }

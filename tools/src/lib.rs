@@ -10,7 +10,7 @@
 //! * [`harness`]: headless Bevy apps on Vulkan for the tools and the GPU tests (readback, GPU timings);
 //!   [`scene`]: scenes spawned from the meshes.
 //!
-//! The tools (`src/bin`): `voxelize`, `ao_compare`, `bench_voxelize`, `bench_ao`; see the README.
+//! The tools (`src/bin`): `voxelize`, `ao_compare`, `bench_voxelize`, `bench_level`, `bench_ao`; see docs/tools.md.
 
 pub mod binvox;
 pub mod ground_truth;
