@@ -17,8 +17,8 @@ fn main() {
 struct Rolling;
 
 fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>) {
-    // Adding the component is enough: it brings the depth and normal prepasses and Bevy's SSAO texture,
-    // which PBR reads ambient occlusion from. The voxel volume defaults to cascades following this camera.
+    // Adding the component is enough: it brings the depth and normal prepasses (the camera keeps Bevy's
+    // default MSAA). The voxel volume defaults to cascades following this camera.
     commands.spawn((
         Camera3d::default(),
         HybridAmbientOcclusion::default(),

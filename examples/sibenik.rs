@@ -140,12 +140,8 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                 if let Some(image) = &image {
                     commands.insert_resource(ScreenshotTarget(image.clone()));
                 }
-                let mut cam = commands.spawn((
-                    Camera3d::default(),
-                    camera,
-                    args.view,
-                    FlyCamera { yaw, pitch, speed: 4.0 },
-                ));
+                let mut cam =
+                    commands.spawn((Camera3d::default(), camera, args.view, FlyCamera { yaw, pitch, speed: 4.0 }));
                 if let Some(image) = image {
                     cam.insert(RenderTarget::Image(image.into()));
                 }

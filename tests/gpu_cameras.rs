@@ -277,6 +277,18 @@ fn cameras_toggled_hao_removed_and_changed_cameras_respawned() {
     assert_ao_back(&mut app, camera, "the quality changed every frame");
     assert_no_render_errors("the quality changed every frame");
 
+    // MSAA changed every frame and for a while (a graphics menu), with the near field asked for (which
+    // runs only without MSAA).
+    app.world_mut().get_mut::<HybridAmbientOcclusion>(camera).unwrap().near_field = true;
+    for msaa in [Msaa::Sample4, Msaa::Off, Msaa::Sample4, Msaa::Sample4, Msaa::Off, Msaa::Off, Msaa::Sample4] {
+        app.world_mut().entity_mut(camera).insert(msaa);
+        run(&mut app, 1);
+    }
+    assert_ao_back(&mut app, camera, "MSAA changed every frame");
+    app.world_mut().entity_mut(camera).insert((Msaa::Off, hao()));
+    assert_ao_back(&mut app, camera, "MSAA off again");
+    assert_no_render_errors("MSAA changed every frame");
+
     // The camera despawned and another spawned (a level change), then despawned and respawned in one frame.
     let target = app.world().resource::<Target>().0.clone();
     let spawn = |app: &mut App| {

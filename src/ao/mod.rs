@@ -63,10 +63,11 @@ impl Plugin for HybridAmbientOcclusionPlugin {
 
     fn finish(&self, app: &mut App) {
         let Some(render_app) = app.get_sub_app_mut(RenderApp) else { return };
-        // Bevy's SSAO plugin, whose texture PBR reads, needs 5 storage textures per stage; so do we.
+        // Bevy's SSAO plugin, whose texture is the only way AO reaches PBR, loads only with 5 storage textures
+        // per stage (WebGPU's default is 4).
         if render_app.world().resource::<RenderDevice>().limits().max_storage_textures_per_shader_stage < 5 {
             warn!(
-                "bevy_hao: hybrid ambient occlusion is disabled: Limits::max_storage_textures_per_shader_stage is below 5 (Bevy's SSAO is unavailable too)"
+                "bevy_hao: hybrid ambient occlusion is disabled: Limits::max_storage_textures_per_shader_stage is below 5 (Bevy 0.19 then makes no SSAO texture, the only way ambient occlusion reaches its PBR shading)"
             );
             return;
         }
