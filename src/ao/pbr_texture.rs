@@ -92,15 +92,16 @@ pub fn extract_multisampled_views(
 /// After Bevy's SSAO made this frame's textures and before bind groups are made: a view whose viewport does
 /// not start at the target's corner gets the plugin's target-sized texture in place of Bevy's; a view with
 /// MSAA has its SSAO resources held off it (and any bind groups Bevy's SSAO made for it before dropped).
-pub fn hold_ao_textures(world: &mut World) {
-    let mut views = world.query::<(&HaoViewResources, &mut ScreenSpaceAmbientOcclusionResources)>();
+pub fn hold_ao_textures(
+    world: &mut World,
+    views: &mut QueryState<(&HaoViewResources, &mut ScreenSpaceAmbientOcclusionResources)>,
+    multisampled: &mut QueryState<Entity, (With<MultisampledHaoView>, With<ScreenSpaceAmbientOcclusionResources>)>,
+) {
     for (hao, mut ssao) in views.iter_mut(world) {
         if let Some(texture) = &hao.pbr_texture {
             ssao.screen_space_ambient_occlusion_texture = texture.clone();
         }
     }
-    let mut multisampled =
-        world.query_filtered::<Entity, (With<MultisampledHaoView>, With<ScreenSpaceAmbientOcclusionResources>)>();
     let multisampled: Vec<Entity> = multisampled.iter(world).collect();
     for entity in multisampled {
         let mut view = world.entity_mut(entity);
@@ -115,9 +116,9 @@ pub fn hold_ao_textures(world: &mut World) {
 /// made again so that they bind them (Bevy's `prepare_mesh_view_bind_groups`, run here once more).
 pub fn return_held_ao_textures(
     world: &mut World,
+    held: &mut QueryState<Entity, With<HeldAoTexture>>,
     mut mesh_view_bind_groups: Local<Option<Box<dyn System<In = (), Out = ()>>>>,
 ) {
-    let mut held = world.query_filtered::<Entity, With<HeldAoTexture>>();
     let held: Vec<Entity> = held.iter(world).collect();
     if held.is_empty() {
         return;
