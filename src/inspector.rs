@@ -161,11 +161,14 @@ fn inspector_window(
                 AoMode::Hao => {
                     e.insert(HybridAmbientOcclusion { near_field: false, ..settings });
                 }
+                // Bevy's SSAO, alone or as HAO's near field, needs MSAA off; the SSAO of this mode is the
+                // user's, not HAO's (which would take it away with HAO).
                 AoMode::Ssao => {
-                    e.remove::<HybridAmbientOcclusion>().insert(ScreenSpaceAmbientOcclusion::default());
+                    e.remove::<(HybridAmbientOcclusion, crate::ao::HaoAddedSsao)>()
+                        .insert((ScreenSpaceAmbientOcclusion::default(), Msaa::Off));
                 }
                 AoMode::Both => {
-                    e.insert(HybridAmbientOcclusion { near_field: true, ..settings });
+                    e.insert((HybridAmbientOcclusion { near_field: true, ..settings }, Msaa::Off));
                 }
             }
         }

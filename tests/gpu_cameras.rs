@@ -414,20 +414,6 @@ fn mean_difference(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| (x - y).abs()).sum::<f32>() / a.len() as f32
 }
 
-/// Whether the device can render this many samples into the formats a camera with Bevy's prepasses uses.
-fn msaa_supported(samples: u32) -> bool {
-    use bevy::render::render_resource::TextureFormat;
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-        backends: wgpu::Backends::VULKAN,
-        ..wgpu::InstanceDescriptor::new_without_display_handle()
-    });
-    let adapters = bevy::tasks::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
-    let Some(adapter) = adapters.first() else { return false };
-    [TextureFormat::Rgba8UnormSrgb, TextureFormat::Depth32Float, TextureFormat::Rgb10a2Unorm]
-        .iter()
-        .all(|f| adapter.get_texture_format_features(*f).flags.sample_count_supported(samples))
-}
-
 #[test]
 fn cameras_with_msaa_keep_it_and_get_the_ao_of_a_camera_without() {
     let _gpu = gpu_lock();

@@ -38,6 +38,21 @@ pub fn require_vulkan() {
     );
 }
 
+/// Whether the Vulkan adapter can render `samples` MSAA samples into the formats a camera with Bevy's depth
+/// and normal prepasses uses (WebGPU guarantees 1 and 4).
+pub fn msaa_supported(samples: u32) -> bool {
+    use wgpu::TextureFormat;
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let adapters = bevy::tasks::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
+    let Some(adapter) = adapters.first() else { return false };
+    [TextureFormat::Rgba8UnormSrgb, TextureFormat::Depth32Float, TextureFormat::Rgb10a2Unorm]
+        .iter()
+        .all(|f| adapter.get_texture_format_features(*f).flags.sample_count_supported(samples))
+}
+
 /// wgpu errors reported to Bevy's render error handler since the last call.
 pub fn take_render_errors() -> Vec<String> {
     std::mem::take(&mut *RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()))
