@@ -454,13 +454,16 @@ fn viewports_away_from_the_corner_get_the_ao_of_one_at_it() {
     let size = UVec2::new(64, 44);
     // The same view (its projection depends on the viewport's size only) at the target's corner and inside
     // it, and with no AO; the final image and the AO PBR read compared where the viewport lies.
-    let render = |at: UVec2, hao_on: bool| {
+    let render = |at: UVec2, hao_on: bool, msaa: Msaa| {
         let mut app = still(app(move |commands, images, target| {
             let camera = hao_camera(commands, images, target, size);
-            commands.entity(camera).insert(Camera {
-                viewport: Some(Viewport { physical_position: at, physical_size: size, ..default() }),
-                ..default()
-            });
+            commands.entity(camera).insert((
+                Camera {
+                    viewport: Some(Viewport { physical_position: at, physical_size: size, ..default() }),
+                    ..default()
+                },
+                msaa,
+            ));
             if !hao_on {
                 commands.entity(camera).remove::<HybridAmbientOcclusion>();
             }
@@ -485,9 +488,14 @@ fn viewports_away_from_the_corner_get_the_ao_of_one_at_it() {
         }
         (ao, pixels)
     };
-    let (ao_corner, color_corner) = render(UVec2::ZERO, true);
-    let (ao_inside, color_inside) = render(UVec2::new(27, 13), true);
-    let (_, color_no_ao) = render(UVec2::new(27, 13), false);
+    let (ao_corner, color_corner) = render(UVec2::ZERO, true, Msaa::Off);
+    let (ao_inside, color_inside) = render(UVec2::new(27, 13), true, Msaa::Off);
+    let (_, color_no_ao) = render(UVec2::new(27, 13), false, Msaa::Off);
+    // And with MSAA: the same AO inside the target (sample 0 of the prepasses, there too).
+    let (ao_inside_msaa, _) = render(UVec2::new(27, 13), true, Msaa::Sample4);
+    let msaa_difference = mean_difference(&ao_inside_msaa, &ao_corner);
+    println!("with 4 samples, inside the target against without at its corner: AO {msaa_difference:.4}");
+    assert!(msaa_difference < 0.01, "with MSAA the AO of a viewport inside the target differs by {msaa_difference}");
     let ao_difference = mean_difference(&ao_inside, &ao_corner);
     // Where the AO is marked (below 0.8), the colour with HAO inside the target against at its corner, and
     // against no AO.
