@@ -180,13 +180,16 @@ fn skip_unused_ssao(
         return;
     }
     for (entity, res) in &views {
-        let ready = pipelines
-            .view_pipelines(res.samples)
-            .is_some_and(|ids| ids.iter().all(|id| cache.get_compute_pipeline(*id).is_some()));
-        if ready && !res.near_field {
+        if pipelines.view_pipelines(&cache, res.samples).is_some() && !res.near_field {
             commands.entity(entity).remove::<SsaoPipelineId>();
         }
     }
+}
+
+/// Whether the near field (Bevy's SSAO) can run on a view with `samples` MSAA samples whose viewport starts
+/// at pixel `origin` of its target: Bevy's SSAO reads single-sampled prepasses at viewport coordinates.
+pub(crate) fn near_field_can_run(samples: u32, origin: UVec2) -> bool {
+    samples == 1 && origin == UVec2::ZERO
 }
 
 /// The SSAO quality a HAO camera asks for: its near-field quality, or the cheapest when the near field is
@@ -222,8 +225,8 @@ fn configure_hao_cameras(
 ) {
     for (entity, camera, hao, ssao, we_added, msaa) in &cameras {
         let multisampled = *msaa != Msaa::Off;
-        let offset = camera.viewport.as_ref().is_some_and(|v| v.physical_position != UVec2::ZERO);
-        if hao.near_field && (multisampled || offset) {
+        let origin = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
+        if hao.near_field && !near_field_can_run(msaa.samples(), origin) {
             let why = if multisampled { "MSAA" } else { "a viewport that does not start at the target's corner" };
             if warned.insert((entity, why)) {
                 warn!(

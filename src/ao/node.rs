@@ -26,13 +26,7 @@ pub fn hao(
 ) {
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let Some([trace, temporal, horizontal, vertical, upsample, apply]) =
-        pipelines.view_pipelines(res.samples).map(|ids| ids.map(|id| cache.get_compute_pipeline(id)))
-    else {
-        return;
-    };
-    let (Some(trace), Some(temporal), Some(horizontal), Some(vertical), Some(upsample), Some(apply)) =
-        (trace, temporal, horizontal, vertical, upsample, apply)
+    let Some([trace, temporal, horizontal, vertical, upsample, apply]) = pipelines.view_pipelines(&cache, res.samples)
     else {
         return;
     };

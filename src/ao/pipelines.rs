@@ -74,10 +74,13 @@ impl HaoPipelines {
         }
     }
 
-    /// The ids of every pipeline a view with `samples` MSAA samples runs (none until its readers are queued).
-    pub fn view_pipelines(&self, samples: u32) -> Option<[CachedComputePipelineId; 6]> {
+    /// Every pipeline a view with `samples` MSAA samples runs, in pass order (trace, temporal, denoise
+    /// horizontal and vertical, upsample, apply), once all of them are compiled.
+    pub fn view_pipelines<'a>(&self, cache: &'a PipelineCache, samples: u32) -> Option<[&'a ComputePipeline; 6]> {
         let r = self.readers(samples)?;
-        Some([r.trace, r.temporal, self.denoise_horizontal, self.denoise_vertical, r.upsample, self.apply])
+        let ids = [r.trace, r.temporal, self.denoise_horizontal, self.denoise_vertical, r.upsample, self.apply];
+        let pipelines = ids.map(|id| cache.get_compute_pipeline(id));
+        pipelines.iter().all(Option::is_some).then(|| pipelines.map(Option::unwrap))
     }
 }
 

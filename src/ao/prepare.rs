@@ -191,7 +191,7 @@ pub fn prepare_hao_textures(
         let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
-        let near_field = hao.near_field && samples == 1 && origin == UVec2::ZERO;
+        let near_field = hao.near_field && super::near_field_can_run(samples, origin);
         let jitter_offset = jitter.map_or(Vec2::ZERO, |j| j.offset);
         let last =
             histories.insert(entity, ViewHistory { jitter: jitter_offset, view_size, trace_size, frame: *frame });
