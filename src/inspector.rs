@@ -113,7 +113,6 @@ fn inspector_window(
             Option<&ScreenSpaceAmbientOcclusion>,
             Option<&HaoDebugView>,
             Has<HaoInspected>,
-            &Camera,
         ),
         With<Camera3d>,
     >,
@@ -125,7 +124,7 @@ fn inspector_window(
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let mut chosen = None;
-    for (entity, hao, ssao, _, marked, _) in &cameras {
+    for (entity, hao, ssao, _, marked) in &cameras {
         if marked || (chosen.is_none() && (hao.is_some() || ssao.is_some())) {
             chosen = Some(entity);
         }
@@ -135,8 +134,7 @@ fn inspector_window(
             ui.label("no 3D camera");
             return;
         };
-        let Ok((_, mut hao, ssao, view, _, cam)) = cameras.get_mut(camera) else { return };
-        let view_size = cam.physical_viewport_size().unwrap_or_default();
+        let Ok((_, mut hao, ssao, view, _)) = cameras.get_mut(camera) else { return };
         let mode = match (&hao, ssao) {
             (Some(h), _) if h.near_field => AoMode::Both,
             (Some(_), _) => AoMode::Hao,
@@ -186,7 +184,7 @@ fn inspector_window(
         if let Some(hao) = hao.as_deref_mut() {
             ui.separator();
             ui.heading("HAO");
-            let (rays, steps, half) = hao.trace_parameters_at(view_size);
+            let (rays, steps, half) = hao.trace_parameters();
             egui::ComboBox::from_label("quality")
                 .selected_text(format!(
                     "{:?} ({rays} rays x {steps} steps{})",

@@ -12,9 +12,7 @@ mod voxel;
 #[cfg(test)]
 mod wgsl_tests;
 
-pub use ao::{
-    HALF_RESOLUTION_PIXELS, HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin, MIN_VIEWPORT_PIXELS,
-};
+pub use ao::{HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin, MIN_VIEWPORT_PIXELS};
 pub use debug::{HaoDebugImages, HaoDebugView, HaoDebugViewPlugin};
 pub use voxel::components::*;
 pub use voxel::{

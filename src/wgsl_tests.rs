@@ -60,7 +60,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/ao/hao_trace.wgsl", multisampled.clone()),
         ("src/ao/hao_temporal.wgsl", multisampled.clone()),
         ("src/ao/hao_denoise.wgsl", vec![vec![]]),
-        ("src/ao/hao_upsample.wgsl", multisampled.clone()),
+        ("src/ao/hao_denoise_vertical.wgsl", vec![vec![]]),
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),
         ("src/debug/debug_images.wgsl", multisampled),
         ("src/debug/debug_view.wgsl", vec![vec![]]),

@@ -63,6 +63,19 @@ fn half_resolution_offset(frame: u32) -> vec2<u32> {
     return vec2<u32>(select(0u, 1u, k == 1u || k == 2u), select(0u, 1u, k == 1u || k == 3u));
 }
 
+// cpu/ao.rs: traced_pixel. The pixel texel `texel` of the trace traces in `frame` on a view of `view_size`:
+// its own at full resolution, at half resolution the pixel of its 2x2 block whose turn it is.
+fn traced_pixel(texel: vec2<u32>, frame: u32, view_size: vec2<u32>, half_resolution: bool) -> vec2<u32> {
+    let p = min(texel * 2u + half_resolution_offset(frame), view_size - vec2<u32>(1u));
+    return select(texel, p, half_resolution);
+}
+
+// cpu/ao.rs: noise_frame. The frame number that turns a pixel's ray noise: at half resolution the number of
+// the pixel's own trace (one every fourth frame).
+fn noise_frame(frame: u32, half_resolution: bool) -> u32 {
+    return select(frame, frame / 4u, half_resolution);
+}
+
 // cpu/ao.rs: orthonormal_basis (Duff et al. 2017): two tangents completing `n`.
 fn orthonormal_basis(n: vec3<f32>) -> mat3x3<f32> {
     let s = select(-1.0, 1.0, n.z >= 0.0);
@@ -202,4 +215,14 @@ fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: 
         return vec2<f32>(current, count);
     }
     return vec2<f32>(h + (current - h) / count, count);
+}
+
+// cpu/temporal.rs: temporal_update; returns (ao, frames of weight). `own`: the pixel was traced this frame
+// and `current` is its AO; else `current` is its stand-in, blended only where there is no history, the
+// voxels near it may have changed, or there is no accumulation (else the history stays as it is).
+fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, near_change: bool) -> vec2<f32> {
+    if own || history_count <= 0.0 || near_change || max_count <= 1.0 {
+        return temporal_blend(history, history_count, window, current, max_count, near_change);
+    }
+    return vec2<f32>(history, history_count);
 }

@@ -1,8 +1,7 @@
-// Hybrid ambient occlusion, pass 2: a separable bilateral filter (depth- and normal-aware) over the
-// accumulated AO, at the traced resolution. Each half reads and writes the temporal history's layout (ao,
-// view depth, packed normal, frames); `bilateral_line` in hao_common.wgsl is the filter. At full
-// resolution `hao_upsample.wgsl` does the vertical half itself, at half resolution it upsamples this
-// pass's vertical half.
+// Hybrid ambient occlusion, pass 2: the horizontal half of a separable bilateral filter (depth- and
+// normal-aware) over the accumulated AO, at full resolution. It reads and writes the temporal history's
+// layout (ao, view depth, packed normal, frames); `bilateral_line` in hao_common.wgsl is the filter, and
+// `hao_denoise_vertical.wgsl` the vertical half.
 #import bevy_hao::hao_common::{HaoSettings, bilateral_line}
 
 @group(0) @binding(0) var accumulated: texture_2d<f32>;
@@ -13,12 +12,5 @@
 fn denoise_horizontal(@builtin(global_invocation_id) gid: vec3<u32>) {
     if all(gid.xy < textureDimensions(accumulated)) {
         textureStore(filtered_out, gid.xy, bilateral_line(accumulated, gid.xy, vec2<i32>(1, 0), settings.denoise_radius));
-    }
-}
-
-@compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
-fn denoise_vertical(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if all(gid.xy < textureDimensions(accumulated)) {
-        textureStore(filtered_out, gid.xy, bilateral_line(accumulated, gid.xy, vec2<i32>(0, 1), settings.denoise_radius));
     }
 }

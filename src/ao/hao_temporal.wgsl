@@ -1,14 +1,15 @@
-// Hybrid ambient occlusion, pass 1b: temporal accumulation. Each traced pixel's surface is reprojected
-// into the previous frame with the camera's previous matrices, the history is read there (bilinear, each
-// texel kept only if it saw the same surface), clamped to the current frame's 3x3 neighbourhood, and
-// blended with this frame's noisy AO. Writes the new history (ao, view depth, packed normal, frames of
-// weight), which the denoiser reads and the next frame reprojects. Near voxels that may have changed
-// (moving occluders) the history is kept short. CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is
-// bound at group 2.
+// Hybrid ambient occlusion, pass 1b: temporal accumulation, at full resolution. Each pixel's surface is
+// reprojected into the previous frame with the camera's previous matrices, the history is read there
+// (bilinear, each texel kept only if it saw the same surface), clamped to this frame's trace around it (3x3
+// texels), and blended with its own trace. At half resolution a pixel is traced every fourth frame; in the
+// other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
+// in. Writes the new history (ao, view depth, packed normal, frames of weight), which the denoiser reads and
+// the next frame reprojects. Near voxels that may have changed (moving occluders) the history is kept short.
+// CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, octahedral_decode, pack_normal, unpack_normal, history_accepts, neighborhood_window,
-    temporal_blend, target_pixel,
+    HaoSettings, octahedral_decode, octahedral_encode, pack_normal, unpack_normal, history_accepts,
+    neighborhood_window, temporal_update, target_pixel, traced_pixel,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
 
@@ -23,60 +24,76 @@ struct PreviousViewData {
 
 @group(0) @binding(0) var noisy: texture_2d<f32>;
 @group(0) @binding(1) var history: texture_2d<f32>;
-// The depth prepass, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
+// The prepasses, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
 #ifdef MULTISAMPLED
 @group(0) @binding(2) var depth_texture: texture_depth_multisampled_2d;
+@group(0) @binding(3) var normal_texture: texture_multisampled_2d<f32>;
 #else
 @group(0) @binding(2) var depth_texture: texture_depth_2d;
+@group(0) @binding(3) var normal_texture: texture_2d<f32>;
 #endif
-@group(0) @binding(3) var<uniform> settings: HaoSettings;
-@group(0) @binding(4) var history_out: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(4) var<uniform> settings: HaoSettings;
+@group(0) @binding(5) var history_out: texture_storage_2d<rgba32float, write>;
 @group(1) @binding(0) var<uniform> view: View;
 @group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let size = textureDimensions(noisy);
+    let size = textureDimensions(history_out);
     if any(gid.xy >= size) {
         return;
     }
-    let center = textureLoad(noisy, gid.xy, 0);
-    if center.y <= 0.0 {
+    let pixel = gid.xy;
+    let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
+    if depth <= 0.0 {
         // Background: no history.
-        textureStore(history_out, gid.xy, vec4<f32>(center.x, 0.0, 0.0, 0.0));
+        textureStore(history_out, pixel, vec4<f32>(1.0, 0.0, 0.0, 0.0));
         return;
     }
-    let normal = octahedral_decode(center.zw);
-    // The neighbourhood of the current frame.
-    var sum = 0.0;
-    var squares = 0.0;
-    var n = 0.0;
-    for (var dy = -1; dy <= 1; dy++) {
-        for (var dx = -1; dx <= 1; dx++) {
-            let p = vec2<i32>(gid.xy) + vec2<i32>(dx, dy);
-            if any(p < vec2<i32>(0)) || any(p >= vec2<i32>(size)) {
-                continue;
-            }
-            let v = textureLoad(noisy, p, 0);
-            if v.y > 0.0 {
-                sum += v.x;
-                squares += v.x * v.x;
-                n += 1.0;
-            }
-        }
-    }
-    let window = neighborhood_window(sum, squares, n);
-
-    // Where this surface was: the traced pixel's world position in the previous view.
-    let scale = select(1u, 2u, settings.half_resolution != 0u);
-    let pixel = min(gid.xy * scale, vec2<u32>(view.viewport.zw) - vec2<u32>(1u));
-    let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
     let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
     let w = view.world_from_clip * vec4<f32>(ndc, depth, 1.0);
     let world = w.xyz / w.w;
-    // The previous frame as it was rendered: with its own TAA jitter, as this frame's world_from_clip has
-    // this frame's.
+    let view_depth = -(view.view_from_world * vec4<f32>(world, 1.0)).z;
+    let normal = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
+
+    // This frame's trace: at full resolution every pixel's; at half resolution one pixel of each 2x2 block,
+    // each pixel's own every fourth frame (`traced_pixel`).
+    let half = settings.half_resolution != 0u;
+    let block = pixel / select(1u, 2u, half);
+    let traced = all(traced_pixel(block, settings.frame, vec2<u32>(view.viewport.zw), half) == pixel);
+    // The traced neighbourhood (3x3 texels of the trace) bounds the history; those of its texels that show
+    // this pixel's surface (`history_accepts`) stand in for its own trace where it has none.
+    let trace_size = vec2<i32>(textureDimensions(noisy));
+    var sum = 0.0;
+    var squares = 0.0;
+    var n = 0.0;
+    var same_sum = 0.0;
+    var same_n = 0.0;
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let t = vec2<i32>(block) + vec2<i32>(dx, dy);
+            if any(t < vec2<i32>(0)) || any(t >= trace_size) {
+                continue;
+            }
+            let v = textureLoad(noisy, t, 0);
+            if v.y > 0.0 {
+                sum += v.x;
+                squares += v.x * v.x;
+                n += 1.0;
+                let same = history_accepts(view_depth, v.y, dot(octahedral_decode(v.zw), normal));
+                same_sum += select(0.0, v.x, same);
+                same_n += select(0.0, 1.0, same);
+            }
+        }
+    }
+    var window = vec2<f32>(-1.0, 2.0);
+    if n > 0.0 {
+        window = neighborhood_window(sum, squares, n);
+    }
+
+    // Where this surface was: its world position in the previous view, as that frame was rendered (with its
+    // own TAA jitter, as this frame's world_from_clip has this frame's).
     let clip = settings.previous_clip_from_world * vec4<f32>(world, 1.0);
     let expected_depth = -(previous_view.view_from_world * vec4<f32>(world, 1.0)).z;
     var history_ao = 0.0;
@@ -84,8 +101,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     if clip.w > 0.0 {
         let prev_ndc = clip.xy / clip.w;
         let prev_uv = vec2<f32>(prev_ndc.x * 0.5 + 0.5, 0.5 - prev_ndc.y * 0.5);
-        // The history's texel coordinates (texel t holds the traced full-resolution pixel t * scale), bilinear.
-        let hp = (prev_uv * view.viewport.zw - 0.5) / f32(scale);
+        // The history's texel coordinates, bilinear.
+        let hp = prev_uv * view.viewport.zw - 0.5;
         let base = vec2<i32>(floor(hp));
         let f = hp - floor(hp);
         var weight = 0.0;
@@ -113,10 +130,11 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
             history_count = count / weight * f32(min(settings.history_valid, 1u));
         }
     }
-    var blended = vec2<f32>(center.x, 1.0);
-    if history_count > 0.0 {
-        let near_change = near_changed_voxels(world, settings.max_distance);
-        blended = temporal_blend(history_ao, history_count, window, center.x, f32(settings.accumulation_frames), near_change);
-    }
-    textureStore(history_out, gid.xy, vec4<f32>(blended.x, center.y, pack_normal(center.zw), blended.y));
+    let near_change = history_count > 0.0 && near_changed_voxels(world, settings.max_distance);
+    // Its own trace, or where its block traced another pixel, the traced neighbours on its surface (the
+    // stand-in, used only where it has no history or must follow a change).
+    let stand_in = select(select(1.0, sum / n, n > 0.0), same_sum / same_n, same_n > 0.0);
+    let current = select(stand_in, textureLoad(noisy, block, 0).x, traced);
+    let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
+    textureStore(history_out, pixel, vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
 }

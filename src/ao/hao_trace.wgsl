@@ -1,13 +1,13 @@
-// Hybrid ambient occlusion, pass 1: per pixel (or per 2x2 pixels at half resolution, from a pixel of the
-// block that turns every frame: `half_resolution_offset`), cosine-weighted rays from the surface (position
-// from the depth prepass, normal from the normal prepass) through the voxel texture, with empty-space
-// skipping on its max-reduced mips. Writes the noisy AO (1 = open, 0 = occluded) with the block's view
-// depth and octahedral normal, which the denoiser weighs by.
+// Hybrid ambient occlusion, pass 1: per pixel (or, at half resolution, per 2x2 block from its pixel whose
+// turn it is: `traced_pixel`), cosine-weighted rays from the surface (position from the depth prepass,
+// normal from the normal prepass) through the voxel texture, with empty-space skipping on its max-reduced
+// mips. Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral
+// normal, which the temporal pass weighs by.
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`. The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff,
-    octahedral_encode, half_resolution_offset, history_accepts, target_pixel,
+    octahedral_encode, traced_pixel, noise_frame, target_pixel,
 }
 #import bevy_hao::voxel_grid::{
     voxel_grid, ray_start_level, march_cascades, level_position, voxel_normal_at, safe_inverse, ray_box,
@@ -57,45 +57,27 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     if any(gid.xy >= out_size) {
         return;
     }
-    let scale = select(1u, 2u, settings.half_resolution != 0u);
-    let last = vec2<u32>(view.viewport.zw) - vec2<u32>(1u);
-    // The block's first pixel: its depth and normal are the block's for the passes after this one.
-    let block_pixel = min(gid.xy * scale, last);
-    let block_depth = textureLoad(depth_texture, target_pixel(settings, block_pixel), 0);
-    if block_depth <= 0.0 {
-        // Background: depth 0 tells the denoiser to skip it.
+    // At half resolution, the pixel of the 2x2 block whose turn it is: each pixel traces every fourth frame,
+    // and the temporal pass accumulates each pixel's own rays at full resolution.
+    let half = settings.half_resolution != 0u;
+    let pixel = traced_pixel(gid.xy, settings.frame, vec2<u32>(view.viewport.zw), half);
+    let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
+    if depth <= 0.0 {
+        // Background: depth 0 tells the passes after this one to skip it.
         textureStore(ao_out, gid.xy, vec4<f32>(1.0, 0.0, 0.0, 0.0));
         return;
     }
-    let block_world = world_position(block_pixel, block_depth);
-    let block_normal = normalize(textureLoad(normal_texture, target_pixel(settings, block_pixel), 0).xyz * 2.0 - 1.0);
-    let view_depth = -(view.view_from_world * vec4<f32>(block_world, 1.0)).z;
-    let packed_normal = octahedral_encode(block_normal);
-    // At half resolution the rays start from a pixel of the block that turns every frame (the first pixel
-    // where that one shows another surface), so that accumulated frames average the whole block.
-    var pixel = block_pixel;
-    var world = block_world;
-    var normal = block_normal;
-    if scale == 2u {
-        let p = min(block_pixel + half_resolution_offset(settings.frame), last);
-        let d = textureLoad(depth_texture, target_pixel(settings, p), 0);
-        if d > 0.0 {
-            let w = world_position(p, d);
-            let n = normalize(textureLoad(normal_texture, target_pixel(settings, p), 0).xyz * 2.0 - 1.0);
-            let vd = -(view.view_from_world * vec4<f32>(w, 1.0)).z;
-            if history_accepts(view_depth, vd, dot(block_normal, n)) {
-                pixel = p;
-                world = w;
-                normal = n;
-            }
-        }
-    }
+    let world = world_position(pixel, depth);
+    let normal = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
+    let view_depth = -(view.view_from_world * vec4<f32>(world, 1.0)).z;
+    let packed_normal = octahedral_encode(normal);
     if voxel_grid.level_count == 0u {
         textureStore(ao_out, gid.xy, vec4<f32>(1.0, view_depth, packed_normal));
         return;
     }
     let pf = vec2<f32>(pixel);
-    let rotation = ray_rotation(pf, settings.frame);
+    // The noise turns with each of the pixel's own traces (every frame, or every fourth at half resolution).
+    let rotation = ray_rotation(pf, noise_frame(settings.frame, half));
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {

@@ -7,14 +7,12 @@
 //!    depth and normal prepasses), cosine-weighted hemisphere rays, rotated per pixel (and per frame when
 //!    frames are accumulated or TAA jitters the view), start about a voxel off the surface and march the
 //!    voxel texture up to `max_distance`, skipping empty space on its mips; each hit weighs
-//!    `(1 - d/max)^falloff`. At half resolution each 2x2 block traces from one of its pixels, a different
-//!    one each frame;
-//! 2. **temporal** (`hao_temporal.wgsl`, `hao/temporal`): the history reprojected, checked, clamped and
-//!    blended with the frame's AO;
-//! 3. **denoise** (`hao_denoise.wgsl` then `hao_upsample.wgsl`, `hao/denoise`): a separable depth- and
-//!    normal-aware bilateral filter at the traced resolution, then the result at full resolution (a
-//!    half-resolution trace upsampled by depth and normal) and the minimum with Bevy's SSAO when the near
-//!    field is on;
+//!    `(1 - d/max)^falloff`. At half resolution each 2x2 block traces one of its pixels a frame, in turn;
+//! 2. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
+//!    checked, clamped and blended with the pixel's own trace (at half resolution every fourth frame; a
+//!    pixel without history takes its traced neighbours on its surface meanwhile);
+//! 3. **denoise** (`hao_denoise.wgsl` then `hao_denoise_vertical.wgsl`, `hao/denoise`): a separable depth-
+//!    and normal-aware bilateral filter, and the minimum with Bevy's SSAO when the near field is on;
 //! 4. **apply** (`hao_apply.wgsl`, `hao/apply`): the result into the texture Bevy's PBR reads AO from, so
 //!    it dims indirect light only.
 //!
@@ -54,7 +52,7 @@ impl Plugin for HybridAmbientOcclusionPlugin {
         embedded_asset!(app, "hao_trace.wgsl");
         embedded_asset!(app, "hao_temporal.wgsl");
         embedded_asset!(app, "hao_denoise.wgsl");
-        embedded_asset!(app, "hao_upsample.wgsl");
+        embedded_asset!(app, "hao_denoise_vertical.wgsl");
         embedded_asset!(app, "hao_apply.wgsl");
         app.register_type::<HybridAmbientOcclusion>()
             .add_plugins(ExtractComponentPlugin::<HybridAmbientOcclusion>::default())
@@ -321,14 +319,15 @@ pub struct HybridAmbientOcclusion {
     /// The quality of Bevy's SSAO when it provides the near field. Without the near field the plugin keeps
     /// SSAO at its cheapest, since its result is not used.
     pub near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel,
-    /// Radius in pixels (of the traced resolution) of the bilateral denoiser; 0 turns it off. It narrows
-    /// as a pixel's temporal history grows (half of it at 16 frames).
+    /// Radius in pixels of the bilateral denoiser; 0 turns it off. It narrows as a pixel's temporal
+    /// history grows (half of it at 16 frames).
     pub denoise_radius: u32,
     /// Temporal accumulation: each pixel averages its AO over at most this many frames (1: none; at most
     /// 64), with the ray noise turned every frame, so few rays per frame converge to the error of many. The
     /// history follows the camera (reprojected with its previous matrices), restarts where a surface was
     /// hidden or has moved, and is clamped to the current frame's neighbourhood so that a moving occluder
-    /// leaves no trail (see `bevy_hao::cpu::temporal`).
+    /// leaves no trail (see `bevy_hao::cpu::temporal`). At half resolution it counts a pixel's own traces,
+    /// one every fourth frame, so the history spans four times as many frames.
     pub accumulation_frames: u32,
     /// With multi-valued voxels ([`crate::VoxelVolume::attributes`]): a ray passes through a voxel whose
     /// average normal clearly faces along it (the back of a surface, which a ray reaches only from inside a
@@ -342,18 +341,9 @@ pub struct HybridAmbientOcclusion {
 
 impl HybridAmbientOcclusion {
     /// `(rays, steps, half_resolution)` traced each frame: the quality's (see [`HaoQuality`]), with fewer
-    /// rays for the presets when 4 or more frames are accumulated.
+    /// rays (and `Medium` at half resolution) for the presets when 4 or more frames are accumulated.
     pub fn trace_parameters(&self) -> (u32, u32, bool) {
         self.quality.parameters_accumulated(self.accumulation_frames.clamp(1, 64))
-    }
-
-    /// `(rays, steps, half_resolution)` traced each frame on a view of `view_size` physical pixels: those of
-    /// [`trace_parameters`](Self::trace_parameters), with `Medium` traced at half resolution on views of
-    /// [`HALF_RESOLUTION_PIXELS`] or more.
-    pub fn trace_parameters_at(&self, view_size: UVec2) -> (u32, u32, bool) {
-        let (rays, steps, half) = self.trace_parameters();
-        let large = u64::from(view_size.x) * u64::from(view_size.y) >= HALF_RESOLUTION_PIXELS;
-        (rays, steps, half || (large && self.quality == HaoQuality::Medium))
     }
 
     /// These settings with every invalid value replaced by the one the passes use, and one message per
@@ -441,18 +431,18 @@ impl Default for HybridAmbientOcclusion {
 #[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[reflect(Default, Debug, PartialEq, Hash, Clone)]
 pub enum HaoQuality {
-    /// 24 steps, traced at half resolution and upsampled with depth: 2 rays a frame accumulated, 4 without.
-    /// Each 2x2 block traces from a different pixel each frame, so accumulated frames average the block.
+    /// 24 steps at half resolution: 1 ray a frame accumulated, 4 without.
     Low,
-    /// 32 steps, 2 rays a frame accumulated (6 without): the default. Accumulated, its error against the
-    /// ray-traced reference is below that of 6 rays a frame without accumulation on the scenes measured.
-    /// On views of [`HALF_RESOLUTION_PIXELS`] (1920x1080) or more it traces at half resolution like `Low`,
-    /// a quarter of the rays, at the same error there (docs/figures.md).
+    /// 32 steps, the default. Accumulated: 2 rays a frame at half resolution, where each 2x2 block traces
+    /// one of its pixels a frame, in turn, and every pixel accumulates its own rays (so the AO keeps full
+    /// resolution; a pixel's history spans four times the frames). Its error against the ray-traced
+    /// reference measured the same as 2 rays from every pixel on the scenes measured, for a quarter of the
+    /// rays (docs/figures.md). Without accumulation: 6 rays a frame at full resolution.
     #[default]
     Medium,
-    /// 48 steps, 4 rays a frame accumulated (8 without).
+    /// 48 steps at full resolution, 4 rays a frame accumulated (8 without).
     High,
-    /// 64 steps, 8 rays a frame accumulated (16 without).
+    /// 64 steps at full resolution, 8 rays a frame accumulated (16 without).
     Ultra,
     /// Your own.
     Custom {
@@ -460,8 +450,9 @@ pub enum HaoQuality {
         rays: u32,
         /// Texel visits per ray (empty space is skipped at up to 16 voxels a step).
         steps: u32,
-        /// Trace at half resolution (one pixel of each 2x2 block, a different one each frame when
-        /// accumulating), upsampled by depth and normal.
+        /// Trace at half resolution: one pixel of each 2x2 block a frame, in turn when accumulating (each
+        /// pixel accumulates its own rays; where it has no history, its traced neighbours on its surface
+        /// stand in).
         half_resolution: bool,
     },
 }
@@ -483,24 +474,18 @@ impl HaoQuality {
     /// `(rays, steps, half_resolution)` of a frame whose result is accumulated over `accumulation_frames`
     /// frames: the presets trace fewer rays from 4 frames on; `Custom` traces what it says.
     pub(crate) fn parameters_accumulated(&self, accumulation_frames: u32) -> (u32, u32, bool) {
-        let (rays, steps, half) = self.parameters();
         if accumulation_frames < 4 {
-            return (rays, steps, half);
+            return self.parameters();
         }
-        let rays = match *self {
-            Self::Low | Self::Medium => 2,
-            Self::High => 4,
-            Self::Ultra => 8,
-            Self::Custom { .. } => rays,
-        };
-        (rays, steps, half)
+        match *self {
+            Self::Low => (1, 24, true),
+            Self::Medium => (2, 32, true),
+            Self::High => (4, 48, false),
+            Self::Ultra => (8, 64, false),
+            Self::Custom { .. } => self.parameters(),
+        }
     }
 }
-
-/// Views with at least this many physical pixels (1920x1080) trace [`HaoQuality::Medium`] at half
-/// resolution: at that size a 2x2 block is small on screen, and the error against the ray-traced reference
-/// measured the same as at full resolution for a quarter of the rays.
-pub const HALF_RESOLUTION_PIXELS: u64 = 1920 * 1080;
 
 /// Marks a camera whose `ScreenSpaceAmbientOcclusion` was added by [`HybridAmbientOcclusion`] (and goes
 /// when it goes).
@@ -512,17 +497,20 @@ mod tests {
     use super::*;
 
     #[test]
-    fn medium_traces_at_half_resolution_from_1080p_and_the_others_as_they_say() {
-        let at = |quality, w, h| HybridAmbientOcclusion { quality, ..default() }.trace_parameters_at(UVec2::new(w, h));
-        assert_eq!(at(HaoQuality::Medium, 1280, 720), (2, 32, false));
-        assert_eq!(at(HaoQuality::Medium, 1920, 1079), (2, 32, false));
-        assert_eq!(at(HaoQuality::Medium, 1920, 1080), (2, 32, true));
-        assert_eq!(at(HaoQuality::Medium, 3840, 2160), (2, 32, true));
-        assert_eq!(at(HaoQuality::Low, 320, 180), (2, 24, true));
-        assert_eq!(at(HaoQuality::High, 3840, 2160), (4, 48, false));
+    fn the_presets_trace_as_they_say() {
+        let at = |quality, accumulation_frames| {
+            HybridAmbientOcclusion { quality, accumulation_frames, ..default() }.trace_parameters()
+        };
+        assert_eq!(at(HaoQuality::Low, 16), (1, 24, true));
+        assert_eq!(at(HaoQuality::Medium, 16), (2, 32, true));
+        assert_eq!(at(HaoQuality::High, 16), (4, 48, false));
+        assert_eq!(at(HaoQuality::Ultra, 4), (8, 64, false));
+        // Without accumulation the presets trace more rays, `Medium` at full resolution.
+        assert_eq!(at(HaoQuality::Low, 1), (4, 24, true));
+        assert_eq!(at(HaoQuality::Medium, 3), (6, 32, false));
+        assert_eq!(at(HaoQuality::High, 1), (8, 48, false));
         let custom = HaoQuality::Custom { rays: 3, steps: 20, half_resolution: false };
-        assert_eq!(at(custom, 3840, 2160), (3, 20, false));
-        // A huge view does not overflow.
-        assert_eq!(at(HaoQuality::Medium, u32::MAX, u32::MAX), (2, 32, true));
+        assert_eq!(at(custom, 16), (3, 20, false));
+        assert_eq!(at(custom, 1), (3, 20, false));
     }
 }

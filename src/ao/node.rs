@@ -26,8 +26,7 @@ pub fn hao(
 ) {
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let Some([trace, temporal, horizontal, vertical, upsample, apply]) = pipelines.view_pipelines(&cache, res.samples)
-    else {
+    let Some([trace, temporal, horizontal, vertical, apply]) = pipelines.view_pipelines(&cache, res.samples) else {
         return;
     };
     let diagnostics = ctx.diagnostic_recorder();
@@ -54,7 +53,7 @@ pub fn hao(
         pass.set_bind_group(0, &bind_groups.temporal, &[]);
         pass.set_bind_group(1, &bind_groups.temporal_view, &[view_offset.offset, previous_view_offset.offset]);
         pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
-        let (x, y) = groups(res.trace_size);
+        let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);
     }
@@ -64,16 +63,10 @@ pub fn hao(
         let span = diagnostics.pass_span(&mut pass, "hao/denoise");
         pass.set_pipeline(horizontal);
         pass.set_bind_group(0, &bind_groups.denoise_horizontal, &[]);
-        let (x, y) = groups(res.trace_size);
+        let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);
-        if let Some(denoise_vertical) = &bind_groups.denoise_vertical {
-            pass.set_pipeline(vertical);
-            pass.set_bind_group(0, denoise_vertical, &[]);
-            pass.dispatch_workgroups(x, y, 1);
-        }
-        pass.set_pipeline(upsample);
-        pass.set_bind_group(0, &bind_groups.upsample, &[]);
-        pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
+        pass.set_pipeline(vertical);
+        pass.set_bind_group(0, &bind_groups.denoise_vertical, &[]);
         let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);

@@ -15,32 +15,30 @@ use bevy::render::renderer::RenderAdapter;
 use bevy::render::view::ViewUniform;
 use bevy::shader::ShaderDefVal;
 
-/// The passes that read the depth and normal prepasses (trace, temporal, upsample), for one kind of prepass
+/// The passes that read the depth and normal prepasses (trace, temporal), for one kind of prepass
 /// texture: single-sampled, or multisampled on a camera with MSAA (they read sample 0).
 pub struct PrepassReaders {
     /// Group 0 of trace.
     pub trace_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the temporal pass.
     pub temporal_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the upsample.
-    pub upsample_layout: BindGroupLayoutDescriptor,
     /// Rays through the voxels.
     pub trace: CachedComputePipelineId,
     /// Temporal accumulation.
     pub temporal: CachedComputePipelineId,
-    /// To full resolution, and the near field.
-    pub upsample: CachedComputePipelineId,
 }
 
 /// The HAO pipelines and layouts.
 #[derive(Resource)]
 pub struct HaoPipelines {
-    /// Group 1 of trace and upsample: the view uniform.
+    /// Group 1 of trace: the view uniform.
     pub view_layout: BindGroupLayoutDescriptor,
     /// Group 1 of the temporal pass: the view and the previous view.
     pub temporal_view_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of both halves of the denoiser.
+    /// Group 0 of the horizontal half of the denoiser.
     pub denoise_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the vertical half of the denoiser (with the near field).
+    pub denoise_vertical_layout: BindGroupLayoutDescriptor,
     /// Group 0 of apply.
     pub apply_layout: BindGroupLayoutDescriptor,
     /// The passes reading single-sampled prepasses.
@@ -49,13 +47,13 @@ pub struct HaoPipelines {
     pub multisampled: Option<PrepassReaders>,
     /// Bilateral filter, horizontal half.
     pub denoise_horizontal: CachedComputePipelineId,
-    /// Bilateral filter, vertical half.
+    /// Bilateral filter, vertical half, and the near field.
     pub denoise_vertical: CachedComputePipelineId,
     /// Into the texture PBR reads.
     pub apply: CachedComputePipelineId,
     /// The format of Bevy's SSAO texture, which PBR reads (and of the plugin's own in its place).
     pub ao_format: TextureFormat,
-    shaders: [Handle<Shader>; 3],
+    shaders: [Handle<Shader>; 2],
 }
 
 impl HaoPipelines {
@@ -75,10 +73,10 @@ impl HaoPipelines {
     }
 
     /// Every pipeline a view with `samples` MSAA samples runs, in pass order (trace, temporal, denoise
-    /// horizontal and vertical, upsample, apply), once all of them are compiled.
-    pub fn view_pipelines<'a>(&self, cache: &'a PipelineCache, samples: u32) -> Option<[&'a ComputePipeline; 6]> {
+    /// horizontal and vertical, apply), once all of them are compiled.
+    pub fn view_pipelines<'a>(&self, cache: &'a PipelineCache, samples: u32) -> Option<[&'a ComputePipeline; 5]> {
         let r = self.readers(samples)?;
-        let ids = [r.trace, r.temporal, self.denoise_horizontal, self.denoise_vertical, r.upsample, self.apply];
+        let ids = [r.trace, r.temporal, self.denoise_horizontal, self.denoise_vertical, self.apply];
         let pipelines = ids.map(|id| cache.get_compute_pipeline(id));
         pipelines.iter().all(Option::is_some).then(|| pipelines.map(Option::unwrap))
     }
@@ -87,7 +85,7 @@ impl HaoPipelines {
 /// The layouts and pipelines of the passes that read the prepasses, `multisampled` or not.
 fn prepass_readers(
     cache: &PipelineCache,
-    [trace_shader, temporal_shader, upsample_shader]: &[Handle<Shader>; 3],
+    [trace_shader, temporal_shader]: &[Handle<Shader>; 2],
     view_layout: &BindGroupLayoutDescriptor,
     temporal_view_layout: &BindGroupLayoutDescriptor,
     multisampled: bool,
@@ -120,22 +118,9 @@ fn prepass_readers(
                 texture_2d(unfilterable),
                 texture_2d(unfilterable),
                 depth,
+                normal,
                 uniform_buffer::<GpuHaoSettings>(false),
                 texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
-            ),
-        ),
-    );
-    let upsample_layout = BindGroupLayoutDescriptor::new(
-        label("hao_upsample_layout", "hao_upsample_multisampled_layout"),
-        &BindGroupLayoutEntries::sequential(
-            ShaderStages::COMPUTE,
-            (
-                texture_2d(unfilterable),
-                depth,
-                normal,
-                texture_2d(unfilterable),
-                uniform_buffer::<GpuHaoSettings>(false),
-                texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
             ),
         ),
     );
@@ -155,15 +140,7 @@ fn prepass_readers(
         "temporal",
         defs.clone(),
     );
-    let upsample = queue_compute(
-        cache,
-        label("hao_upsample", "hao_upsample_multisampled"),
-        vec![upsample_layout.clone(), view_layout.clone()],
-        upsample_shader.clone(),
-        "upsample",
-        defs,
-    );
-    PrepassReaders { trace_layout, temporal_layout, upsample_layout, trace, temporal, upsample }
+    PrepassReaders { trace_layout, temporal_layout, trace, temporal }
 }
 
 impl FromWorld for HaoPipelines {
@@ -202,6 +179,18 @@ impl FromWorld for HaoPipelines {
                 ),
             ),
         );
+        let denoise_vertical_layout = BindGroupLayoutDescriptor::new(
+            "hao_denoise_vertical_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    texture_2d(unfilterable),
+                    texture_2d(unfilterable),
+                    uniform_buffer::<GpuHaoSettings>(false),
+                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
         let apply_layout = BindGroupLayoutDescriptor::new(
             "hao_apply_layout",
             &BindGroupLayoutEntries::sequential(
@@ -213,12 +202,9 @@ impl FromWorld for HaoPipelines {
                 ),
             ),
         );
-        let shaders = [
-            load_embedded_asset!(world, "hao_trace.wgsl"),
-            load_embedded_asset!(world, "hao_temporal.wgsl"),
-            load_embedded_asset!(world, "hao_upsample.wgsl"),
-        ];
+        let shaders = [load_embedded_asset!(world, "hao_trace.wgsl"), load_embedded_asset!(world, "hao_temporal.wgsl")];
         let denoise_shader = load_embedded_asset!(world, "hao_denoise.wgsl");
+        let denoise_vertical_shader = load_embedded_asset!(world, "hao_denoise_vertical.wgsl");
         let apply_shader = load_embedded_asset!(world, "hao_apply.wgsl");
         let cache = world.resource::<PipelineCache>();
         let single = prepass_readers(cache, &shaders, &view_layout, &temporal_view_layout, false);
@@ -226,15 +212,15 @@ impl FromWorld for HaoPipelines {
             cache,
             "hao_denoise_horizontal",
             vec![denoise_layout.clone()],
-            denoise_shader.clone(),
+            denoise_shader,
             "denoise_horizontal",
             vec![],
         );
         let denoise_vertical = queue_compute(
             cache,
             "hao_denoise_vertical",
-            vec![denoise_layout.clone()],
-            denoise_shader,
+            vec![denoise_vertical_layout.clone()],
+            denoise_vertical_shader,
             "denoise_vertical",
             vec![],
         );
@@ -244,6 +230,7 @@ impl FromWorld for HaoPipelines {
             view_layout,
             temporal_view_layout,
             denoise_layout,
+            denoise_vertical_layout,
             apply_layout,
             single,
             multisampled: None,

@@ -82,7 +82,7 @@ pub fn previous_clip_from_world(previous: &PreviousViewData, jitter: Vec2, view_
 /// A view's HAO textures and settings.
 #[derive(Component)]
 pub struct HaoViewResources {
-    /// The traced AO with view depth and normal (half or full resolution).
+    /// The traced AO with the traced pixel's view depth and normal (half or full resolution).
     pub noisy: CachedTexture,
     /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames.
     /// Once the temporal pass has read it, the horizontal half of the denoiser writes into it (the next
@@ -90,9 +90,6 @@ pub struct HaoViewResources {
     pub history: CachedTexture,
     /// The temporal history this frame writes, same layout.
     pub history_out: CachedTexture,
-    /// At half resolution, the denoised AO at the traced resolution, in the history's layout (at full
-    /// resolution the upsample pass filters vertically itself, and there is none).
-    pub filtered: Option<CachedTexture>,
     /// The denoised AO at full resolution (and near-field combined).
     pub result: CachedTexture,
     /// The settings uniform.
@@ -125,10 +122,8 @@ pub struct HaoBindGroups {
     pub temporal: BindGroup,
     /// Horizontal denoise.
     pub denoise_horizontal: BindGroup,
-    /// Vertical denoise, at half resolution (at full resolution the upsample pass does it).
-    pub denoise_vertical: Option<BindGroup>,
-    /// Upsample and near field.
-    pub upsample: BindGroup,
+    /// Vertical denoise and near field.
+    pub denoise_vertical: BindGroup,
     /// Apply.
     pub apply: BindGroup,
 }
@@ -163,7 +158,7 @@ pub fn prepare_hao_textures(
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
         let (hao, _) = hao.sanitized();
         let hao = &hao;
-        let (rays, steps, half) = hao.trace_parameters_at(view_size);
+        let (rays, steps, half) = hao.trace_parameters();
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
         let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
             cache.get(
@@ -181,12 +176,10 @@ pub fn prepare_hao_textures(
             )
         };
         let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
-        let filtered =
-            half.then(|| texture(&mut texture_cache, "hao_filtered_texture", trace_size, TextureFormat::Rgba32Float));
         // Two histories, read and written in turn (the texture cache hands each label's texture back while
         // it is used every frame; a new one is zeroed, which reads as no history).
-        let a = texture(&mut texture_cache, "hao_history_a_texture", trace_size, TextureFormat::Rgba32Float);
-        let b = texture(&mut texture_cache, "hao_history_b_texture", trace_size, TextureFormat::Rgba32Float);
+        let a = texture(&mut texture_cache, "hao_history_a_texture", view_size, TextureFormat::Rgba32Float);
+        let b = texture(&mut texture_cache, "hao_history_b_texture", view_size, TextureFormat::Rgba32Float);
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
         let pbr_texture = (origin != UVec2::ZERO)
@@ -227,7 +220,6 @@ pub fn prepare_hao_textures(
             noisy,
             history,
             history_out,
-            filtered,
             result,
             settings,
             trace_size,
@@ -281,6 +273,7 @@ pub fn prepare_hao_bind_groups(
                 &res.noisy.default_view,
                 &res.history.default_view,
                 depth,
+                normal,
                 res.settings.as_entire_binding(),
                 &res.history_out.default_view,
             )),
@@ -297,17 +290,11 @@ pub fn prepare_hao_bind_groups(
             )
         };
         let denoise_horizontal = denoise("hao_denoise_horizontal_bind_group", &res.history_out, &res.history);
-        let denoise_vertical =
-            res.filtered.as_ref().map(|f| denoise("hao_denoise_vertical_bind_group", &res.history, f));
-        // At full resolution the upsample pass filters the horizontal half's output itself.
-        let upsample_input = res.filtered.as_ref().unwrap_or(&res.history);
-        let upsample = device.create_bind_group(
-            "hao_upsample_bind_group",
-            &cache.get_bind_group_layout(&readers.upsample_layout),
+        let denoise_vertical = device.create_bind_group(
+            "hao_denoise_vertical_bind_group",
+            &cache.get_bind_group_layout(&pipelines.denoise_vertical_layout),
             &BindGroupEntries::sequential((
-                &upsample_input.default_view,
-                depth,
-                normal,
+                &res.history.default_view,
                 ssao_view,
                 res.settings.as_entire_binding(),
                 &res.result.default_view,
@@ -325,7 +312,6 @@ pub fn prepare_hao_bind_groups(
             temporal,
             denoise_horizontal,
             denoise_vertical,
-            upsample,
             apply,
         });
     }

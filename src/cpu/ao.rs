@@ -32,19 +32,30 @@ pub fn ray_rotation(pixel: Vec2, frame: u32) -> Vec2 {
 
 /// The pixel of its 2x2 block that a half-resolution trace samples in `frame` (WGSL:
 /// `half_resolution_offset`), as an offset from the block's first pixel: the four in turn, diagonals first,
-/// so that accumulated frames average the AO over the whole block rather than one pixel of it. Frame 0 (a
-/// single frame, no accumulation) samples the first pixel.
+/// so that every pixel traces every fourth frame and the temporal pass accumulates each pixel's own rays.
+/// Frame 0 (a single frame, no accumulation) samples the first pixel.
 pub fn half_resolution_offset(frame: u32) -> glam::UVec2 {
     const OFFSETS: [glam::UVec2; 4] =
         [glam::UVec2::new(0, 0), glam::UVec2::new(1, 1), glam::UVec2::new(1, 0), glam::UVec2::new(0, 1)];
     OFFSETS[(frame % 4) as usize]
 }
 
-/// Whether a half-resolution trace samples the offset pixel of a block (WGSL: in `trace`): only where it
-/// shows the surface of the block's first pixel, whose view depth and normal the block keeps (the test of
-/// [`super::temporal::history_accepts`]); across an edge it samples the first pixel.
-pub fn samples_offset_pixel(block_depth: f32, block_normal: Vec3, offset_depth: f32, offset_normal: Vec3) -> bool {
-    offset_depth > 0.0 && super::temporal::history_accepts(block_depth, offset_depth, block_normal.dot(offset_normal))
+/// The pixel that texel `texel` of the trace traces in `frame` on a view of `view_size` pixels (WGSL:
+/// `traced_pixel`): at full resolution its own; at half resolution the pixel of its 2x2 block whose turn it
+/// is ([`half_resolution_offset`]), clamped to the view.
+pub fn traced_pixel(texel: glam::UVec2, frame: u32, view_size: glam::UVec2, half_resolution: bool) -> glam::UVec2 {
+    if !half_resolution {
+        return texel;
+    }
+    (texel * 2 + half_resolution_offset(frame)).min(view_size - glam::UVec2::ONE)
+}
+
+/// The frame number that turns a pixel's ray noise ([`ray_rotation`]; WGSL: in `trace`): the frame at full
+/// resolution; at half resolution the number of the pixel's own trace (one every fourth frame), so that a
+/// pixel's successive traces step through the R2 sequence as they do at full resolution (every fourth
+/// element of it would barely move its first coordinate: 4 x 0.7548777 is 0.0195 past a whole number).
+pub fn noise_frame(frame: u32, half_resolution: bool) -> u32 {
+    if half_resolution { frame / 4 } else { frame }
 }
 
 /// Two tangents completing the unit vector `n` to an orthonormal basis (Duff et al. 2017); columns

@@ -22,10 +22,20 @@
 //! 4. **Blend** ([`temporal_blend`]): with `c` frames of history, capped at
 //!    `HybridAmbientOcclusion::accumulation_frames`, the new AO is `history + (current - history) / c`: the
 //!    running mean of the last frames, an exponential average once the cap is reached.
+//!
+//! The history is kept at full resolution. A half-resolution trace traces one pixel of each 2x2 block a
+//! frame, each pixel in turn (`cpu::ao::traced_pixel`), so every pixel accumulates its own rays, one trace
+//! every fourth frame: a frame that traced another pixel of its block leaves its history as it is
+//! ([`temporal_update`]). A pixel without history (a disocclusion), or near voxels that may have changed, takes
+//! the traced pixels of its neighbourhood that show its surface in place of its own trace
+//! ([`traced_neighbourhood`]). `accumulation_frames` counts a pixel's own traces, so at half resolution the
+//! history spans four times as many frames.
 
 /// Added to the neighbourhood window on each side, so that a pixel whose neighbours saw no occluder this
 /// frame (common with few rays where AO is near 1) keeps its history.
 pub const CLAMP_MARGIN: f32 = 0.1;
+
+use glam::{IVec2, UVec2, Vec3};
 
 /// The most frames of weight a history keeps after it was clamped.
 pub const CLAMPED_COUNT: f32 = 2.0;
@@ -79,47 +89,113 @@ pub fn temporal_blend(
     (if count <= 1.0 { current } else { h + (current - h) / count }, count)
 }
 
-/// The accumulation over a still camera (reprojection is the identity), frame by frame: the twin that the
-/// GPU test holds the temporal pass to. `frames[k]` is frame `k`'s current AO, `width x height`, with `NaN`
-/// for pixels that show no geometry; the result is the AO after the last frame.
-pub fn accumulate_still(frames: &[Vec<f32>], width: usize, height: usize, max_count: f32) -> Vec<f32> {
-    let mut ao = vec![f32::NAN; width * height];
-    let mut count = vec![0.0f32; width * height];
-    for frame in frames {
-        let mut next_ao = ao.clone();
-        let mut next_count = count.clone();
-        for y in 0..height {
-            for x in 0..width {
-                let i = y * width + x;
-                let current = frame[i];
-                if current.is_nan() {
-                    next_count[i] = 0.0;
-                    continue;
-                }
-                let (mut sum, mut squares, mut n) = (0.0f32, 0.0f32, 0.0f32);
-                for dy in -1i32..=1 {
-                    for dx in -1i32..=1 {
-                        let (nx, ny) = (x as i32 + dx, y as i32 + dy);
-                        if nx < 0 || ny < 0 || nx >= width as i32 || ny >= height as i32 {
-                            continue;
-                        }
-                        let v = frame[ny as usize * width + nx as usize];
-                        if !v.is_nan() {
-                            sum += v;
-                            squares += v * v;
-                            n += 1.0;
-                        }
-                    }
-                }
-                let window = neighborhood_window(sum, squares, n);
-                let (h, c) = if count[i] > 0.0 { (ao[i], count[i]) } else { (current, 0.0) };
-                let (a, k) = temporal_blend(h, c, window, current, max_count, false);
-                next_ao[i] = a;
-                next_count[i] = k;
+/// A texel of the trace: the AO traced from a pixel, with that pixel's view depth and normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TracedTexel {
+    /// The noisy AO.
+    pub ao: f32,
+    /// The traced pixel's view depth.
+    pub depth: f32,
+    /// The traced pixel's normal.
+    pub normal: Vec3,
+}
+
+/// What a pixel takes from the trace's 3x3 texels around `texel` (its own, or its block's; WGSL: the loop in
+/// `temporal`): the window that bounds its history ([`neighborhood_window`] over every texel that shows
+/// geometry; `(-1, 2)`, none, where none does) and its stand-in, the mean of the texels that show its
+/// surface (its view depth `depth` and normal `normal`, [`history_accepts`]), else of all, else 1.
+pub fn traced_neighbourhood(
+    trace: &[Option<TracedTexel>],
+    trace_size: UVec2,
+    texel: UVec2,
+    depth: f32,
+    normal: Vec3,
+) -> ((f32, f32), f32) {
+    let (mut sum, mut squares, mut n, mut same_sum, mut same_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    for dy in -1i32..=1 {
+        for dx in -1i32..=1 {
+            let t = texel.as_ivec2() + IVec2::new(dx, dy);
+            if t.cmplt(IVec2::ZERO).any() || t.cmpge(trace_size.as_ivec2()).any() {
+                continue;
+            }
+            let Some(v) = trace[(t.y as u32 * trace_size.x + t.x as u32) as usize] else { continue };
+            sum += v.ao;
+            squares += v.ao * v.ao;
+            n += 1.0;
+            if history_accepts(depth, v.depth, v.normal.dot(normal)) {
+                same_sum += v.ao;
+                same_n += 1.0;
             }
         }
-        ao = next_ao;
-        count = next_count;
+    }
+    let window = if n > 0.0 { neighborhood_window(sum, squares, n) } else { (-1.0, 2.0) };
+    let stand_in = if same_n > 0.0 {
+        same_sum / same_n
+    } else if n > 0.0 {
+        sum / n
+    } else {
+        1.0
+    };
+    (window, stand_in)
+}
+
+/// One pixel's new history and frames of weight (WGSL: the end of `temporal`), from its reprojected history
+/// (`count` 0: none), the window, its own trace this frame (`None` where its block traced another pixel),
+/// its stand-in ([`traced_neighbourhood`]), the cap and whether the voxels near it may have changed. A frame
+/// without its own trace keeps the history as it is, unless there is none, the voxels near it may have
+/// changed or there is no accumulation: then the stand-in is blended as a trace.
+pub fn temporal_update(
+    history: f32,
+    count: f32,
+    window: (f32, f32),
+    own: Option<f32>,
+    stand_in: f32,
+    max_count: f32,
+    near_change: bool,
+) -> (f32, f32) {
+    match own {
+        Some(current) => temporal_blend(history, count, window, current, max_count, near_change),
+        None if count <= 0.0 || near_change || max_count <= 1.0 => {
+            temporal_blend(history, count, window, stand_in, max_count, near_change)
+        }
+        None => (history, count),
+    }
+}
+
+/// One frame of the trace: its number (which pixels a half-resolution trace traced) and its texels (`None`
+/// where the traced pixel shows no geometry).
+pub struct TraceFrame {
+    /// The frame number (`GpuHaoSettings::frame`).
+    pub number: u32,
+    /// The trace, one texel per pixel, or per 2x2 block at half resolution.
+    pub texels: Vec<Option<TracedTexel>>,
+}
+
+/// The accumulation over a still camera (reprojection is the identity), frame by frame: the twin that the
+/// GPU test holds the temporal pass to. `pixels` are the view's (`view_size`), each with its view depth and
+/// normal (`None`: background); `frames` the trace of each frame, at half resolution or not. The result is
+/// each pixel's AO after the last frame (NaN for the background).
+pub fn accumulate_still(
+    frames: &[TraceFrame],
+    pixels: &[Option<(f32, Vec3)>],
+    view_size: UVec2,
+    half_resolution: bool,
+    max_count: f32,
+) -> Vec<f32> {
+    let trace_size = if half_resolution { (view_size + UVec2::ONE) / 2 } else { view_size };
+    let mut ao = vec![f32::NAN; pixels.len()];
+    let mut count = vec![0.0f32; pixels.len()];
+    for frame in frames {
+        for (i, pixel) in pixels.iter().enumerate() {
+            let Some((depth, normal)) = *pixel else { continue };
+            let p = UVec2::new(i as u32 % view_size.x, i as u32 / view_size.x);
+            let texel = if half_resolution { p / 2 } else { p };
+            let own = (super::ao::traced_pixel(texel, frame.number, view_size, half_resolution) == p)
+                .then(|| frame.texels[(texel.y * trace_size.x + texel.x) as usize].map(|t| t.ao))
+                .flatten();
+            let (window, stand_in) = traced_neighbourhood(&frame.texels, trace_size, texel, depth, normal);
+            (ao[i], count[i]) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, false);
+        }
     }
     ao
 }
@@ -172,16 +248,82 @@ mod tests {
         assert!(!history_accepts(10.0, 0.0, 1.0), "no history (background or never written)");
     }
 
+    /// A still view of `w x h` pixels, all showing one flat surface facing the camera at depth 10.
+    fn flat(w: u32, h: u32) -> Vec<Option<(f32, Vec3)>> {
+        vec![Some((10.0, Vec3::Z)); (w * h) as usize]
+    }
+
+    fn texel(ao: f32) -> Option<TracedTexel> {
+        Some(TracedTexel { ao, depth: 10.0, normal: Vec3::Z })
+    }
+
     #[test]
     fn a_still_noisy_pixel_converges_to_its_mean() {
         // Two-ray AO of a surface whose true AO is 0.75: each pixel reads 0.5 or 1.0, alternating per frame,
         // its neighbours the other way (the trace's noise is decorrelated between pixels).
         let (w, h) = (3, 3);
-        let frames: Vec<Vec<f32>> =
-            (0..32).map(|k| (0..w * h).map(|i| if (i + k) % 2 == 0 { 0.5 } else { 1.0 }).collect()).collect();
-        let ao = accumulate_still(&frames, w, h, 32.0);
+        let frames: Vec<TraceFrame> = (0..32)
+            .map(|k| TraceFrame {
+                number: k,
+                texels: (0..w * h).map(|i| texel(if (i + k) % 2 == 0 { 0.5 } else { 1.0 })).collect(),
+            })
+            .collect();
+        let size = UVec2::new(w, h);
+        let ao = accumulate_still(&frames, &flat(w, h), size, false, 32.0);
         assert!(ao.iter().all(|a| (a - 0.75).abs() < 0.02), "{ao:?}");
-        let one = accumulate_still(&frames[..1], w, h, 32.0);
-        assert_eq!(one, frames[0]);
+        let one = accumulate_still(&frames[..1], &flat(w, h), size, false, 32.0);
+        assert_eq!(one, frames[0].texels.iter().map(|t| t.unwrap().ao).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn at_half_resolution_each_pixel_accumulates_its_own_traces() {
+        // A 4x4 view traced at half resolution: the pixels of odd columns see AO 0.9, of even ones 0.2 (detail
+        // finer than a block). Each frame traces one pixel of each block, in turn.
+        let size = UVec2::new(4, 4);
+        let truth = |p: UVec2| if p.x % 2 == 1 { 0.9 } else { 0.2 };
+        let frames: Vec<TraceFrame> = (0..64)
+            .map(|k| TraceFrame {
+                number: k,
+                texels: (0..4u32)
+                    .map(|t| texel(truth(crate::cpu::ao::traced_pixel(UVec2::new(t % 2, t / 2), k, size, true))))
+                    .collect(),
+            })
+            .collect();
+        let ao = accumulate_still(&frames, &flat(4, 4), size, true, 4.0);
+        for (i, a) in ao.iter().enumerate() {
+            let p = UVec2::new(i as u32 % 4, i as u32 / 4);
+            // 16 traces of its own: the stand-in of the first frame (the block's traced pixel) weighs under 1 %.
+            assert!((a - truth(p)).abs() < 0.02, "pixel {p}: {a}, not {}", truth(p));
+        }
+        // After the first frame alone the untraced pixels hold their neighbourhood's traces.
+        let first = accumulate_still(&frames[..1], &flat(4, 4), size, true, 4.0);
+        assert_eq!(first[0], 0.2, "traced");
+        assert_eq!(first[1], 0.2, "its block's traced pixel stands in");
+    }
+
+    #[test]
+    fn a_frame_without_the_pixels_own_trace_keeps_its_history() {
+        let window = (0.0, 1.2);
+        assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, false), (0.4, 6.0));
+        // Its own trace is blended; with no history, or near a change, the stand-in is.
+        assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, false), (0.5, 4.0));
+        assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, false), (0.9, 1.0));
+        let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, true);
+        assert!((ao - 0.6).abs() < 1e-6 && c == 3.0, "{ao} {c}");
+        // No accumulation: the stand-in is the frame's AO.
+        assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, false), (0.9, 1.0));
+    }
+
+    #[test]
+    fn the_stand_in_is_taken_from_the_pixels_own_surface() {
+        // A 3x3 trace: the middle row shows the pixel's surface (AO 0.5), the rows above and below a surface
+        // far behind it (AO 1): the stand-in is 0.5, the window spans both.
+        let far = Some(TracedTexel { ao: 1.0, depth: 40.0, normal: Vec3::Z });
+        let trace = [far, far, far, texel(0.5), texel(0.5), texel(0.5), far, far, far];
+        let (window, stand_in) = traced_neighbourhood(&trace, UVec2::new(3, 3), UVec2::new(1, 1), 10.0, Vec3::Z);
+        assert_eq!(stand_in, 0.5);
+        assert!(window.0 < 0.5 && window.1 > 1.0, "{window:?}");
+        // No texel shows geometry: no window, the stand-in open.
+        assert_eq!(traced_neighbourhood(&[None; 9], UVec2::new(3, 3), UVec2::ONE, 10.0, Vec3::Z), ((-1.0, 2.0), 1.0));
     }
 }

@@ -218,6 +218,8 @@ fn main() {
     let attributes = args.attributes;
     let accumulation = hao.sanitized().0.accumulation_frames as usize;
     let (size, res) = (args.size, args.res);
+    // At half resolution a pixel traces every fourth frame, so its history spans four times the frames.
+    let frames_per_trace = if hao.sanitized().0.trace_parameters().2 { 4 } else { 1 };
     let setup_source = source.clone();
     let setup_hao = hao.clone();
     let fit = args.volume == Volume::Fit;
@@ -304,7 +306,7 @@ fn main() {
     }
     // Then until the temporal history has converged: four times its length (the frames before weigh
     // (1 - 1/n)^(4n), under 2 %).
-    let settled = 4 + 4 * accumulation;
+    let settled = 4 + 4 * accumulation * frames_per_trace;
     bevy_hao_tools::harness::run(&mut app, settled);
     let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {

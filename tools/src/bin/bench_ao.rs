@@ -207,7 +207,7 @@ fn main() {
     println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     for (settings, m) in rows {
-        let (rays, steps, half) = settings.trace_parameters_at(size);
+        let (rays, steps, half) = settings.trace_parameters();
         let passes = match (m[0], m[1], m[2], m[3]) {
             (Some(a), Some(b), Some(c), Some(d)) => Some(a + b + c + d),
             _ => None,
@@ -292,7 +292,7 @@ fn trace_work(
     settings: &HybridAmbientOcclusion,
 ) -> Work {
     use bevy_hao::cpu::ao::{TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
-    let half = settings.trace_parameters_at(UVec2::new(w, h)).2;
+    let half = settings.trace_parameters().2;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     let mut work = TraceWork::default();
     let mut pixels = 0u64;
