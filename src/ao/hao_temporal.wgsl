@@ -39,7 +39,7 @@ struct PreviousViewData {
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let size = textureDimensions(history_out);
+    let size = textureDimensions(history);
     if any(gid.xy >= size) {
         return;
     }
@@ -62,6 +62,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let half = settings.half_resolution != 0u;
     let block = pixel / select(1u, 2u, half);
     let traced = all(traced_pixel(block, settings.frame, vec2<u32>(view.viewport.zw), half) == pixel);
+    let block_texel = textureLoad(noisy, block, 0);
     // The traced neighbourhood (3x3 texels of the trace) bounds the history; those of its texels that show
     // this pixel's surface (`history_accepts`) stand in for its own trace where it has none.
     let trace_size = vec2<i32>(textureDimensions(noisy));
@@ -134,7 +135,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Its own trace, or where its block traced another pixel, the traced neighbours on its surface (the
     // stand-in, used only where it has no history or must follow a change).
     let stand_in = select(select(1.0, sum / n, n > 0.0), same_sum / same_n, same_n > 0.0);
-    let current = select(stand_in, textureLoad(noisy, block, 0).x, traced);
+    let current = select(stand_in, block_texel.x, traced);
     let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
     textureStore(history_out, pixel, vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
 }
