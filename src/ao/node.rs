@@ -67,7 +67,6 @@ pub fn hao(
         pass.dispatch_workgroups(x, y, 1);
         pass.set_pipeline(vertical);
         pass.set_bind_group(0, &bind_groups.denoise_vertical, &[]);
-        let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);
     }

@@ -47,7 +47,7 @@ pub fn traced_pixel(texel: glam::UVec2, frame: u32, view_size: glam::UVec2, half
     if !half_resolution {
         return texel;
     }
-    (texel * 2 + half_resolution_offset(frame)).min(view_size - glam::UVec2::ONE)
+    (texel * 2 + half_resolution_offset(frame)).min(view_size.saturating_sub(glam::UVec2::ONE))
 }
 
 /// The frame number that turns a pixel's ray noise ([`ray_rotation`]; WGSL: in `trace`): the frame at full
