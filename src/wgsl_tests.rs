@@ -59,8 +59,14 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxel_mip.wgsl", texture_variants),
         ("src/ao/hao_trace.wgsl", multisampled.clone()),
         ("src/ao/hao_temporal.wgsl", multisampled.clone()),
-        ("src/ao/hao_denoise.wgsl", vec![vec![]]),
-        ("src/ao/hao_denoise_vertical.wgsl", vec![vec![]]),
+        (
+            "src/ao/hao_denoise.wgsl",
+            vec![
+                vec![],
+                vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))],
+                vec![("NEAR_FIELD", ShaderDefValue::Bool(true))],
+            ],
+        ),
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),
         ("src/debug/debug_images.wgsl", multisampled),
         ("src/debug/debug_view.wgsl", vec![vec![]]),

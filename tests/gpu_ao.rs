@@ -609,6 +609,58 @@ fn the_gpu_trace_matches_its_cpu_twin() {
     assert!(take_render_errors().is_empty());
 }
 
+/// The denoiser on the GPU as on its CPU twin (`bevy_hao::cpu::denoise::bilateral_cross`): without
+/// accumulation each pixel's history is this frame's trace (one frame of weight, so the full radius), and
+/// the AO PBR reads is the twin's filter over the twin's trace.
+#[test]
+fn the_gpu_denoiser_matches_its_cpu_twin() {
+    use bevy_hao::cpu::ao::TraceLevel;
+    use bevy_hao::cpu::denoise::{HistoryTexel, bilateral_cross};
+    let _gpu = gpu_lock();
+    let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 1, ..hao_settings() };
+    let (mut app, mips, grid) = walls_app_and_voxels(&settings, 8);
+    let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
+    let targets = app.world().resource::<Targets>().clone();
+    let (_, _, gpu) = read_image_f32(&mut app, targets.debug.ao.clone(), 2);
+    let (w, h, samples) = view_samples(&mut app);
+    let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
+    let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
+    let (noisy, _) = cpu_trace(&samples, w, &settings, &levels, 0);
+    // The history as the temporal pass writes it: the trace's AO (stored as f16), view depth, normal.
+    let history: Vec<HistoryTexel> = samples
+        .iter()
+        .zip(&noisy)
+        .map(|(s, &ao)| match s {
+            Some((world, normal)) => HistoryTexel {
+                ao: half::f16::from_f32(ao).to_f32(),
+                depth: -view_from_world.transform_point3(*world).z,
+                normal: *normal,
+                frames: 1.0,
+            },
+            None => HistoryTexel { ao: 1.0, depth: 0.0, normal: Vec3::Z, frames: 0.0 },
+        })
+        .collect();
+    let size = UVec2::new(w, h);
+    let (mut filtered_error, mut noisy_error, mut n) = (0.0f64, 0.0f64, 0);
+    for i in 0..samples.len() {
+        if samples[i].is_none() {
+            continue;
+        }
+        let twin = bilateral_cross(&history, size, UVec2::new(i as u32 % w, i as u32 / w), settings.denoise_radius);
+        filtered_error += (twin - gpu[i]).abs() as f64;
+        noisy_error += (noisy[i] - gpu[i]).abs() as f64;
+        n += 1;
+    }
+    let (filtered_error, noisy_error) = (filtered_error / n as f64, noisy_error / n as f64);
+    println!(
+        "{n} pixels: mean |twin - GPU| = {filtered_error:.5}; the unfiltered trace against the GPU: {noisy_error:.5}"
+    );
+    assert!(n > 1000);
+    assert!(filtered_error < 0.002, "{filtered_error}");
+    assert!(noisy_error > 3.0 * filtered_error, "{noisy_error} against {filtered_error}: the GPU did not filter");
+    assert!(take_render_errors().is_empty());
+}
+
 /// `HybridAmbientOcclusion::ignore_back_hits` on the GPU as on the CPU twin: a single-sided plane 1.5 m
 /// over the floor, facing up, seen from the side. Under it, rays that reach its back within 60 degrees of its
 /// normal pass with the setting and stop without it; the GPU's noisy AO equals the twin's (traced through

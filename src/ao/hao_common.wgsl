@@ -14,6 +14,7 @@ struct HaoSettings {
     intensity: f32,
     start_offset: f32,
     frame: u32,
+    // 1 with the near field (the passes take hao_denoise.wgsl's NEAR_FIELD variant then; no shader reads it).
     near_field: u32,
     half_resolution: u32,
     denoise_radius: u32,
@@ -134,31 +135,44 @@ fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, cen
     return spatial * depth_w * c8 * c8;
 }
 
-// One half of the separable bilateral filter (`hao_denoise.wgsl`, and `hao_upsample.wgsl` at full
-// resolution): the texel `pixel` of `input` (ao, view depth, packed normal, frames of history) with its AO
-// filtered along `direction`. The more frames the history holds, the narrower: `radius` up to 4 frames,
-// half of it at 16.
-fn bilateral_line(input: texture_2d<f32>, pixel: vec2<u32>, direction: vec2<i32>, radius: u32) -> vec4<f32> {
-    let size = vec2<i32>(textureDimensions(input));
+// cpu/denoise.rs: denoise_radius. The denoiser's reach for a pixel whose history holds `frames` frames of
+// weight: `radius` up to 4 frames, narrowing as the history grows (half of it at 16).
+fn denoise_radius(radius: u32, frames: f32) -> i32 {
+    return i32(ceil(f32(radius) * min(1.0, 2.0 / sqrt(max(frames, 1.0)))));
+}
+
+// cpu/denoise.rs: bilateral_tap. One tap of the denoiser at `p` (clamped to the texture), `offset` texels
+// from the center: (weight x AO, weight); nothing from the background.
+fn bilateral_tap(input: texture_2d<f32>, p: vec2<i32>, offset: f32, radius: f32, center: vec4<f32>, center_normal: vec3<f32>) -> vec2<f32> {
+    let tap = textureLoad(input, clamp(p, vec2<i32>(0), vec2<i32>(textureDimensions(input)) - 1), 0);
+    if tap.y <= 0.0 {
+        return vec2<f32>(0.0);
+    }
+    let w = bilateral_weight(offset, radius, center.y, tap.y, center_normal, unpack_normal(tap.z));
+    return vec2<f32>(w * tap.x, w);
+}
+
+// cpu/denoise.rs: bilateral_cross. The denoiser (`hao_denoise.wgsl`): the AO of texel `pixel` of `input`
+// (the temporal history: ao, view depth, packed normal, frames) filtered in one pass over a cross, the
+// center and the texels up to `denoise_radius` away along its row and column, each weighed by
+// `bilateral_weight`. The background keeps its value.
+fn bilateral_cross(input: texture_2d<f32>, pixel: vec2<u32>, radius: u32) -> f32 {
     let center = textureLoad(input, pixel, 0);
     if center.y <= 0.0 {
-        return center;
+        return center.x;
     }
     let n0 = unpack_normal(center.z);
-    let r = i32(ceil(f32(radius) * min(1.0, 2.0 / sqrt(max(center.w, 1.0)))));
-    var sum = 0.0;
-    var weights = 0.0;
-    for (var d = -r; d <= r; d++) {
-        let p = clamp(vec2<i32>(pixel) + direction * d, vec2<i32>(0), size - 1);
-        let tap = textureLoad(input, p, 0);
-        if tap.y <= 0.0 {
-            continue;
-        }
-        let w = bilateral_weight(f32(d), f32(r), center.y, tap.y, n0, unpack_normal(tap.z));
-        sum += w * tap.x;
-        weights += w;
+    let r = denoise_radius(radius, center.w);
+    let c = vec2<i32>(pixel);
+    var sum = vec2<f32>(center.x, 1.0);
+    for (var d = 1; d <= r; d++) {
+        let o = f32(d);
+        sum += bilateral_tap(input, c + vec2<i32>(d, 0), o, f32(r), center, n0);
+        sum += bilateral_tap(input, c - vec2<i32>(d, 0), o, f32(r), center, n0);
+        sum += bilateral_tap(input, c + vec2<i32>(0, d), o, f32(r), center, n0);
+        sum += bilateral_tap(input, c - vec2<i32>(0, d), o, f32(r), center, n0);
     }
-    return vec4<f32>(select(center.x, sum / weights, weights > 1.0e-6), center.yzw);
+    return sum.x / sum.y;
 }
 
 // Packs an octahedral normal into one float exactly (11 bits per coordinate: an integer below 2^22), for the

@@ -52,7 +52,6 @@ impl Plugin for HybridAmbientOcclusionPlugin {
         embedded_asset!(app, "hao_trace.wgsl");
         embedded_asset!(app, "hao_temporal.wgsl");
         embedded_asset!(app, "hao_denoise.wgsl");
-        embedded_asset!(app, "hao_denoise_vertical.wgsl");
         embedded_asset!(app, "hao_apply.wgsl");
         app.register_type::<HybridAmbientOcclusion>()
             .add_plugins(ExtractComponentPlugin::<HybridAmbientOcclusion>::default())

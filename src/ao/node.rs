@@ -16,7 +16,7 @@ fn groups(size: UVec2) -> (u32, u32) {
     (size.x.div_ceil(SCREEN_WORKGROUP), size.y.div_ceil(SCREEN_WORKGROUP))
 }
 
-/// Trace, accumulate, denoise, apply.
+/// Trace, accumulate, denoise (and with the near field, apply).
 pub fn hao(
     view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset, &PreviousViewUniformOffset)>,
     pipelines: Res<HaoPipelines>,
@@ -26,7 +26,8 @@ pub fn hao(
 ) {
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let Some([trace, temporal, horizontal, vertical, apply]) = pipelines.view_pipelines(&cache, res.samples) else {
+    let Some([trace, temporal, denoise, denoise_near_field, apply]) = pipelines.view_pipelines(&cache, res.samples)
+    else {
         return;
     };
     let diagnostics = ctx.diagnostic_recorder();
@@ -57,25 +58,28 @@ pub fn hao(
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);
     }
+    // The denoiser writes into the texture PBR reads; with the near field, into the result texture with
+    // the minimum of Bevy's SSAO, which apply then copies there.
+    let (denoise_pipeline, denoise_group) = match &bind_groups.near_field {
+        Some((group, _)) => (denoise_near_field, group),
+        None => (denoise, &bind_groups.denoise),
+    };
     {
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_denoise"), timestamp_writes: None });
         let span = diagnostics.pass_span(&mut pass, "hao/denoise");
-        pass.set_pipeline(horizontal);
-        pass.set_bind_group(0, &bind_groups.denoise_horizontal, &[]);
+        pass.set_pipeline(denoise_pipeline);
+        pass.set_bind_group(0, denoise_group, &[]);
         let (x, y) = groups(res.view_size);
-        pass.dispatch_workgroups(x, y, 1);
-        pass.set_pipeline(vertical);
-        pass.set_bind_group(0, &bind_groups.denoise_vertical, &[]);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);
     }
-    {
+    if let Some((_, apply_group)) = &bind_groups.near_field {
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_apply"), timestamp_writes: None });
         let span = diagnostics.pass_span(&mut pass, "hao/apply");
         pass.set_pipeline(apply);
-        pass.set_bind_group(0, &bind_groups.apply, &[]);
+        pass.set_bind_group(0, apply_group, &[]);
         let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);

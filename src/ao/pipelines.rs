@@ -35,21 +35,21 @@ pub struct HaoPipelines {
     pub view_layout: BindGroupLayoutDescriptor,
     /// Group 1 of the temporal pass: the view and the previous view.
     pub temporal_view_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the horizontal half of the denoiser.
+    /// Group 0 of the denoiser, which writes into the texture PBR reads.
     pub denoise_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the vertical half of the denoiser (with the near field).
-    pub denoise_vertical_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the denoiser with the near field, which writes the result texture apply copies.
+    pub denoise_near_field_layout: BindGroupLayoutDescriptor,
     /// Group 0 of apply.
     pub apply_layout: BindGroupLayoutDescriptor,
     /// The passes reading single-sampled prepasses.
     pub single: PrepassReaders,
     /// The passes reading multisampled prepasses, queued when the first view with MSAA needs them.
     pub multisampled: Option<PrepassReaders>,
-    /// Bilateral filter, horizontal half.
-    pub denoise_horizontal: CachedComputePipelineId,
-    /// Bilateral filter, vertical half, and the near field.
-    pub denoise_vertical: CachedComputePipelineId,
-    /// Into the texture PBR reads.
+    /// The bilateral filter, into the texture PBR reads.
+    pub denoise: CachedComputePipelineId,
+    /// The bilateral filter and the near field, into the result texture.
+    pub denoise_near_field: CachedComputePipelineId,
+    /// With the near field: the result texture into the texture PBR reads.
     pub apply: CachedComputePipelineId,
     /// The format of Bevy's SSAO texture, which PBR reads (and of the plugin's own in its place).
     pub ao_format: TextureFormat,
@@ -72,11 +72,11 @@ impl HaoPipelines {
         }
     }
 
-    /// Every pipeline a view with `samples` MSAA samples runs, in pass order (trace, temporal, denoise
-    /// horizontal and vertical, apply), once all of them are compiled.
+    /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, temporal, denoise,
+    /// and with the near field denoise_near_field and apply instead of denoise), once all are compiled.
     pub fn view_pipelines<'a>(&self, cache: &'a PipelineCache, samples: u32) -> Option<[&'a ComputePipeline; 5]> {
         let r = self.readers(samples)?;
-        let ids = [r.trace, r.temporal, self.denoise_horizontal, self.denoise_vertical, self.apply];
+        let ids = [r.trace, r.temporal, self.denoise, self.denoise_near_field, self.apply];
         let pipelines = ids.map(|id| cache.get_compute_pipeline(id));
         pipelines.iter().all(Option::is_some).then(|| pipelines.map(Option::unwrap))
     }
@@ -175,18 +175,18 @@ impl FromWorld for HaoPipelines {
                 (
                     texture_2d(unfilterable),
                     uniform_buffer::<GpuHaoSettings>(false),
-                    texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
+                    texture_storage_2d(ao_format, StorageTextureAccess::WriteOnly),
                 ),
             ),
         );
-        let denoise_vertical_layout = BindGroupLayoutDescriptor::new(
-            "hao_denoise_vertical_layout",
+        let denoise_near_field_layout = BindGroupLayoutDescriptor::new(
+            "hao_denoise_near_field_layout",
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
                     texture_2d(unfilterable),
-                    texture_2d(unfilterable),
                     uniform_buffer::<GpuHaoSettings>(false),
+                    texture_2d(unfilterable),
                     texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
                 ),
             ),
@@ -204,38 +204,39 @@ impl FromWorld for HaoPipelines {
         );
         let shaders = [load_embedded_asset!(world, "hao_trace.wgsl"), load_embedded_asset!(world, "hao_temporal.wgsl")];
         let denoise_shader = load_embedded_asset!(world, "hao_denoise.wgsl");
-        let denoise_vertical_shader = load_embedded_asset!(world, "hao_denoise_vertical.wgsl");
         let apply_shader = load_embedded_asset!(world, "hao_apply.wgsl");
         let cache = world.resource::<PipelineCache>();
         let single = prepass_readers(cache, &shaders, &view_layout, &temporal_view_layout, false);
-        let denoise_horizontal = queue_compute(
+        let ao_format_defs: Vec<ShaderDefVal> =
+            if ao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
+        let denoise = queue_compute(
             cache,
-            "hao_denoise_horizontal",
+            "hao_denoise",
             vec![denoise_layout.clone()],
-            denoise_shader,
-            "denoise_horizontal",
-            vec![],
+            denoise_shader.clone(),
+            "denoise",
+            ao_format_defs.clone(),
         );
-        let denoise_vertical = queue_compute(
+        let denoise_near_field = queue_compute(
             cache,
-            "hao_denoise_vertical",
-            vec![denoise_vertical_layout.clone()],
-            denoise_vertical_shader,
-            "denoise_vertical",
-            vec![],
+            "hao_denoise_near_field",
+            vec![denoise_near_field_layout.clone()],
+            denoise_shader,
+            "denoise",
+            vec!["NEAR_FIELD".into()],
         );
-        let apply_defs = if ao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
-        let apply = queue_compute(cache, "hao_apply", vec![apply_layout.clone()], apply_shader, "apply", apply_defs);
+        let apply =
+            queue_compute(cache, "hao_apply", vec![apply_layout.clone()], apply_shader, "apply", ao_format_defs);
         Self {
             view_layout,
             temporal_view_layout,
             denoise_layout,
-            denoise_vertical_layout,
+            denoise_near_field_layout,
             apply_layout,
             single,
             multisampled: None,
-            denoise_horizontal,
-            denoise_vertical,
+            denoise,
+            denoise_near_field,
             apply,
             ao_format,
             shaders,

@@ -85,13 +85,12 @@ pub struct HaoViewResources {
     /// The traced AO with the traced pixel's view depth and normal (half or full resolution).
     pub noisy: CachedTexture,
     /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames.
-    /// Once the temporal pass has read it, the horizontal half of the denoiser writes into it (the next
-    /// frame's temporal pass overwrites it whole).
     pub history: CachedTexture,
-    /// The temporal history this frame writes, same layout.
+    /// The temporal history this frame writes, same layout; the denoiser reads it.
     pub history_out: CachedTexture,
-    /// The denoised AO at full resolution (and near-field combined).
-    pub result: CachedTexture,
+    /// With the near field: the denoised AO combined with Bevy's SSAO, which apply copies into the texture
+    /// PBR reads (without, the denoiser writes there itself).
+    pub result: Option<CachedTexture>,
     /// The settings uniform.
     pub settings: Buffer,
     /// Size of the noisy texture.
@@ -120,12 +119,10 @@ pub struct HaoBindGroups {
     pub temporal_view: BindGroup,
     /// Temporal accumulation.
     pub temporal: BindGroup,
-    /// Horizontal denoise.
-    pub denoise_horizontal: BindGroup,
-    /// Vertical denoise and near field.
-    pub denoise_vertical: BindGroup,
-    /// Apply.
-    pub apply: BindGroup,
+    /// The denoiser, into the texture PBR reads.
+    pub denoise: BindGroup,
+    /// With the near field: the denoiser into the result texture, and apply.
+    pub near_field: Option<(BindGroup, BindGroup)>,
 }
 
 /// Creates the per-view textures and settings.
@@ -181,10 +178,11 @@ pub fn prepare_hao_textures(
         let a = texture(&mut texture_cache, "hao_history_a_texture", view_size, TextureFormat::Rgba32Float);
         let b = texture(&mut texture_cache, "hao_history_b_texture", view_size, TextureFormat::Rgba32Float);
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
-        let result = texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float);
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
         let near_field = hao.near_field && super::near_field_can_run(samples, origin);
+        let result =
+            near_field.then(|| texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float));
         let jitter_offset = jitter.map_or(Vec2::ZERO, |j| j.offset);
         let last =
             histories.insert(entity, ViewHistory { jitter: jitter_offset, view_size, trace_size, frame: *frame });
@@ -278,42 +276,30 @@ pub fn prepare_hao_bind_groups(
                 &res.history_out.default_view,
             )),
         );
-        let denoise = |label, input: &CachedTexture, output: &CachedTexture| {
-            device.create_bind_group(
-                label,
-                &cache.get_bind_group_layout(&pipelines.denoise_layout),
+        let denoise = device.create_bind_group(
+            "hao_denoise_bind_group",
+            &cache.get_bind_group_layout(&pipelines.denoise_layout),
+            &BindGroupEntries::sequential((&res.history_out.default_view, res.settings.as_entire_binding(), ssao_view)),
+        );
+        let near_field = res.result.as_ref().map(|result| {
+            let denoise = device.create_bind_group(
+                "hao_denoise_near_field_bind_group",
+                &cache.get_bind_group_layout(&pipelines.denoise_near_field_layout),
                 &BindGroupEntries::sequential((
-                    &input.default_view,
+                    &res.history_out.default_view,
                     res.settings.as_entire_binding(),
-                    &output.default_view,
+                    ssao_view,
+                    &result.default_view,
                 )),
-            )
-        };
-        let denoise_horizontal = denoise("hao_denoise_horizontal_bind_group", &res.history_out, &res.history);
-        let denoise_vertical = device.create_bind_group(
-            "hao_denoise_vertical_bind_group",
-            &cache.get_bind_group_layout(&pipelines.denoise_vertical_layout),
-            &BindGroupEntries::sequential((
-                &res.history.default_view,
-                ssao_view,
-                res.settings.as_entire_binding(),
-                &res.result.default_view,
-            )),
-        );
-        let apply = device.create_bind_group(
-            "hao_apply_bind_group",
-            &cache.get_bind_group_layout(&pipelines.apply_layout),
-            &BindGroupEntries::sequential((&res.result.default_view, res.settings.as_entire_binding(), ssao_view)),
-        );
-        commands.entity(entity).insert(HaoBindGroups {
-            view,
-            trace,
-            temporal_view,
-            temporal,
-            denoise_horizontal,
-            denoise_vertical,
-            apply,
+            );
+            let apply = device.create_bind_group(
+                "hao_apply_bind_group",
+                &cache.get_bind_group_layout(&pipelines.apply_layout),
+                &BindGroupEntries::sequential((&result.default_view, res.settings.as_entire_binding(), ssao_view)),
+            );
+            (denoise, apply)
         });
+        commands.entity(entity).insert(HaoBindGroups { view, trace, temporal_view, temporal, denoise, near_field });
     }
 }
 
