@@ -531,11 +531,7 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
     use bevy_hao::cpu::ao::TraceLevel;
     use bevy_hao::cpu::temporal::accumulate_still;
     let _gpu = gpu_lock();
-    let quality = if half_resolution {
-        HaoQuality::Custom { rays: 2, steps: 48, half_resolution: true }
-    } else {
-        HaoQuality::High
-    };
+    let quality = HaoQuality::Custom { rays: if half_resolution { 2 } else { 4 }, steps: 48, half_resolution };
     let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 8, quality, ..hao_settings() };
     // Long enough for the first frames, traced while the grid was still being built, to have left the
     // history (their weight is (7/8)^50 by the end; at half resolution a pixel traces every fourth frame).

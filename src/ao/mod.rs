@@ -439,9 +439,11 @@ pub enum HaoQuality {
     /// of the rays (docs/figures.md). Without accumulation: 6 rays a frame at full resolution.
     #[default]
     Medium,
-    /// 48 steps at full resolution, 4 rays a frame accumulated (8 without).
+    /// 48 steps. Accumulated: 8 rays a frame at half resolution, as `Medium` (each pixel accumulates its
+    /// own rays); without accumulation: 8 rays a frame at full resolution.
     High,
-    /// 64 steps at full resolution, 8 rays a frame accumulated (16 without).
+    /// 64 steps. Accumulated: 16 rays a frame at half resolution, as `Medium`; without accumulation: 16
+    /// rays a frame at full resolution.
     Ultra,
     /// Your own.
     Custom {
@@ -479,8 +481,8 @@ impl HaoQuality {
         match *self {
             Self::Low => (1, 24, true),
             Self::Medium => (2, 32, true),
-            Self::High => (4, 48, false),
-            Self::Ultra => (8, 64, false),
+            Self::High => (8, 48, true),
+            Self::Ultra => (16, 64, true),
             Self::Custom { .. } => self.parameters(),
         }
     }
@@ -502,8 +504,8 @@ mod tests {
         };
         assert_eq!(at(HaoQuality::Low, 16), (1, 24, true));
         assert_eq!(at(HaoQuality::Medium, 16), (2, 32, true));
-        assert_eq!(at(HaoQuality::High, 16), (4, 48, false));
-        assert_eq!(at(HaoQuality::Ultra, 4), (8, 64, false));
+        assert_eq!(at(HaoQuality::High, 16), (8, 48, true));
+        assert_eq!(at(HaoQuality::Ultra, 4), (16, 64, true));
         // Without accumulation the presets trace more rays, `Medium` at full resolution.
         assert_eq!(at(HaoQuality::Low, 1), (4, 24, true));
         assert_eq!(at(HaoQuality::Medium, 3), (6, 32, false));
