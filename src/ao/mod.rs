@@ -11,10 +11,12 @@
 //! 2. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
 //!    checked, clamped and blended with the pixel's own trace (at half resolution every fourth frame; a
 //!    pixel without history takes its traced neighbours on its surface meanwhile);
-//! 3. **denoise** (`hao_denoise.wgsl` then `hao_denoise_vertical.wgsl`, `hao/denoise`): a separable depth-
-//!    and normal-aware bilateral filter, and the minimum with Bevy's SSAO when the near field is on;
-//! 4. **apply** (`hao_apply.wgsl`, `hao/apply`): the result into the texture Bevy's PBR reads AO from, so
-//!    it dims indirect light only.
+//! 3. **denoise** (`hao_denoise.wgsl`, `hao/denoise`): a depth- and normal-aware bilateral filter in one
+//!    pass over a cross (the center and the texels along its row and column), written into the texture
+//!    Bevy's PBR reads AO from, so it dims indirect light only;
+//! 4. with the near field only, the denoiser writes a texture of its own with the minimum of Bevy's SSAO,
+//!    and **apply** (`hao_apply.wgsl`, `hao/apply`) copies it into the texture PBR reads (which holds
+//!    Bevy's SSAO until then, so the denoiser cannot write there itself).
 //!
 //! The CPU twins: [`crate::cpu::ao`] (trace), [`crate::cpu::temporal`], [`crate::cpu::denoise`].
 
@@ -162,7 +164,7 @@ fn skip_unsupported_views(
 }
 
 /// Keeps Bevy's SSAO passes from running on a HAO view whose near field is off: their result would be
-/// overwritten by HAO's apply pass, which writes every texel of the texture PBR reads. Bevy's SSAO node
+/// overwritten by HAO's denoiser, which writes every texel of the texture PBR reads. Bevy's SSAO node
 /// runs only on views with an `SsaoPipelineId`, so removing it this frame skips the passes while the texture
 /// and PBR's binding of it stay. Only when HAO's passes will run this frame (their bind groups, the voxel
 /// grid and the pipelines are ready); otherwise SSAO fills the texture as before.
@@ -318,8 +320,8 @@ pub struct HybridAmbientOcclusion {
     /// The quality of Bevy's SSAO when it provides the near field. Without the near field the plugin keeps
     /// SSAO at its cheapest, since its result is not used.
     pub near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel,
-    /// Radius in pixels of the bilateral denoiser; 0 turns it off. It narrows as a pixel's temporal
-    /// history grows (half of it at 16 frames).
+    /// Radius in pixels of the bilateral denoiser, along the pixel's row and column (a cross); 0 turns it
+    /// off. It narrows as a pixel's temporal history grows (half of it at 16 frames).
     pub denoise_radius: u32,
     /// Temporal accumulation: each pixel averages its AO over at most this many frames (1: none; at most
     /// 64), with the ray noise turned every frame, so few rays per frame converge to the error of many. The
