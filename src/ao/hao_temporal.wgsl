@@ -62,7 +62,6 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let half = settings.half_resolution != 0u;
     let block = pixel / select(1u, 2u, half);
     let traced = all(traced_pixel(block, settings.frame, vec2<u32>(view.viewport.zw), half) == pixel);
-    let block_texel = textureLoad(noisy, block, 0);
     // The traced neighbourhood (3x3 texels of the trace) bounds the history; those of its texels that show
     // this pixel's surface (`history_accepts`) stand in for its own trace where it has none.
     let trace_size = vec2<i32>(textureDimensions(noisy));
@@ -71,6 +70,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     var n = 0.0;
     var same_sum = 0.0;
     var same_n = 0.0;
+    // The block's own texel (the pixel's trace where `traced`), read in the loop.
+    var block_ao = 1.0;
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let t = vec2<i32>(block) + vec2<i32>(dx, dy);
@@ -78,6 +79,9 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
                 continue;
             }
             let v = textureLoad(noisy, t, 0);
+            if dx == 0 && dy == 0 {
+                block_ao = v.x;
+            }
             if v.y > 0.0 {
                 sum += v.x;
                 squares += v.x * v.x;
@@ -135,7 +139,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Its own trace, or where its block traced another pixel, the traced neighbours on its surface (the
     // stand-in, used only where it has no history or must follow a change).
     let stand_in = select(select(1.0, sum / n, n > 0.0), same_sum / same_n, same_n > 0.0);
-    let current = select(stand_in, block_texel.x, traced);
+    let current = select(stand_in, block_ao, traced);
     let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
     textureStore(history_out, pixel, vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
 }

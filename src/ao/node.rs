@@ -60,21 +60,18 @@ pub fn hao(
     }
     // The denoiser writes into the texture PBR reads; with the near field, into the result texture with
     // the minimum of Bevy's SSAO, which apply then copies there.
-    let (denoise_pipeline, denoise_group) = match &bind_groups.near_field {
-        Some((group, _)) => (denoise_near_field, group),
-        None => (denoise, &bind_groups.denoise),
-    };
+    let denoise_pipeline = if bind_groups.apply.is_some() { denoise_near_field } else { denoise };
     {
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_denoise"), timestamp_writes: None });
         let span = diagnostics.pass_span(&mut pass, "hao/denoise");
         pass.set_pipeline(denoise_pipeline);
-        pass.set_bind_group(0, denoise_group, &[]);
+        pass.set_bind_group(0, &bind_groups.denoise, &[]);
         let (x, y) = groups(res.view_size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);
     }
-    if let Some((_, apply_group)) = &bind_groups.near_field {
+    if let Some(apply_group) = &bind_groups.apply {
         let mut pass =
             encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_apply"), timestamp_writes: None });
         let span = diagnostics.pass_span(&mut pass, "hao/apply");

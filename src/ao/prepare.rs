@@ -119,10 +119,10 @@ pub struct HaoBindGroups {
     pub temporal_view: BindGroup,
     /// Temporal accumulation.
     pub temporal: BindGroup,
-    /// The denoiser, into the texture PBR reads.
+    /// The denoiser: into the texture PBR reads, or with the near field into the result texture.
     pub denoise: BindGroup,
-    /// With the near field: the denoiser into the result texture, and apply.
-    pub near_field: Option<(BindGroup, BindGroup)>,
+    /// With the near field: apply, the result texture into the texture PBR reads.
+    pub apply: Option<BindGroup>,
 }
 
 /// Creates the per-view textures and settings.
@@ -276,30 +276,39 @@ pub fn prepare_hao_bind_groups(
                 &res.history_out.default_view,
             )),
         );
-        let denoise = device.create_bind_group(
-            "hao_denoise_bind_group",
-            &cache.get_bind_group_layout(&pipelines.denoise_layout),
-            &BindGroupEntries::sequential((&res.history_out.default_view, res.settings.as_entire_binding(), ssao_view)),
-        );
-        let near_field = res.result.as_ref().map(|result| {
-            let denoise = device.create_bind_group(
-                "hao_denoise_near_field_bind_group",
-                &cache.get_bind_group_layout(&pipelines.denoise_near_field_layout),
-                &BindGroupEntries::sequential((
-                    &res.history_out.default_view,
-                    res.settings.as_entire_binding(),
-                    ssao_view,
-                    &result.default_view,
-                )),
-            );
-            let apply = device.create_bind_group(
-                "hao_apply_bind_group",
-                &cache.get_bind_group_layout(&pipelines.apply_layout),
-                &BindGroupEntries::sequential((&result.default_view, res.settings.as_entire_binding(), ssao_view)),
-            );
-            (denoise, apply)
-        });
-        commands.entity(entity).insert(HaoBindGroups { view, trace, temporal_view, temporal, denoise, near_field });
+        let (denoise, apply) = match &res.result {
+            None => {
+                let denoise = device.create_bind_group(
+                    "hao_denoise_bind_group",
+                    &cache.get_bind_group_layout(&pipelines.denoise_layout),
+                    &BindGroupEntries::sequential((
+                        &res.history_out.default_view,
+                        res.settings.as_entire_binding(),
+                        ssao_view,
+                    )),
+                );
+                (denoise, None)
+            }
+            Some(result) => {
+                let denoise = device.create_bind_group(
+                    "hao_denoise_near_field_bind_group",
+                    &cache.get_bind_group_layout(&pipelines.denoise_near_field_layout),
+                    &BindGroupEntries::sequential((
+                        &res.history_out.default_view,
+                        res.settings.as_entire_binding(),
+                        ssao_view,
+                        &result.default_view,
+                    )),
+                );
+                let apply = device.create_bind_group(
+                    "hao_apply_bind_group",
+                    &cache.get_bind_group_layout(&pipelines.apply_layout),
+                    &BindGroupEntries::sequential((&result.default_view, res.settings.as_entire_binding(), ssao_view)),
+                );
+                (denoise, Some(apply))
+            }
+        };
+        commands.entity(entity).insert(HaoBindGroups { view, trace, temporal_view, temporal, denoise, apply });
     }
 }
 

@@ -216,10 +216,11 @@ fn main() {
         ..default()
     };
     let attributes = args.attributes;
-    let accumulation = hao.sanitized().0.accumulation_frames as usize;
+    let sanitized = hao.sanitized().0;
+    let accumulation = sanitized.accumulation_frames as usize;
     let (size, res) = (args.size, args.res);
     // At half resolution a pixel traces every fourth frame, so its history spans four times the frames.
-    let frames_per_trace = if hao.sanitized().0.trace_parameters().2 { 4 } else { 1 };
+    let frames_per_trace = if sanitized.trace_parameters().2 { 4 } else { 1 };
     let setup_source = source.clone();
     let setup_hao = hao.clone();
     let fit = args.volume == Volume::Fit;
