@@ -115,21 +115,29 @@ fn octahedral_encode(n: vec3<f32>) -> vec2<f32> {
     return (1.0 - abs(p.yx)) * select(vec2<f32>(-1.0), vec2<f32>(1.0), p >= vec2<f32>(0.0));
 }
 
-fn octahedral_decode(e: vec2<f32>) -> vec3<f32> {
+// The direction an octahedral code stands for, not normalized (its length lies between 1/sqrt(3) and 1):
+// `history_accepts` and `bilateral_weight` take it as it is, which spares a square root per texel.
+fn octahedral_direction(e: vec2<f32>) -> vec3<f32> {
     var n = vec3<f32>(e, 1.0 - abs(e.x) - abs(e.y));
     let t = max(-n.z, 0.0);
     n.x += select(t, -t, n.x >= 0.0);
     n.y += select(t, -t, n.y >= 0.0);
-    return normalize(n);
+    return n;
 }
 
-// cpu/denoise.rs: bilateral_weight. The denoiser's weight of a tap `offset` texels away with view depth `depth` and normal `normal`, against
-// the center's: a Gaussian in distance, falling with the relative depth difference and the normals' angle.
-fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, center_normal: vec3<f32>, normal: vec3<f32>) -> f32 {
+fn octahedral_decode(e: vec2<f32>) -> vec3<f32> {
+    return normalize(octahedral_direction(e));
+}
+
+// cpu/denoise.rs: bilateral_weight. The denoiser's weight of a tap `offset` texels away with view depth
+// `depth` and normal along `direction` (any length), against the center's (`center_normal`, unit): a
+// Gaussian in distance, falling with the relative depth difference and the normals' angle (its cosine to
+// the 16th power, from the squared cosine without a square root).
+fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, center_normal: vec3<f32>, direction: vec3<f32>) -> f32 {
     let spatial = exp(-offset * offset / (2.0 * max(radius * radius, 1.0)));
     let depth_w = exp(-abs(depth - center_depth) / (0.02 * abs(center_depth) + 1.0e-4));
-    let c = max(dot(center_normal, normal), 0.0);
-    let c2 = c * c;
+    let c = max(dot(center_normal, direction), 0.0);
+    let c2 = c * c / dot(direction, direction);
     let c4 = c2 * c2;
     let c8 = c4 * c4;
     return spatial * depth_w * c8 * c8;
@@ -148,7 +156,7 @@ fn bilateral_tap(input: texture_2d<f32>, p: vec2<i32>, offset: f32, radius: f32,
     if tap.y <= 0.0 {
         return vec2<f32>(0.0);
     }
-    let w = bilateral_weight(offset, radius, center.y, tap.y, center_normal, unpack_normal(tap.z));
+    let w = bilateral_weight(offset, radius, center.y, tap.y, center_normal, unpack_direction(tap.z));
     return vec2<f32>(w * tap.x, w);
 }
 
@@ -189,6 +197,11 @@ fn unpack_octahedral(p: f32) -> vec2<f32> {
     return vec2<f32>(x, p - x * 2048.0) / 2047.0 * 2.0 - 1.0;
 }
 
+// A packed normal's direction, not normalized (`octahedral_direction`).
+fn unpack_direction(p: f32) -> vec3<f32> {
+    return octahedral_direction(unpack_octahedral(p));
+}
+
 fn unpack_normal(p: f32) -> vec3<f32> {
     return octahedral_decode(unpack_octahedral(p));
 }
@@ -200,10 +213,13 @@ const CLAMP_MARGIN: f32 = 0.1;
 const CLAMPED_COUNT: f32 = 2.0;
 const CHANGED_COUNT: f32 = 2.0;
 
-// cpu/temporal.rs: history_accepts
-fn history_accepts(expected_depth: f32, history_depth: f32, normal_cosine: f32) -> bool {
+// cpu/temporal.rs: history_accepts. Whether a texel of view depth `history_depth` and normal along `direction`
+// (any length) saw the surface of depth `expected_depth` and unit normal `normal`: the cosine test squared,
+// without a square root.
+fn history_accepts(expected_depth: f32, history_depth: f32, normal: vec3<f32>, direction: vec3<f32>) -> bool {
+    let c = dot(normal, direction);
     return history_depth > 0.0 && abs(history_depth - expected_depth) <= DEPTH_TOLERANCE * expected_depth + 0.01
-        && normal_cosine >= NORMAL_TOLERANCE;
+        && c >= 0.0 && c * c >= NORMAL_TOLERANCE * NORMAL_TOLERANCE * dot(direction, direction);
 }
 
 // cpu/temporal.rs: neighborhood_window

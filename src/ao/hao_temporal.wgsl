@@ -8,7 +8,7 @@
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, octahedral_decode, octahedral_encode, pack_normal, unpack_normal, history_accepts,
+    HaoSettings, octahedral_direction, octahedral_encode, pack_normal, unpack_direction, history_accepts,
     neighborhood_window, temporal_update, target_pixel, traced_pixel,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
@@ -86,7 +86,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
                 sum += v.x;
                 squares += v.x * v.x;
                 n += 1.0;
-                let same = history_accepts(view_depth, v.y, dot(octahedral_decode(v.zw), normal));
+                let same = history_accepts(view_depth, v.y, normal, octahedral_direction(v.zw));
                 same_sum += select(0.0, v.x, same);
                 same_n += select(0.0, 1.0, same);
             }
@@ -120,7 +120,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
                 continue;
             }
             let h = textureLoad(history, t, 0);
-            if h.w <= 0.0 || !history_accepts(expected_depth, h.y, dot(unpack_normal(h.z), normal)) {
+            if h.w <= 0.0 || !history_accepts(expected_depth, h.y, normal, unpack_direction(h.z)) {
                 continue;
             }
             let bw = select(1.0 - f.x, f.x, o.x == 1) * select(1.0 - f.y, f.y, o.y == 1);

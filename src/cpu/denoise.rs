@@ -61,21 +61,24 @@ pub fn bilateral_cross(history: &[HistoryTexel], size: UVec2, pixel: UVec2, radi
     sum.x / sum.y
 }
 
-/// The weight of a tap `offset` texels away with view depth `depth` and normal `normal`, against the
-/// centre's (WGSL: `bilateral_weight`): a Gaussian in distance over `radius`, falling with the relative
-/// depth difference and with the angle of the normals.
+/// The weight of a tap `offset` texels away with view depth `depth` and normal along `direction` (any
+/// length: the GPU passes the octahedral code's direction unnormalized), against the centre's (unit
+/// `center_normal`; WGSL: `bilateral_weight`): a Gaussian in distance over `radius`, falling with the
+/// relative depth difference and with the angle of the normals (the cosine to the 16th power, from the
+/// squared cosine without a square root).
 pub fn bilateral_weight(
     offset: f32,
     radius: f32,
     center_depth: f32,
     depth: f32,
     center_normal: Vec3,
-    normal: Vec3,
+    direction: Vec3,
 ) -> f32 {
     let spatial = (-offset * offset / (2.0 * (radius * radius).max(1.0))).exp();
     let depth_w = (-(depth - center_depth).abs() / (0.02 * center_depth.abs() + 1.0e-4)).exp();
-    let c = center_normal.dot(normal).max(0.0);
-    spatial * depth_w * c.powi(16)
+    let c = center_normal.dot(direction).max(0.0);
+    let c2 = c * c / direction.length_squared();
+    spatial * depth_w * c2.powi(8)
 }
 
 #[cfg(test)]
@@ -90,6 +93,13 @@ mod tests {
         assert!(bilateral_weight(2.0, 2.0, 10.0, 10.0, n, n) < w);
         assert!(bilateral_weight(0.0, 2.0, 10.0, 10.5, n, n) < 0.1, "another surface");
         assert!(bilateral_weight(0.0, 2.0, 10.0, 10.0, n, Vec3::X) == 0.0, "a crease");
+        // The tap's normal direction at any length (the GPU's unnormalized octahedral direction): the same
+        // weight as the unit normal, the cosine to the 16th power.
+        let d = Vec3::new(0.3, 0.0, 1.0);
+        let unit = bilateral_weight(1.0, 2.0, 10.0, 10.0, n, d.normalize());
+        assert!((bilateral_weight(1.0, 2.0, 10.0, 10.0, n, 0.6 * d) - unit).abs() < 1e-6);
+        let spatial = (-1.0f32 / 8.0).exp();
+        assert!((unit - spatial * d.normalize().z.powi(16)).abs() < 1e-6, "{unit}");
     }
 
     fn texel(ao: f32, depth: f32, frames: f32) -> HistoryTexel {

@@ -50,12 +50,16 @@ pub const DEPTH_TOLERANCE: f32 = 0.02;
 pub const NORMAL_TOLERANCE: f32 = 0.9;
 
 /// Whether a history texel saw the surface a pixel sees now (WGSL: `history_accepts`): its view depth
-/// against the depth the pixel's world position had in the previous view, and the cosine of their normals.
+/// against the depth the pixel's world position had in the previous view, and the cosine between the
+/// pixel's unit `normal` and the texel's normal `direction` (any length: the GPU passes the octahedral
+/// code's direction unnormalized), tested squared, without a square root.
 #[inline]
-pub fn history_accepts(expected_depth: f32, history_depth: f32, normal_cosine: f32) -> bool {
+pub fn history_accepts(expected_depth: f32, history_depth: f32, normal: Vec3, direction: Vec3) -> bool {
+    let c = normal.dot(direction);
     history_depth > 0.0
         && (history_depth - expected_depth).abs() <= DEPTH_TOLERANCE * expected_depth + 0.01
-        && normal_cosine >= NORMAL_TOLERANCE
+        && c >= 0.0
+        && c * c >= NORMAL_TOLERANCE * NORMAL_TOLERANCE * direction.length_squared()
 }
 
 /// The clamping window of the history from the current AO of a pixel's 3x3 neighbourhood (WGSL:
@@ -122,7 +126,7 @@ pub fn traced_neighbourhood(
             sum += v.ao;
             squares += v.ao * v.ao;
             n += 1.0;
-            if history_accepts(depth, v.depth, v.normal.dot(normal)) {
+            if history_accepts(depth, v.depth, normal, v.normal) {
                 same_sum += v.ao;
                 same_n += 1.0;
             }
@@ -242,10 +246,16 @@ mod tests {
 
     #[test]
     fn reprojected_texels_are_kept_only_on_the_same_surface() {
-        assert!(history_accepts(10.0, 10.1, 0.99));
-        assert!(!history_accepts(10.0, 11.0, 0.99), "another surface behind");
-        assert!(!history_accepts(10.0, 10.0, 0.5), "a crease");
-        assert!(!history_accepts(10.0, 0.0, 1.0), "no history (background or never written)");
+        // A normal 0.99 (8 degrees) and 0.5 (60 degrees) from +z, at the length the GPU leaves an
+        // octahedral code's direction (0.6): the test takes the cosine whatever the length.
+        let tilted = |cosine: f32| 0.6 * Vec3::new((1.0 - cosine * cosine).sqrt(), 0.0, cosine);
+        assert!(history_accepts(10.0, 10.1, Vec3::Z, tilted(0.99)));
+        assert!(!history_accepts(10.0, 11.0, Vec3::Z, tilted(0.99)), "another surface behind");
+        assert!(!history_accepts(10.0, 10.0, Vec3::Z, tilted(0.5)), "a crease");
+        assert!(!history_accepts(10.0, 10.0, Vec3::Z, -Vec3::Z), "a face turned away");
+        assert!(!history_accepts(10.0, 0.0, Vec3::Z, Vec3::Z), "no history (background or never written)");
+        assert!(history_accepts(10.0, 10.0, Vec3::Z, tilted(NORMAL_TOLERANCE + 1e-3)));
+        assert!(!history_accepts(10.0, 10.0, Vec3::Z, tilted(NORMAL_TOLERANCE - 1e-3)), "just past the tolerance");
     }
 
     /// A still view of `w x h` pixels, all showing one flat surface facing the camera at depth 10.
