@@ -622,7 +622,8 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
     let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
     let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let (noisy, _) = cpu_trace(&samples, w, &settings, &levels, 0);
-    // The history as the temporal pass writes it: the trace's AO (stored as f16), view depth, normal.
+    // The history as the temporal pass writes it: the trace's AO (stored as f16), view depth, normal, in its
+    // 64 bits (`HistoryTexel::stored`).
     let history: Vec<HistoryTexel> = samples
         .iter()
         .zip(&noisy)
@@ -632,7 +633,8 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
                 depth: -view_from_world.transform_point3(*world).z,
                 normal: *normal,
                 frames: 1.0,
-            },
+            }
+            .stored(),
             None => HistoryTexel { ao: 1.0, depth: 0.0, normal: Vec3::Z, frames: 0.0 },
         })
         .collect();

@@ -151,8 +151,8 @@ fn denoise_radius(radius: u32, frames: f32) -> i32 {
 
 // cpu/denoise.rs: bilateral_tap. One tap of the denoiser at `p` (clamped to the texture), `offset` texels
 // from the center: (weight x AO, weight); nothing from the background.
-fn bilateral_tap(input: texture_2d<f32>, p: vec2<i32>, offset: f32, radius: f32, center: vec4<f32>, center_normal: vec3<f32>) -> vec2<f32> {
-    let tap = textureLoad(input, clamp(p, vec2<i32>(0), vec2<i32>(textureDimensions(input)) - 1), 0);
+fn bilateral_tap(input: texture_2d<u32>, p: vec2<i32>, offset: f32, radius: f32, center: vec4<f32>, center_normal: vec3<f32>) -> vec2<f32> {
+    let tap = load_history(input, clamp(p, vec2<i32>(0), vec2<i32>(textureDimensions(input)) - 1));
     if tap.y <= 0.0 {
         return vec2<f32>(0.0);
     }
@@ -164,8 +164,8 @@ fn bilateral_tap(input: texture_2d<f32>, p: vec2<i32>, offset: f32, radius: f32,
 // (the temporal history: ao, view depth, packed normal, frames) filtered in one pass over a cross, the
 // center and the texels up to `denoise_radius` away along its row and column, each weighed by
 // `bilateral_weight`. The background keeps its value.
-fn bilateral_cross(input: texture_2d<f32>, pixel: vec2<u32>, radius: u32) -> f32 {
-    let center = textureLoad(input, pixel, 0);
+fn bilateral_cross(input: texture_2d<u32>, pixel: vec2<u32>, radius: u32) -> f32 {
+    let center = load_history(input, vec2<i32>(pixel));
     if center.y <= 0.0 {
         return center.x;
     }
@@ -255,4 +255,21 @@ fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: boo
         return temporal_blend(history, history_count, window, current, max_count, near_change);
     }
     return vec2<f32>(history, history_count);
+}
+
+// cpu/denoise.rs: HistoryTexel::stored. The temporal history's texel (ao, view depth, packed normal, frames
+// of weight) in 64 bits, an rg32uint texel: x holds the view depth rounded to 11 bits of mantissa (its top 19
+// bits: a positive float's exponent and mantissa) above the AO to 1/8191 (13 bits); y the packed normal's 22
+// bits above the frames to an eighth (10 bits, at most 127).
+fn pack_history(v: vec4<f32>) -> vec4<u32> {
+    let depth = (bitcast<u32>(max(v.y, 0.0)) + 0x800u) >> 12u;
+    let ao = u32(round(clamp(v.x, 0.0, 1.0) * 8191.0));
+    let frames = u32(round(clamp(v.w, 0.0, 127.0) * 8.0));
+    return vec4<u32>((depth << 13u) | ao, (u32(v.z) << 10u) | frames, 0u, 0u);
+}
+
+// The texel of the history at `p`, unpacked (`pack_history`).
+fn load_history(history: texture_2d<u32>, p: vec2<i32>) -> vec4<f32> {
+    let h = textureLoad(history, p, 0).xy;
+    return vec4<f32>(f32(h.x & 8191u) / 8191.0, bitcast<f32>((h.x >> 13u) << 12u), f32(h.y >> 10u), f32(h.y & 1023u) * 0.125);
 }

@@ -5,8 +5,8 @@
 // which the apply pass then copies (Bevy's SSAO texture cannot be read and written in one pass).
 #import bevy_hao::hao_common::{HaoSettings, bilateral_cross, target_pixel}
 
-// ao, view depth, packed normal, frames: the temporal pass's output
-@group(0) @binding(0) var history: texture_2d<f32>;
+// The temporal pass's output: ao, view depth, packed normal, frames, packed in 64 bits (`load_history`)
+@group(0) @binding(0) var history: texture_2d<u32>;
 @group(0) @binding(1) var<uniform> settings: HaoSettings;
 #ifdef NEAR_FIELD
 @group(0) @binding(2) var screen_space_ao: texture_2d<f32>;

@@ -3,13 +3,13 @@
 // (bilinear, each texel kept only if it saw the same surface), clamped to this frame's trace around it (3x3
 // texels), and blended with its own trace. At half resolution a pixel is traced every fourth frame; in the
 // other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
-// in. Writes the new history (ao, view depth, packed normal, frames of weight), which the denoiser reads and
-// the next frame reprojects. Near voxels that may have changed (moving occluders) the history is kept short.
+// in. Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`),
+// which the denoiser reads and the next frame reprojects. Near voxels that may have changed (moving occluders) the history is kept short.
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, octahedral_direction, octahedral_encode, pack_normal, unpack_direction, history_accepts,
-    neighborhood_window, temporal_update, target_pixel, traced_pixel,
+    HaoSettings, history_accepts, load_history, neighborhood_window, octahedral_direction, octahedral_encode,
+    pack_history, pack_normal, target_pixel, temporal_update, traced_pixel, unpack_direction,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
 
@@ -23,7 +23,7 @@ struct PreviousViewData {
 }
 
 @group(0) @binding(0) var noisy: texture_2d<f32>;
-@group(0) @binding(1) var history: texture_2d<f32>;
+@group(0) @binding(1) var history: texture_2d<u32>;
 // The prepasses, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
 #ifdef MULTISAMPLED
 @group(0) @binding(2) var depth_texture: texture_depth_multisampled_2d;
@@ -33,7 +33,7 @@ struct PreviousViewData {
 @group(0) @binding(3) var normal_texture: texture_2d<f32>;
 #endif
 @group(0) @binding(4) var<uniform> settings: HaoSettings;
-@group(0) @binding(5) var history_out: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(5) var history_out: texture_storage_2d<rg32uint, write>;
 @group(1) @binding(0) var<uniform> view: View;
 @group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
 
@@ -47,7 +47,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     if depth <= 0.0 {
         // Background: no history.
-        textureStore(history_out, pixel, vec4<f32>(1.0, 0.0, 0.0, 0.0));
+        textureStore(history_out, pixel, pack_history(vec4<f32>(1.0, 0.0, 0.0, 0.0)));
         return;
     }
     let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
@@ -119,7 +119,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
             if any(t < vec2<i32>(0)) || any(t >= vec2<i32>(size)) {
                 continue;
             }
-            let h = textureLoad(history, t, 0);
+            let h = load_history(history, t);
             if h.w <= 0.0 || !history_accepts(expected_depth, h.y, normal, unpack_direction(h.z)) {
                 continue;
             }
@@ -141,5 +141,5 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let stand_in = select(select(1.0, sum / n, n > 0.0), same_sum / same_n, same_n > 0.0);
     let current = select(stand_in, block_ao, traced);
     let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
-    textureStore(history_out, pixel, vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
+    textureStore(history_out, pixel, pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y)));
 }

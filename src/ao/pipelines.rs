@@ -15,6 +15,12 @@ use bevy::render::renderer::RenderAdapter;
 use bevy::render::view::ViewUniform;
 use bevy::shader::ShaderDefVal;
 
+/// The temporal history's texel: 64 bits, packed by `pack_history` in hao_common.wgsl (the view depth and
+/// AO in one word, the packed normal and frames of weight in the other; CPU twin
+/// `cpu::denoise::HistoryTexel::stored`). Half the bytes of four floats, which the temporal pass writes at
+/// full resolution every frame.
+pub(crate) const HISTORY_FORMAT: TextureFormat = TextureFormat::Rg32Uint;
+
 /// The passes that read the depth and normal prepasses (trace, temporal), for one kind of prepass
 /// texture: single-sampled, or multisampled on a camera with MSAA (they read sample 0).
 pub struct PrepassReaders {
@@ -116,11 +122,11 @@ fn prepass_readers(
             ShaderStages::COMPUTE,
             (
                 texture_2d(unfilterable),
-                texture_2d(unfilterable),
+                texture_2d(TextureSampleType::Uint),
                 depth,
                 normal,
                 uniform_buffer::<GpuHaoSettings>(false),
-                texture_storage_2d(TextureFormat::Rgba32Float, StorageTextureAccess::WriteOnly),
+                texture_storage_2d(HISTORY_FORMAT, StorageTextureAccess::WriteOnly),
             ),
         ),
     );
@@ -173,7 +179,7 @@ impl FromWorld for HaoPipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    texture_2d(unfilterable),
+                    texture_2d(TextureSampleType::Uint),
                     uniform_buffer::<GpuHaoSettings>(false),
                     texture_storage_2d(ao_format, StorageTextureAccess::WriteOnly),
                 ),
@@ -184,7 +190,7 @@ impl FromWorld for HaoPipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    texture_2d(unfilterable),
+                    texture_2d(TextureSampleType::Uint),
                     uniform_buffer::<GpuHaoSettings>(false),
                     texture_2d(unfilterable),
                     texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),

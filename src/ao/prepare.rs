@@ -2,7 +2,7 @@
 
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
-use super::pipelines::HaoPipelines;
+use super::pipelines::{HISTORY_FORMAT, HaoPipelines};
 use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -175,8 +175,8 @@ pub fn prepare_hao_textures(
         let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
         // Two histories, read and written in turn (the texture cache hands each label's texture back while
         // it is used every frame; a new one is zeroed, which reads as no history).
-        let a = texture(&mut texture_cache, "hao_history_a_texture", view_size, TextureFormat::Rgba32Float);
-        let b = texture(&mut texture_cache, "hao_history_b_texture", view_size, TextureFormat::Rgba32Float);
+        let a = texture(&mut texture_cache, "hao_history_a_texture", view_size, HISTORY_FORMAT);
+        let b = texture(&mut texture_cache, "hao_history_b_texture", view_size, HISTORY_FORMAT);
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));

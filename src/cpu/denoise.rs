@@ -17,6 +17,22 @@ pub struct HistoryTexel {
     pub frames: f32,
 }
 
+impl HistoryTexel {
+    /// The texel as the temporal pass stores it, in 64 bits (WGSL: `pack_history`, read back by
+    /// `load_history`): the AO to 1/8191, the view depth rounded to 11 bits of mantissa (a relative step of
+    /// 1/4096), the frames of weight to an eighth (at most 127). The normal is kept as it is: the GPU's 11 bits
+    /// per octahedral coordinate are finer than its tests tell.
+    pub fn stored(self) -> Self {
+        let depth = f32::from_bits(((self.depth.max(0.0).to_bits() + 0x800) >> 12) << 12);
+        Self {
+            ao: (self.ao.clamp(0.0, 1.0) * 8191.0).round() / 8191.0,
+            depth,
+            normal: self.normal,
+            frames: (self.frames.clamp(0.0, 127.0) * 8.0).round() / 8.0,
+        }
+    }
+}
+
 /// The denoiser's reach for a pixel whose history holds `frames` frames of weight (WGSL: `denoise_radius`):
 /// `radius` up to 4 frames, narrowing as the history grows (half of it at 16).
 pub fn denoise_radius(radius: u32, frames: f32) -> i32 {
@@ -100,6 +116,19 @@ mod tests {
         assert!((bilateral_weight(1.0, 2.0, 10.0, 10.0, n, 0.6 * d) - unit).abs() < 1e-6);
         let spatial = (-1.0f32 / 8.0).exp();
         assert!((unit - spatial * d.normalize().z.powi(16)).abs() < 1e-6, "{unit}");
+    }
+
+    #[test]
+    fn the_stored_history_keeps_what_the_filters_tell_apart() {
+        let t = HistoryTexel { ao: 0.123456, depth: 12.3456, normal: Vec3::Z, frames: 15.06 }.stored();
+        assert!((t.ao - 0.123456).abs() <= 0.5 / 8191.0 + 1e-7, "{}", t.ao);
+        assert!(((t.depth - 12.3456) / 12.3456).abs() <= 1.0 / 4096.0, "{}", t.depth);
+        assert_eq!(t.frames, 15.0);
+        // The background (depth 0) stays the background; the caps hold.
+        let b = HistoryTexel { ao: 2.0, depth: 0.0, normal: Vec3::Z, frames: 300.0 }.stored();
+        assert_eq!((b.ao, b.depth, b.frames), (1.0, 0.0, 127.0));
+        // Storing twice changes nothing.
+        assert_eq!(t.stored(), t);
     }
 
     fn texel(ao: f32, depth: f32, frames: f32) -> HistoryTexel {
