@@ -137,7 +137,8 @@ fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, cen
     let spatial = exp(-offset * offset / (2.0 * max(radius * radius, 1.0)));
     let depth_w = exp(-abs(depth - center_depth) / (0.02 * abs(center_depth) + 1.0e-4));
     let c = max(dot(center_normal, direction), 0.0);
-    let c2 = c * c / dot(direction, direction);
+    // (A zero direction, which no octahedral code decodes to, weighs nothing.)
+    let c2 = c * c / max(dot(direction, direction), 1.0e-30);
     let c4 = c2 * c2;
     let c8 = c4 * c4;
     return spatial * depth_w * c8 * c8;
@@ -219,7 +220,7 @@ const CHANGED_COUNT: f32 = 2.0;
 fn history_accepts(expected_depth: f32, history_depth: f32, normal: vec3<f32>, direction: vec3<f32>) -> bool {
     let c = dot(normal, direction);
     return history_depth > 0.0 && abs(history_depth - expected_depth) <= DEPTH_TOLERANCE * expected_depth + 0.01
-        && c >= 0.0 && c * c >= NORMAL_TOLERANCE * NORMAL_TOLERANCE * dot(direction, direction);
+        && c > 0.0 && c * c >= NORMAL_TOLERANCE * NORMAL_TOLERANCE * dot(direction, direction);
 }
 
 // cpu/temporal.rs: neighborhood_window

@@ -4,7 +4,8 @@
 // texels), and blended with its own trace. At half resolution a pixel is traced every fourth frame; in the
 // other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
 // in. Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`),
-// which the denoiser reads and the next frame reprojects. Near voxels that may have changed (moving occluders) the history is kept short.
+// which the denoiser reads and the next frame reprojects. Near voxels that may have changed (moving
+// occluders) the history is kept short.
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{

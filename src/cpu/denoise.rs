@@ -19,8 +19,8 @@ pub struct HistoryTexel {
 
 impl HistoryTexel {
     /// The texel as the temporal pass stores it, in 64 bits (WGSL: `pack_history`, read back by
-    /// `load_history`): the AO to 1/8191, the view depth rounded to 11 bits of mantissa (a relative step of
-    /// 1/4096), the frames of weight to an eighth (at most 127). The normal is kept as it is: the GPU's 11 bits
+    /// `load_history`): the AO to 1/8191, the view depth rounded to 11 bits of mantissa (within 1/4096 of
+    /// itself), the frames of weight to an eighth (at most 127). The normal is kept as it is: the GPU's 11 bits
     /// per octahedral coordinate are finer than its tests tell.
     pub fn stored(self) -> Self {
         let depth = f32::from_bits(((self.depth.max(0.0).to_bits() + 0x800) >> 12) << 12);
@@ -93,7 +93,8 @@ pub fn bilateral_weight(
     let spatial = (-offset * offset / (2.0 * (radius * radius).max(1.0))).exp();
     let depth_w = (-(depth - center_depth).abs() / (0.02 * center_depth.abs() + 1.0e-4)).exp();
     let c = center_normal.dot(direction).max(0.0);
-    let c2 = c * c / direction.length_squared();
+    // (A zero direction, which no octahedral code decodes to, weighs nothing.)
+    let c2 = c * c / direction.length_squared().max(1.0e-30);
     spatial * depth_w * c2.powi(8)
 }
 
@@ -109,6 +110,7 @@ mod tests {
         assert!(bilateral_weight(2.0, 2.0, 10.0, 10.0, n, n) < w);
         assert!(bilateral_weight(0.0, 2.0, 10.0, 10.5, n, n) < 0.1, "another surface");
         assert!(bilateral_weight(0.0, 2.0, 10.0, 10.0, n, Vec3::X) == 0.0, "a crease");
+        assert!(bilateral_weight(0.0, 2.0, 10.0, 10.0, n, Vec3::ZERO) == 0.0, "no normal");
         // The tap's normal direction at any length (the GPU's unnormalized octahedral direction): the same
         // weight as the unit normal, the cosine to the 16th power.
         let d = Vec3::new(0.3, 0.0, 1.0);

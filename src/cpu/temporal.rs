@@ -59,7 +59,7 @@ pub fn history_accepts(expected_depth: f32, history_depth: f32, normal: Vec3, di
     let c = normal.dot(direction);
     history_depth > 0.0
         && (history_depth - expected_depth).abs() <= DEPTH_TOLERANCE * expected_depth + 0.01
-        && c >= 0.0
+        && c > 0.0
         && c * c >= NORMAL_TOLERANCE * NORMAL_TOLERANCE * direction.length_squared()
 }
 
@@ -258,6 +258,7 @@ mod tests {
         assert!(!history_accepts(10.0, 10.0, Vec3::Z, tilted(0.5)), "a crease");
         assert!(!history_accepts(10.0, 10.0, Vec3::Z, -Vec3::Z), "a face turned away");
         assert!(!history_accepts(10.0, 0.0, Vec3::Z, Vec3::Z), "no history (background or never written)");
+        assert!(!history_accepts(10.0, 10.0, Vec3::Z, Vec3::ZERO), "no normal");
         assert!(history_accepts(10.0, 10.0, Vec3::Z, tilted(NORMAL_TOLERANCE + 1e-3)));
         assert!(!history_accepts(10.0, 10.0, Vec3::Z, tilted(NORMAL_TOLERANCE - 1e-3)), "just past the tolerance");
     }
