@@ -57,7 +57,14 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxel_clear.wgsl", vec![vec![]]),
         ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
         ("src/voxel/voxel_mip.wgsl", texture_variants),
-        ("src/ao/hao_trace.wgsl", multisampled.clone()),
+        (
+            "src/ao/hao_trace.wgsl",
+            vec![
+                vec![],
+                vec![("MULTISAMPLED", ShaderDefValue::Bool(true))],
+                vec![("BACK_HITS", ShaderDefValue::Bool(true))],
+            ],
+        ),
         ("src/ao/hao_temporal.wgsl", multisampled.clone()),
         (
             "src/ao/hao_denoise.wgsl",

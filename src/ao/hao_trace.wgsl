@@ -86,7 +86,10 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         let start = ray_start_level(world, i, rotation);
         let origin = world + normal * (settings.start_offset * voxel_grid.levels[start].cell_size);
         var hit = march_cascades(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
-        // Through the backs of surfaces, a few times at most.
+#ifdef BACK_HITS
+        // Through the backs of surfaces, a few times at most (a variant of its own: without attributes or
+        // with `ignore_back_hits` off the loop would cost a march per ray on devices that run every branch,
+        // such as lavapipe, whether taken or not).
         let back_hits = settings.back_hits != 0u && voxel_grid.attributes != 0u;
         for (var k = 0u; k < MAX_BACK_HITS && back_hits && hit.x >= 0.0; k++) {
             let exit = back_hit_exit(origin, dir, hit);
@@ -95,6 +98,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             hit = march_cascades(origin, dir, u32(hit.y), exit, settings.max_distance, settings.steps);
         }
+#endif
         if hit.x >= 0.0 {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
             let cell = voxel_grid.levels[u32(hit.y)].cell_size;

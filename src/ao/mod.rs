@@ -175,11 +175,10 @@ fn skip_unused_ssao(
     voxel_grid: Option<Res<crate::voxel::VoxelGridBindings>>,
     cache: Res<PipelineCache>,
 ) {
-    if voxel_grid.is_none() {
-        return;
-    }
+    let Some(voxel_grid) = voxel_grid else { return };
     for (entity, res) in &views {
-        if pipelines.view_pipelines(&cache, res.samples).is_some() && !res.near_field {
+        let back_hits = res.traces_back_hits(&voxel_grid.grid);
+        if pipelines.view_pipelines(&cache, res.samples, back_hits).is_some() && !res.near_field {
             commands.entity(entity).remove::<SsaoPipelineId>();
         }
     }

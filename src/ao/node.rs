@@ -26,7 +26,9 @@ pub fn hao(
 ) {
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let Some([trace, temporal, denoise, denoise_near_field, apply]) = pipelines.view_pipelines(&cache, res.samples)
+    let back_hits = res.traces_back_hits(&voxel_grid.grid);
+    let Some([trace, temporal, denoise, denoise_near_field, apply]) =
+        pipelines.view_pipelines(&cache, res.samples, back_hits)
     else {
         return;
     };

@@ -28,10 +28,14 @@ pub struct PrepassReaders {
     pub trace_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the temporal pass.
     pub temporal_layout: BindGroupLayoutDescriptor,
-    /// Rays through the voxels.
+    /// Rays through the voxels, stopping at the first occupied one.
     pub trace: CachedComputePipelineId,
+    /// Rays that pass through the backs of surfaces (`ignore_back_hits`, with multi-valued voxels): the
+    /// trace with the `BACK_HITS` loop, queued when a view first needs it.
+    pub trace_back_hits: Option<CachedComputePipelineId>,
     /// Temporal accumulation.
     pub temporal: CachedComputePipelineId,
+    multisampled: bool,
 }
 
 /// The HAO pipelines and layouts.
@@ -64,28 +68,78 @@ pub struct HaoPipelines {
 
 impl HaoPipelines {
     /// The prepass readers for a view with `samples` MSAA samples, once queued (see
-    /// [`queue_multisampled`](Self::queue_multisampled)).
+    /// [`queue_view`](Self::queue_view)).
     pub fn readers(&self, samples: u32) -> Option<&PrepassReaders> {
         if samples > 1 { self.multisampled.as_ref() } else { Some(&self.single) }
     }
 
-    /// Queues the multisampled prepass readers, once.
-    pub fn queue_multisampled(&mut self, cache: &PipelineCache) {
-        if self.multisampled.is_none() {
-            let view_layout = self.view_layout.clone();
-            let temporal_view_layout = self.temporal_view_layout.clone();
-            self.multisampled = Some(prepass_readers(cache, &self.shaders, &view_layout, &temporal_view_layout, true));
+    /// Queues what a view with `samples` MSAA samples needs, once: the multisampled prepass readers where
+    /// `samples` > 1, and the trace through the backs of surfaces where `back_hits`.
+    pub fn queue_view(&mut self, cache: &PipelineCache, samples: u32, back_hits: bool) {
+        if samples > 1 && self.multisampled.is_none() {
+            self.multisampled =
+                Some(prepass_readers(cache, &self.shaders, &self.view_layout, &self.temporal_view_layout, true));
+        }
+        let readers = if samples > 1 { self.multisampled.as_mut() } else { Some(&mut self.single) };
+        if let Some(r) = readers.filter(|r| back_hits && r.trace_back_hits.is_none()) {
+            let (layout, multisampled) = (&r.trace_layout, r.multisampled);
+            r.trace_back_hits =
+                Some(queue_trace(cache, &self.shaders[0], layout, &self.view_layout, multisampled, true));
         }
     }
 
     /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, temporal, denoise,
-    /// and with the near field denoise_near_field and apply instead of denoise), once all are compiled.
-    pub fn view_pipelines<'a>(&self, cache: &'a PipelineCache, samples: u32) -> Option<[&'a ComputePipeline; 5]> {
+    /// and with the near field denoise_near_field and apply instead of denoise), once all are compiled. The
+    /// trace passes through the backs of surfaces where `back_hits` and that variant is compiled (until then
+    /// its rays stop there).
+    pub fn view_pipelines<'a>(
+        &self,
+        cache: &'a PipelineCache,
+        samples: u32,
+        back_hits: bool,
+    ) -> Option<[&'a ComputePipeline; 5]> {
         let r = self.readers(samples)?;
+        let back_hit_trace = r.trace_back_hits.filter(|_| back_hits).and_then(|id| cache.get_compute_pipeline(id));
         let ids = [r.trace, r.temporal, self.denoise, self.denoise_near_field, self.apply];
-        let pipelines = ids.map(|id| cache.get_compute_pipeline(id));
+        let mut pipelines = ids.map(|id| cache.get_compute_pipeline(id));
+        if back_hit_trace.is_some() {
+            pipelines[0] = back_hit_trace;
+        }
         pipelines.iter().all(Option::is_some).then(|| pipelines.map(Option::unwrap))
     }
+}
+
+/// Queues the trace (group 0: `trace_layout`), for multisampled prepasses or not, with the `BACK_HITS` loop
+/// or without.
+fn queue_trace(
+    cache: &PipelineCache,
+    shader: &Handle<Shader>,
+    trace_layout: &BindGroupLayoutDescriptor,
+    view_layout: &BindGroupLayoutDescriptor,
+    multisampled: bool,
+    back_hits: bool,
+) -> CachedComputePipelineId {
+    let mut defs: Vec<ShaderDefVal> = Vec::new();
+    if multisampled {
+        defs.push("MULTISAMPLED".into());
+    }
+    if back_hits {
+        defs.push("BACK_HITS".into());
+    }
+    let label = match (multisampled, back_hits) {
+        (false, false) => "hao_trace",
+        (true, false) => "hao_trace_multisampled",
+        (false, true) => "hao_trace_back_hits",
+        (true, true) => "hao_trace_multisampled_back_hits",
+    };
+    queue_compute(
+        cache,
+        label,
+        vec![trace_layout.clone(), view_layout.clone(), voxel_grid_layout()],
+        shader.clone(),
+        "trace",
+        defs,
+    )
 }
 
 /// The layouts and pipelines of the passes that read the prepasses, `multisampled` or not.
@@ -130,14 +184,6 @@ fn prepass_readers(
             ),
         ),
     );
-    let trace = queue_compute(
-        cache,
-        label("hao_trace", "hao_trace_multisampled"),
-        vec![trace_layout.clone(), view_layout.clone(), voxel_grid_layout()],
-        trace_shader.clone(),
-        "trace",
-        defs.clone(),
-    );
     let temporal = queue_compute(
         cache,
         label("hao_temporal", "hao_temporal_multisampled"),
@@ -146,7 +192,8 @@ fn prepass_readers(
         "temporal",
         defs.clone(),
     );
-    PrepassReaders { trace_layout, temporal_layout, trace, temporal }
+    let trace = queue_trace(cache, trace_shader, &trace_layout, view_layout, multisampled, false);
+    PrepassReaders { trace_layout, temporal_layout, trace, trace_back_hits: None, temporal, multisampled }
 }
 
 impl FromWorld for HaoPipelines {

@@ -3,6 +3,8 @@
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
 use super::pipelines::{HISTORY_FORMAT, HaoPipelines};
+use crate::voxel::bindings::GpuVoxelGrid;
+use crate::voxel::extract::ExtractedVoxelGrid;
 use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
@@ -99,6 +101,9 @@ pub struct HaoViewResources {
     pub view_size: UVec2,
     /// MSAA samples of the view's prepasses (1: none).
     pub samples: u32,
+    /// `HybridAmbientOcclusion::ignore_back_hits`: rays pass through the backs of surfaces where the grid
+    /// keeps attributes (`traces_back_hits`).
+    pub ignore_back_hits: bool,
     /// Whether the minimum with Bevy's SSAO is taken: the near field asked for, on a view Bevy's SSAO can run
     /// on (no MSAA, a viewport at the target's corner).
     pub near_field: bool,
@@ -106,6 +111,14 @@ pub struct HaoViewResources {
     /// does not start at the target's corner (PBR reads it at target coordinates; Bevy's is the viewport's
     /// size). See `pbr_texture`.
     pub pbr_texture: Option<CachedTexture>,
+}
+
+impl HaoViewResources {
+    /// Whether the view's trace passes through the backs of surfaces on `grid`: asked for, and the grid keeps
+    /// the voxels' normals (the trace pipeline with the `BACK_HITS` loop; `HaoPipelines::view_pipelines`).
+    pub fn traces_back_hits(&self, grid: &GpuVoxelGrid) -> bool {
+        self.ignore_back_hits && grid.attributes != 0
+    }
 }
 
 /// A view's HAO bind groups.
@@ -143,18 +156,19 @@ pub fn prepare_hao_textures(
     )>,
     mut frame: Local<u32>,
     mut histories: Local<HashMap<Entity, ViewHistory>>,
+    voxel_grid: Res<ExtractedVoxelGrid>,
 ) {
     *frame = frame.wrapping_add(1);
+    let grid_has_attributes = voxel_grid.assets.as_ref().is_some_and(|a| a.attributes.is_some());
     for (entity, camera, hao, msaa, jitter, previous_view) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
         let samples = msaa.samples();
-        if samples > 1 {
-            pipelines.queue_multisampled(&cache);
-        }
         let origin = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
         let (hao, _) = hao.sanitized();
         let hao = &hao;
+        // The trace through the backs of surfaces is compiled only for a grid with attributes.
+        pipelines.queue_view(&cache, samples, hao.ignore_back_hits && grid_has_attributes);
         let (rays, steps, half) = hao.trace_parameters();
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
         let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
@@ -223,6 +237,7 @@ pub fn prepare_hao_textures(
             trace_size,
             view_size,
             samples,
+            ignore_back_hits: hao.ignore_back_hits,
             near_field,
             pbr_texture,
         });
