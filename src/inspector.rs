@@ -346,6 +346,7 @@ fn inspector_window(
                 "hao/voxelize_dynamic",
                 "hao/resolve",
                 "hao/trace",
+                "hao/neighborhood",
                 "hao/temporal",
                 "hao/denoise",
                 "hao/apply",

@@ -65,6 +65,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
                 vec![("BACK_HITS", ShaderDefValue::Bool(true))],
             ],
         ),
+        ("src/ao/hao_neighborhood.wgsl", vec![vec![]]),
         ("src/ao/hao_temporal.wgsl", multisampled.clone()),
         (
             "src/ao/hao_denoise.wgsl",

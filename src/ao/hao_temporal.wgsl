@@ -1,15 +1,15 @@
 // Hybrid ambient occlusion, pass 1b: temporal accumulation, at full resolution. Each pixel's surface is
 // reprojected into the previous frame with the camera's previous matrices, the history is read there
-// (bilinear, each texel kept only if it saw the same surface), clamped to this frame's trace around it (3x3
-// texels), and blended with its own trace. At half resolution a pixel is traced every fourth frame; in the
-// other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
-// in. Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`),
-// which the denoiser reads and the next frame reprojects. Near voxels that may have changed (moving
-// occluders) the history is kept short.
+// (bilinear, each texel kept only if it saw the same surface), clamped to the window of this frame's trace
+// around it (its block's, from the neighborhood pass), and blended with its own trace. At half resolution a
+// pixel is traced every fourth frame; in the other frames its history stays as it is, and where it has none
+// its traced neighbours on its surface stand in. Writes the new history (ao, view depth, packed normal,
+// frames of weight, in 64 bits: `pack_history`), which the denoiser reads and the next frame reprojects. Near
+// voxels that may have changed (moving occluders) the history is kept short.
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, history_accepts, load_history, neighborhood_window, octahedral_direction, octahedral_encode,
+    HaoSettings, history_accepts, load_history, octahedral_direction, octahedral_encode,
     pack_history, pack_normal, target_pixel, temporal_update, traced_pixel, unpack_direction,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
@@ -24,19 +24,50 @@ struct PreviousViewData {
 }
 
 @group(0) @binding(0) var noisy: texture_2d<f32>;
-@group(0) @binding(1) var history: texture_2d<u32>;
+// The neighborhood pass's window of each texel of the trace.
+@group(0) @binding(1) var trace_window: texture_2d<f32>;
+@group(0) @binding(2) var history: texture_2d<u32>;
 // The prepasses, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
 #ifdef MULTISAMPLED
-@group(0) @binding(2) var depth_texture: texture_depth_multisampled_2d;
-@group(0) @binding(3) var normal_texture: texture_multisampled_2d<f32>;
+@group(0) @binding(3) var depth_texture: texture_depth_multisampled_2d;
+@group(0) @binding(4) var normal_texture: texture_multisampled_2d<f32>;
 #else
-@group(0) @binding(2) var depth_texture: texture_depth_2d;
-@group(0) @binding(3) var normal_texture: texture_2d<f32>;
+@group(0) @binding(3) var depth_texture: texture_depth_2d;
+@group(0) @binding(4) var normal_texture: texture_2d<f32>;
 #endif
-@group(0) @binding(4) var<uniform> settings: HaoSettings;
-@group(0) @binding(5) var history_out: texture_storage_2d<rg32uint, write>;
+@group(0) @binding(5) var<uniform> settings: HaoSettings;
+@group(0) @binding(6) var history_out: texture_storage_2d<rg32uint, write>;
+
 @group(1) @binding(0) var<uniform> view: View;
 @group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
+
+// cpu/temporal.rs: stand_in. What stands in for a pixel's own trace where its block traced another pixel:
+// the mean of the trace's 3x3 texels around `block` that show its surface (`history_accepts`), else of all
+// that show geometry, else 1. `taps`: 9, or 0 where it is not used (a loop rather than a branch: lavapipe
+// runs both sides of every branch, taken or not, but leaves a loop once none of its invocations goes on).
+fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32) -> f32 {
+    let trace_size = vec2<i32>(textureDimensions(noisy));
+    var sum = 0.0;
+    var n = 0.0;
+    var same_sum = 0.0;
+    var same_n = 0.0;
+    for (var k = 0; k < taps; k++) {
+        let t = vec2<i32>(block) + vec2<i32>(k % 3 - 1, k / 3 - 1);
+        if any(t < vec2<i32>(0)) || any(t >= trace_size) {
+            continue;
+        }
+        let v = textureLoad(noisy, t, 0);
+        if v.y > 0.0 {
+            sum += v.x;
+            n += 1.0;
+            if history_accepts(view_depth, v.y, normal, octahedral_direction(v.zw)) {
+                same_sum += v.x;
+                same_n += 1.0;
+            }
+        }
+    }
+    return select(select(1.0, sum / n, n > 0.0), same_sum / same_n, same_n > 0.0);
+}
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -63,40 +94,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let half = settings.half_resolution != 0u;
     let block = pixel / select(1u, 2u, half);
     let traced = all(traced_pixel(block, settings.frame, vec2<u32>(view.viewport.zw), half) == pixel);
-    // The traced neighbourhood (3x3 texels of the trace) bounds the history; those of its texels that show
-    // this pixel's surface (`history_accepts`) stand in for its own trace where it has none.
-    let trace_size = vec2<i32>(textureDimensions(noisy));
-    var sum = 0.0;
-    var squares = 0.0;
-    var n = 0.0;
-    var same_sum = 0.0;
-    var same_n = 0.0;
-    // The block's own texel (the pixel's trace where `traced`), read in the loop.
-    var block_ao = 1.0;
-    for (var dy = -1; dy <= 1; dy++) {
-        for (var dx = -1; dx <= 1; dx++) {
-            let t = vec2<i32>(block) + vec2<i32>(dx, dy);
-            if any(t < vec2<i32>(0)) || any(t >= trace_size) {
-                continue;
-            }
-            let v = textureLoad(noisy, t, 0);
-            if dx == 0 && dy == 0 {
-                block_ao = v.x;
-            }
-            if v.y > 0.0 {
-                sum += v.x;
-                squares += v.x * v.x;
-                n += 1.0;
-                let same = history_accepts(view_depth, v.y, normal, octahedral_direction(v.zw));
-                same_sum += select(0.0, v.x, same);
-                same_n += select(0.0, 1.0, same);
-            }
-        }
-    }
-    var window = vec2<f32>(-1.0, 2.0);
-    if n > 0.0 {
-        window = neighborhood_window(sum, squares, n);
-    }
+    // The window of the trace around its block bounds the history.
+    let window = textureLoad(trace_window, block, 0).xy;
 
     // Where this surface was: its world position in the previous view, as that frame was rendered (with its
     // own TAA jitter, as this frame's world_from_clip has this frame's).
@@ -137,10 +136,13 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let near_change = history_count > 0.0 && near_changed_voxels(world, settings.max_distance);
-    // Its own trace, or where its block traced another pixel, the traced neighbours on its surface (the
-    // stand-in, used only where it has no history or must follow a change).
-    let stand_in = select(select(1.0, sum / n, n > 0.0), same_sum / same_n, same_n > 0.0);
-    let current = select(stand_in, block_ao, traced);
+    // Its own trace; or where its block traced another pixel, the traced neighbours on its surface (the
+    // stand-in), read only where it is used: where the pixel has no history or must follow a change.
+    let stand_in_used = !traced && (history_count <= 0.0 || near_change || settings.accumulation_frames <= 1u);
+    var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
+    if traced {
+        current = textureLoad(noisy, block, 0).x;
+    }
     let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
     textureStore(history_out, pixel, pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y)));
 }

@@ -8,13 +8,16 @@
 //!    frames are accumulated or TAA jitters the view), start about a voxel off the surface and march the
 //!    voxel texture up to `max_distance`, skipping empty space on its mips; each hit weighs
 //!    `(1 - d/max)^falloff`. At half resolution each 2x2 block traces one of its pixels a frame, in turn;
-//! 2. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
-//!    checked, clamped and blended with the pixel's own trace (at half resolution every fourth frame; a
-//!    pixel without history takes its traced neighbours on its surface meanwhile);
-//! 3. **denoise** (`hao_denoise.wgsl`, `hao/denoise`): a depth- and normal-aware bilateral filter in one
+//! 2. **neighborhood** (`hao_neighborhood.wgsl`, `hao/neighborhood`), at the trace's resolution: the window
+//!    each texel's 3x3 neighbourhood of traced AO allows the history (mean plus or minus two standard
+//!    deviations), once for the pixels that read it;
+//! 3. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
+//!    checked, clamped to its window and blended with the pixel's own trace (at half resolution every fourth
+//!    frame; a pixel without history takes its traced neighbours on its surface meanwhile);
+//! 4. **denoise** (`hao_denoise.wgsl`, `hao/denoise`): a depth- and normal-aware bilateral filter in one
 //!    pass over a cross (the center and the texels along its row and column), written into the texture
 //!    Bevy's PBR reads AO from, so it dims indirect light only;
-//! 4. with the near field only, the denoiser writes a texture of its own with the minimum of Bevy's SSAO,
+//! 5. with the near field only, the denoiser writes a texture of its own with the minimum of Bevy's SSAO,
 //!    and **apply** (`hao_apply.wgsl`, `hao/apply`) copies it into the texture PBR reads (which holds
 //!    Bevy's SSAO until then, so the denoiser cannot write there itself).
 //!
@@ -52,6 +55,7 @@ impl Plugin for HybridAmbientOcclusionPlugin {
     fn build(&self, app: &mut App) {
         load_shader_library!(app, "hao_common.wgsl");
         embedded_asset!(app, "hao_trace.wgsl");
+        embedded_asset!(app, "hao_neighborhood.wgsl");
         embedded_asset!(app, "hao_temporal.wgsl");
         embedded_asset!(app, "hao_denoise.wgsl");
         embedded_asset!(app, "hao_apply.wgsl");

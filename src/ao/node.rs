@@ -16,7 +16,7 @@ fn groups(size: UVec2) -> (u32, u32) {
     (size.x.div_ceil(SCREEN_WORKGROUP), size.y.div_ceil(SCREEN_WORKGROUP))
 }
 
-/// Trace, accumulate, denoise (and with the near field, apply).
+/// Trace, bound the history (neighborhood), accumulate, denoise (and with the near field, apply).
 pub fn hao(
     view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset, &PreviousViewUniformOffset)>,
     pipelines: Res<HaoPipelines>,
@@ -27,7 +27,7 @@ pub fn hao(
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
     let back_hits = res.traces_back_hits(&voxel_grid.grid);
-    let Some([trace, temporal, denoise, denoise_near_field, apply]) =
+    let Some([trace, neighborhood, temporal, denoise, denoise_near_field, apply]) =
         pipelines.view_pipelines(&cache, res.samples, back_hits)
     else {
         return;
@@ -44,6 +44,16 @@ pub fn hao(
         pass.set_bind_group(0, &bind_groups.trace, &[]);
         pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
         pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
+        let (x, y) = groups(res.trace_size);
+        pass.dispatch_workgroups(x, y, 1);
+        span.end(&mut pass);
+    }
+    {
+        let mut pass = encoder
+            .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_neighborhood"), timestamp_writes: None });
+        let span = diagnostics.pass_span(&mut pass, "hao/neighborhood");
+        pass.set_pipeline(neighborhood);
+        pass.set_bind_group(0, &bind_groups.neighborhood, &[]);
         let (x, y) = groups(res.trace_size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);

@@ -21,6 +21,10 @@ use bevy::shader::ShaderDefVal;
 /// full resolution every frame.
 pub(crate) const HISTORY_FORMAT: TextureFormat = TextureFormat::Rg32Uint;
 
+/// The window of each texel of the trace that bounds the history (lower and upper bound), which the
+/// neighborhood pass writes and the temporal pass reads.
+pub(crate) const WINDOW_FORMAT: TextureFormat = TextureFormat::Rg32Float;
+
 /// The passes that read the depth and normal prepasses (trace, temporal), for one kind of prepass
 /// texture: single-sampled, or multisampled on a camera with MSAA (they read sample 0).
 pub struct PrepassReaders {
@@ -45,6 +49,8 @@ pub struct HaoPipelines {
     pub view_layout: BindGroupLayoutDescriptor,
     /// Group 1 of the temporal pass: the view and the previous view.
     pub temporal_view_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the neighborhood pass.
+    pub neighborhood_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the denoiser, which writes into the texture PBR reads.
     pub denoise_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the denoiser with the near field, which writes the result texture apply copies.
@@ -55,6 +61,8 @@ pub struct HaoPipelines {
     pub single: PrepassReaders,
     /// The passes reading multisampled prepasses, queued when the first view with MSAA needs them.
     pub multisampled: Option<PrepassReaders>,
+    /// The window of each texel of the trace.
+    pub neighborhood: CachedComputePipelineId,
     /// The bilateral filter, into the texture PBR reads.
     pub denoise: CachedComputePipelineId,
     /// The bilateral filter and the near field, into the result texture.
@@ -88,8 +96,9 @@ impl HaoPipelines {
         }
     }
 
-    /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, temporal, denoise,
-    /// and with the near field denoise_near_field and apply instead of denoise), once all are compiled. The
+    /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, neighborhood,
+    /// temporal, denoise, and with the near field denoise_near_field and apply instead of denoise), once all
+    /// are compiled. The
     /// trace passes through the backs of surfaces where `back_hits` and that variant is compiled (until then
     /// its rays stop there).
     pub fn view_pipelines<'a>(
@@ -97,10 +106,10 @@ impl HaoPipelines {
         cache: &'a PipelineCache,
         samples: u32,
         back_hits: bool,
-    ) -> Option<[&'a ComputePipeline; 5]> {
+    ) -> Option<[&'a ComputePipeline; 6]> {
         let r = self.readers(samples)?;
         let back_hit_trace = r.trace_back_hits.filter(|_| back_hits).and_then(|id| cache.get_compute_pipeline(id));
-        let ids = [r.trace, r.temporal, self.denoise, self.denoise_near_field, self.apply];
+        let ids = [r.trace, self.neighborhood, r.temporal, self.denoise, self.denoise_near_field, self.apply];
         let mut pipelines = ids.map(|id| cache.get_compute_pipeline(id));
         if back_hit_trace.is_some() {
             pipelines[0] = back_hit_trace;
@@ -176,6 +185,7 @@ fn prepass_readers(
             ShaderStages::COMPUTE,
             (
                 texture_2d(unfilterable),
+                texture_2d(unfilterable),
                 texture_2d(TextureSampleType::Uint),
                 depth,
                 normal,
@@ -221,6 +231,13 @@ impl FromWorld for HaoPipelines {
                 (uniform_buffer::<ViewUniform>(true), uniform_buffer::<PreviousViewData>(true)),
             ),
         );
+        let neighborhood_layout = BindGroupLayoutDescriptor::new(
+            "hao_neighborhood_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (texture_2d(unfilterable), texture_storage_2d(WINDOW_FORMAT, StorageTextureAccess::WriteOnly)),
+            ),
+        );
         let denoise_layout = BindGroupLayoutDescriptor::new(
             "hao_denoise_layout",
             &BindGroupLayoutEntries::sequential(
@@ -256,12 +273,21 @@ impl FromWorld for HaoPipelines {
             ),
         );
         let shaders = [load_embedded_asset!(world, "hao_trace.wgsl"), load_embedded_asset!(world, "hao_temporal.wgsl")];
+        let neighborhood_shader = load_embedded_asset!(world, "hao_neighborhood.wgsl");
         let denoise_shader = load_embedded_asset!(world, "hao_denoise.wgsl");
         let apply_shader = load_embedded_asset!(world, "hao_apply.wgsl");
         let cache = world.resource::<PipelineCache>();
         let single = prepass_readers(cache, &shaders, &view_layout, &temporal_view_layout, false);
         let ao_format_defs: Vec<ShaderDefVal> =
             if ao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
+        let neighborhood = queue_compute(
+            cache,
+            "hao_neighborhood",
+            vec![neighborhood_layout.clone()],
+            neighborhood_shader,
+            "neighborhood",
+            vec![],
+        );
         let denoise = queue_compute(
             cache,
             "hao_denoise",
@@ -283,11 +309,13 @@ impl FromWorld for HaoPipelines {
         Self {
             view_layout,
             temporal_view_layout,
+            neighborhood_layout,
             denoise_layout,
             denoise_near_field_layout,
             apply_layout,
             single,
             multisampled: None,
+            neighborhood,
             denoise,
             denoise_near_field,
             apply,

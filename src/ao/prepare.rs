@@ -2,7 +2,7 @@
 
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
-use super::pipelines::{HISTORY_FORMAT, HaoPipelines};
+use super::pipelines::{HISTORY_FORMAT, HaoPipelines, WINDOW_FORMAT};
 use crate::voxel::bindings::GpuVoxelGrid;
 use crate::voxel::extract::ExtractedVoxelGrid;
 use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
@@ -86,6 +86,8 @@ pub fn previous_clip_from_world(previous: &PreviousViewData, jitter: Vec2, view_
 pub struct HaoViewResources {
     /// The traced AO with the traced pixel's view depth and normal (half or full resolution).
     pub noisy: CachedTexture,
+    /// The window of each texel of the trace that bounds the history (the neighborhood pass's output).
+    pub window: CachedTexture,
     /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames.
     pub history: CachedTexture,
     /// The temporal history this frame writes, same layout; the denoiser reads it.
@@ -128,6 +130,8 @@ pub struct HaoBindGroups {
     pub view: BindGroup,
     /// Trace.
     pub trace: BindGroup,
+    /// The neighborhood pass.
+    pub neighborhood: BindGroup,
     /// The view and the previous view, for the temporal pass.
     pub temporal_view: BindGroup,
     /// Temporal accumulation.
@@ -187,6 +191,7 @@ pub fn prepare_hao_textures(
             )
         };
         let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
+        let window = texture(&mut texture_cache, "hao_window_texture", trace_size, WINDOW_FORMAT);
         // Two histories, read and written in turn (the texture cache hands each label's texture back while
         // it is used every frame; a new one is zeroed, which reads as no history).
         let a = texture(&mut texture_cache, "hao_history_a_texture", view_size, HISTORY_FORMAT);
@@ -230,6 +235,7 @@ pub fn prepare_hao_textures(
         let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {
             noisy,
+            window,
             history,
             history_out,
             result,
@@ -274,6 +280,11 @@ pub fn prepare_hao_bind_groups(
             &cache.get_bind_group_layout(&readers.trace_layout),
             &BindGroupEntries::sequential((depth, normal, res.settings.as_entire_binding(), &res.noisy.default_view)),
         );
+        let neighborhood = device.create_bind_group(
+            "hao_neighborhood_bind_group",
+            &cache.get_bind_group_layout(&pipelines.neighborhood_layout),
+            &BindGroupEntries::sequential((&res.noisy.default_view, &res.window.default_view)),
+        );
         let temporal_view = device.create_bind_group(
             "hao_temporal_view_bind_group",
             &cache.get_bind_group_layout(&pipelines.temporal_view_layout),
@@ -284,6 +295,7 @@ pub fn prepare_hao_bind_groups(
             &cache.get_bind_group_layout(&readers.temporal_layout),
             &BindGroupEntries::sequential((
                 &res.noisy.default_view,
+                &res.window.default_view,
                 &res.history.default_view,
                 depth,
                 normal,
@@ -323,7 +335,15 @@ pub fn prepare_hao_bind_groups(
                 (denoise, Some(apply))
             }
         };
-        commands.entity(entity).insert(HaoBindGroups { view, trace, temporal_view, temporal, denoise, apply });
+        commands.entity(entity).insert(HaoBindGroups {
+            view,
+            trace,
+            neighborhood,
+            temporal_view,
+            temporal,
+            denoise,
+            apply,
+        });
     }
 }
 

@@ -11,7 +11,8 @@
 //!    disocclusion, or a surface that moved (its old place holds something else), keeps no texel and starts
 //!    over.
 //! 2. **Rectification.** The history is clamped to the current frame's 3x3 neighbourhood, its mean plus or
-//!    minus two standard deviations and [`CLAMP_MARGIN`] ([`neighborhood_window`]). Where an occluder has
+//!    minus two standard deviations and [`CLAMP_MARGIN`] ([`neighborhood_window`]), computed once per texel
+//!    of the trace ([`trace_window`]). Where an occluder has
 //!    gone, every ray of the neighbourhood now escapes, the window closes around 1 and the shadow it left is
 //!    clamped away in one frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
@@ -105,48 +106,58 @@ pub struct TracedTexel {
     pub normal: Vec3,
 }
 
-/// What a pixel takes from the trace's 3x3 texels around `texel` (its own, or its block's; WGSL: the loop in
-/// `temporal`): the window that bounds its history ([`neighborhood_window`] over every texel that shows
-/// geometry; `(-1, 2)`, none, where none does) and its stand-in, the mean of the texels that show its
-/// surface (its view depth `depth` and normal `normal`, [`history_accepts`]), else of all, else 1.
-pub fn traced_neighbourhood(
+/// The trace's 3x3 texels around `texel` that exist, in the order the passes read them (rows, then columns),
+/// with `None` where the traced pixel shows no geometry.
+fn neighbourhood(
     trace: &[Option<TracedTexel>],
     trace_size: UVec2,
     texel: UVec2,
-    depth: f32,
-    normal: Vec3,
-) -> ((f32, f32), f32) {
-    let (mut sum, mut squares, mut n, mut same_sum, mut same_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    for dy in -1i32..=1 {
-        for dx in -1i32..=1 {
-            let t = texel.as_ivec2() + IVec2::new(dx, dy);
-            if t.cmplt(IVec2::ZERO).any() || t.cmpge(trace_size.as_ivec2()).any() {
-                continue;
-            }
-            let Some(v) = trace[(t.y as u32 * trace_size.x + t.x as u32) as usize] else { continue };
-            sum += v.ao;
-            squares += v.ao * v.ao;
-            n += 1.0;
-            if history_accepts(depth, v.depth, normal, v.normal) {
-                same_sum += v.ao;
-                same_n += 1.0;
-            }
+) -> impl Iterator<Item = Option<TracedTexel>> + '_ {
+    (0..9).filter_map(move |k| {
+        let t = texel.as_ivec2() + IVec2::new(k % 3 - 1, k / 3 - 1);
+        let inside = t.cmpge(IVec2::ZERO).all() && t.cmplt(trace_size.as_ivec2()).all();
+        inside.then(|| trace[(t.y as u32 * trace_size.x + t.x as u32) as usize])
+    })
+}
+
+/// The window that bounds the history of the pixels that read trace texel `texel` (WGSL:
+/// `hao_neighborhood.wgsl`, once per texel of the trace): [`neighborhood_window`] over its 3x3 texels that
+/// show geometry; `(-1, 2)`, none, where none does.
+pub fn trace_window(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2) -> (f32, f32) {
+    let (mut sum, mut squares, mut n) = (0.0f32, 0.0f32, 0.0f32);
+    for v in neighbourhood(trace, trace_size, texel).flatten() {
+        sum += v.ao;
+        squares += v.ao * v.ao;
+        n += 1.0;
+    }
+    if n > 0.0 { neighborhood_window(sum, squares, n) } else { (-1.0, 2.0) }
+}
+
+/// What stands in for a pixel's own trace where its block traced another pixel (WGSL: `stand_in` in
+/// `hao_temporal.wgsl`): the mean of the trace's 3x3 texels around `texel` that show its surface (its view
+/// depth `depth` and normal `normal`, [`history_accepts`]), else of all that show geometry, else 1.
+pub fn stand_in(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, depth: f32, normal: Vec3) -> f32 {
+    let (mut sum, mut n, mut same_sum, mut same_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    for v in neighbourhood(trace, trace_size, texel).flatten() {
+        sum += v.ao;
+        n += 1.0;
+        if history_accepts(depth, v.depth, normal, v.normal) {
+            same_sum += v.ao;
+            same_n += 1.0;
         }
     }
-    let window = if n > 0.0 { neighborhood_window(sum, squares, n) } else { (-1.0, 2.0) };
-    let stand_in = if same_n > 0.0 {
+    if same_n > 0.0 {
         same_sum / same_n
     } else if n > 0.0 {
         sum / n
     } else {
         1.0
-    };
-    (window, stand_in)
+    }
 }
 
 /// One pixel's new history and frames of weight (WGSL: the end of `temporal`), from its reprojected history
 /// (`count` 0: none), the window, its own trace this frame (`None` where its block traced another pixel),
-/// its stand-in ([`traced_neighbourhood`]), the cap and whether the voxels near it may have changed. A frame
+/// its stand-in ([`stand_in`]), the cap and whether the voxels near it may have changed. A frame
 /// without its own trace keeps the history as it is, unless there is none, the voxels near it may have
 /// changed or there is no accumulation: then the stand-in is blended as a trace.
 pub fn temporal_update(
@@ -198,7 +209,9 @@ pub fn accumulate_still(
             let own = (super::ao::traced_pixel(texel, frame.number, view_size, half_resolution) == p)
                 .then(|| frame.texels[(texel.y * trace_size.x + texel.x) as usize].map(|t| t.ao))
                 .flatten();
-            let (window, stand_in) = traced_neighbourhood(&frame.texels, trace_size, texel, depth, normal);
+            let window = trace_window(&frame.texels, trace_size, texel);
+            // (The GPU reads the stand-in only where `temporal_update` uses it.)
+            let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal);
             let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, false);
             // As the GPU stores it (`HistoryTexel::stored`).
             let stored = HistoryTexel { ao: a, depth, normal, frames: c }.stored();
@@ -337,10 +350,17 @@ mod tests {
         // far behind it (AO 1): the stand-in is 0.5, the window spans both.
         let far = Some(TracedTexel { ao: 1.0, depth: 40.0, normal: Vec3::Z });
         let trace = [far, far, far, texel(0.5), texel(0.5), texel(0.5), far, far, far];
-        let (window, stand_in) = traced_neighbourhood(&trace, UVec2::new(3, 3), UVec2::new(1, 1), 10.0, Vec3::Z);
-        assert_eq!(stand_in, 0.5);
+        let size = UVec2::new(3, 3);
+        assert_eq!(stand_in(&trace, size, UVec2::ONE, 10.0, Vec3::Z), 0.5);
+        let window = trace_window(&trace, size, UVec2::ONE);
         assert!(window.0 < 0.5 && window.1 > 1.0, "{window:?}");
+        // A surface none of the texels shows: the mean of all of them.
+        assert_eq!(stand_in(&trace, size, UVec2::ONE, 20.0, Vec3::Z), (6.0 + 1.5) / 9.0);
+        // At the corner, the four texels inside the trace: two far (1), two on the surface (0.5).
+        assert_eq!(stand_in(&trace, size, UVec2::ZERO, 40.0, Vec3::Z), 1.0);
+        assert_eq!(trace_window(&trace, size, UVec2::ZERO), neighborhood_window(3.0, 2.5, 4.0));
         // No texel shows geometry: no window, the stand-in open.
-        assert_eq!(traced_neighbourhood(&[None; 9], UVec2::new(3, 3), UVec2::ONE, 10.0, Vec3::Z), ((-1.0, 2.0), 1.0));
+        assert_eq!(trace_window(&[None; 9], size, UVec2::ONE), (-1.0, 2.0));
+        assert_eq!(stand_in(&[None; 9], size, UVec2::ONE, 10.0, Vec3::Z), 1.0);
     }
 }
