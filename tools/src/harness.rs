@@ -135,6 +135,19 @@ pub fn run(app: &mut App, n: usize) {
     }
 }
 
+/// Waits until the device has run all the work submitted so far. A frame followed by this wait takes, in
+/// wall-clock time, its CPU work plus every GPU pass it submitted: the cost of a pass is the difference
+/// between frames with it and without, whatever the device's timestamps say (lavapipe's are taken when its
+/// rasterizer runs, so they can miss compute passes between render passes).
+pub fn wait_for_gpu(app: &App) {
+    let device = app
+        .get_sub_app(bevy::render::RenderApp)
+        .and_then(|r| r.world().get_resource::<bevy::render::renderer::RenderDevice>());
+    if let Some(device) = device {
+        let _ = device.poll(bevy::render::render_resource::PollType::Wait { submission_index: None, timeout: None });
+    }
+}
+
 /// The plugin's statistics.
 pub fn stats(app: &App) -> VoxelizationStatsData {
     app.world().resource::<VoxelizationStats>().get()

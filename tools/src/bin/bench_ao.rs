@@ -2,21 +2,29 @@
 //! same frames.
 //!
 //! ```text
-//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--res N]
-//!     [--attributes]
+//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--rounds 1]
+//!     [--res N] [--attributes]
 //! ```
 //!
-//! One headless camera renders the scene in two kinds of phase of one run, each measured over `--frames`
-//! frames after a warm-up:
+//! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
+//! warm-up, `--rounds` times in turn:
 //!
-//! 1. Bevy's SSAO alone, at its default quality (High), on a camera without HAO: the `ssao` span;
-//! 2. for each HAO quality preset, the camera with `HybridAmbientOcclusion` at its defaults (near field
+//! 1. no ambient occlusion;
+//! 2. Bevy's SSAO alone, at its default quality (High), on a camera without HAO: the `ssao` span;
+//! 3. for each HAO quality preset, the camera with `HybridAmbientOcclusion` at its defaults (near field
 //!    off, 16 frames accumulated), then without accumulation (`accumulation_frames: 1`, the presets' rays
-//!    before it): the spans `hao/trace`, `hao/temporal`, `hao/denoise`, `hao/apply`, and `ssao` if Bevy's
-//!    SSAO passes ran (the plugin skips them when HAO overwrites their result; "not run" then).
+//!    before it): the spans `hao/trace`, `hao/neighborhood`, `hao/temporal`, `hao/denoise`, `hao/apply`, and
+//!    `ssao` if Bevy's SSAO passes ran (the plugin skips them when HAO overwrites their result; "not run"
+//!    then).
 //!
 //! It prints their medians, the whole AO cost of a HAO frame (the HAO passes plus any SSAO pass that ran),
-//! and its ratio to Bevy's SSAO alone. Voxelization is not counted here (see `bench_voxelize`). On a software
+//! and its ratio to Bevy's SSAO alone. Voxelization is not counted there (see `bench_voxelize`).
+//!
+//! A second table times whole frames on the wall clock, the device waited for after each: a preset's whole
+//! AO cost is its frame less the frame without AO, and its ratio is taken to Bevy's SSAO High measured the
+//! same way. This is the measure on lavapipe, whose timestamps are taken when its rasterizer runs a scene
+//! and can miss compute passes between render passes (the `hao/neighborhood` and `hao/denoise` spans read
+//! about 0.05 ms there however long the passes run); on a GPU the spans are the measure. On a software
 //! rasterizer such as lavapipe the times are CPU times of the emulated GPU: compare ratios within one run,
 //! not absolute figures.
 //!
@@ -53,6 +61,9 @@ struct Args {
     /// Frames measured per phase (medians are printed).
     #[arg(long, default_value_t = 20)]
     frames: usize,
+    /// Times every phase is measured, in turn; the medians are over the frames of all rounds.
+    #[arg(long, default_value_t = 1)]
+    rounds: usize,
     /// A single grid fitted to the scene with this many cells on its longest axis (default: the plugin's
     /// default volume, camera-following cascades).
     #[arg(long)]
@@ -63,7 +74,7 @@ struct Args {
 }
 
 fn main() {
-    let Args { scene, size, frames, res, attributes } = Args::parse();
+    let Args { scene, size, frames, rounds, res, attributes } = Args::parse();
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)
@@ -120,8 +131,11 @@ fn main() {
         warm += 1;
     }
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
-    let measure = |app: &mut App, spans: &[&str]| -> Vec<Option<f64>> {
+    // The spans' samples, and the wall-clock time of each frame with the device waited for.
+    let measure = |app: &mut App, spans: &[&str]| -> (Vec<Vec<f64>>, Vec<f64>) {
         bevy_hao_tools::harness::run(app, 8);
+        bevy_hao_tools::harness::wait_for_gpu(app);
+        let mut walls = Vec::new();
         // Only spans recorded since the last frame count: a diagnostic keeps its last value when a pass
         // stops running.
         let mut samples = vec![Vec::new(); spans.len()];
@@ -131,7 +145,10 @@ fn main() {
                 .map(|m| m.0);
         }
         for _ in 0..frames {
+            let start = std::time::Instant::now();
             app.update();
+            bevy_hao_tools::harness::wait_for_gpu(app);
+            walls.push(start.elapsed().as_secs_f64() * 1000.0);
             for ((s, l), span) in samples.iter_mut().zip(last.iter_mut()).zip(spans) {
                 if let Some((at, v)) =
                     bevy_hao_tools::harness::diagnostic_measurement(app, &format!("render/{span}/elapsed_gpu"))
@@ -142,39 +159,64 @@ fn main() {
                 }
             }
         }
-        samples.into_iter().map(bevy_hao_tools::harness::median).collect()
+        (samples, walls)
     };
-    // SSAO alone, then each preset with and without accumulation.
-    let bar = bevy_hao_tools::harness::progress_bar(9, "bench_ao");
     let cam = app.world_mut().query_filtered::<Entity, With<BenchCamera>>().single(app.world()).unwrap();
-    // Bevy's SSAO alone (High), no HAO on the camera: the plugin takes the SSAO it added away with HAO (in
-    // the next frame), then the camera gets its own.
-    app.world_mut().entity_mut(cam).remove::<HybridAmbientOcclusion>();
-    app.update();
-    app.world_mut().entity_mut(cam).insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
-    let ssao_alone = measure(&mut app, &["ssao"])[0];
-    bar.inc(1);
-    // HAO at its defaults: the plugin adds its own (cheapest) SSAO again once the user's is gone.
-    app.world_mut()
-        .entity_mut(cam)
-        .remove::<bevy::pbr::ScreenSpaceAmbientOcclusion>()
-        .insert(HybridAmbientOcclusion::default());
-    let spans = ["hao/trace", "hao/temporal", "hao/denoise", "hao/apply", "ssao"];
-    let mut rows = Vec::new();
-    for accumulation_frames in [HybridAmbientOcclusion::default().accumulation_frames, 1] {
-        for quality in [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra] {
-            let settings = HybridAmbientOcclusion { quality, accumulation_frames, ..default() };
+    let spans = ["hao/trace", "hao/neighborhood", "hao/temporal", "hao/denoise", "hao/apply", "ssao"];
+    let presets: Vec<HybridAmbientOcclusion> = [HybridAmbientOcclusion::default().accumulation_frames, 1]
+        .into_iter()
+        .flat_map(|accumulation_frames| {
+            [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra]
+                .map(|quality| HybridAmbientOcclusion { quality, accumulation_frames, ..default() })
+        })
+        .collect();
+    // Each round: no AO, Bevy's SSAO alone, then each preset with and without accumulation; the samples of
+    // every round are pooled (rounds spread the drift of a long run over every phase).
+    let bar = bevy_hao_tools::harness::progress_bar((rounds * (2 + presets.len())) as u64, "bench_ao");
+    let mut no_ao_walls = Vec::new();
+    let (mut ssao_samples, mut ssao_walls) = (Vec::new(), Vec::new());
+    let mut preset_samples = vec![(vec![Vec::new(); spans.len()], Vec::new()); presets.len()];
+    for _ in 0..rounds {
+        // No AO: the plugin takes the SSAO it added away with HAO (in the next frame).
+        app.world_mut().entity_mut(cam).remove::<(HybridAmbientOcclusion, bevy::pbr::ScreenSpaceAmbientOcclusion)>();
+        app.update();
+        no_ao_walls.extend(measure(&mut app, &[]).1);
+        bar.inc(1);
+        // Bevy's SSAO alone, at its default quality (High).
+        app.world_mut().entity_mut(cam).insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
+        let (s, w) = measure(&mut app, &["ssao"]);
+        ssao_samples.extend(s.into_iter().flatten());
+        ssao_walls.extend(w);
+        bar.inc(1);
+        // HAO: the plugin adds its own (cheapest) SSAO again once the user's is gone.
+        app.world_mut().entity_mut(cam).remove::<bevy::pbr::ScreenSpaceAmbientOcclusion>();
+        for (settings, (samples, walls)) in presets.iter().zip(preset_samples.iter_mut()) {
             app.world_mut().entity_mut(cam).insert(settings.clone());
-            rows.push((settings, measure(&mut app, &spans)));
+            let (s, w) = measure(&mut app, &spans);
+            for (all, new) in samples.iter_mut().zip(s) {
+                all.extend(new);
+            }
+            walls.extend(w);
             bar.inc(1);
         }
     }
+    let median = bevy_hao_tools::harness::median;
+    let ssao_alone = median(ssao_samples);
+    let no_ao = median(no_ao_walls).unwrap_or(f64::NAN);
+    let ssao_wall = median(ssao_walls).unwrap_or(f64::NAN);
+    let rows: Vec<(HybridAmbientOcclusion, (Vec<Option<f64>>, f64))> = presets
+        .into_iter()
+        .zip(preset_samples)
+        .map(|(settings, (samples, walls))| {
+            (settings, (samples.into_iter().map(median).collect(), median(walls).unwrap_or(f64::NAN)))
+        })
+        .collect();
     // With attributes: the Medium trace with rays stopping at backs, then passing through them.
     let mut backs = Vec::new();
     if attributes {
         for ignore_back_hits in [false, true] {
             app.world_mut().entity_mut(cam).insert(HybridAmbientOcclusion { ignore_back_hits, ..default() });
-            backs.push((ignore_back_hits, measure(&mut app, &["hao/trace"])[0]));
+            backs.push((ignore_back_hits, median(measure(&mut app, &["hao/trace"]).0.remove(0))));
         }
     }
     // The trace's work on the CPU twin, over the view the GPU traced and its voxels.
@@ -201,38 +243,59 @@ fn main() {
         size.x, size.y, grid.x, grid.y, grid.z
     );
     println!(
-        "| HAO quality | frames accumulated | rays x steps a frame | trace ms | temporal ms | denoise ms | apply ms \
-         | HAO passes ms | Bevy SSAO passes in the HAO frame ms | whole AO ms | Bevy SSAO (High) alone ms | whole / SSAO |"
+        "| HAO quality | frames accumulated | rays x steps a frame | trace ms | neighborhood ms | temporal ms \
+         | denoise ms | apply ms | HAO passes ms | Bevy SSAO passes in the HAO frame ms | whole AO ms \
+         | Bevy SSAO (High) alone ms | whole / SSAO |"
     );
-    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
-    for (settings, m) in rows {
+    for (settings, (m, _)) in &rows {
         let (rays, steps, half) = settings.trace_parameters();
         // No `hao/apply` span: without the near field the denoiser writes the AO PBR reads itself.
-        let passes = match (m[0], m[1], m[2]) {
-            (Some(a), Some(b), Some(c)) => Some(a + b + c + m[3].unwrap_or(0.0)),
+        let passes = match (m[0], m[1], m[2], m[3]) {
+            (Some(a), Some(b), Some(c), Some(d)) => Some(a + b + c + d + m[4].unwrap_or(0.0)),
             _ => None,
         };
         // No `ssao` span: the plugin skipped Bevy's SSAO passes (near field off), and they cost nothing.
-        let kept = m[4].unwrap_or(0.0);
+        let kept = m[5].unwrap_or(0.0);
         let whole = passes.map(|p| p + kept);
         let ratio = match (whole, ssao_alone) {
             (Some(t), Some(s)) if s > 0.0 => format!("{:.2}", t / s),
             _ => "-".into(),
         };
         println!(
-            "| {:?} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
+            "| {:?} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
             settings.quality,
             settings.accumulation_frames,
             if half { ", half res" } else { "" },
             f(m[0]),
             f(m[1]),
             f(m[2]),
-            m[3].map_or("not run".to_string(), |v| format!("{v:.3}")),
-            f(passes),
+            f(m[3]),
             m[4].map_or("not run".to_string(), |v| format!("{v:.3}")),
+            f(passes),
+            m[5].map_or("not run".to_string(), |v| format!("{v:.3}")),
             f(whole),
             f(ssao_alone)
+        );
+    }
+    // The wall-clock costs: each frame less the frame without AO.
+    let ssao_cost = ssao_wall - no_ao;
+    println!(
+        "\nWall-clock frames, the device waited for after each (medians of {} frames in {rounds} round(s)): \
+         without AO {no_ao:.3} ms; with Bevy's SSAO High alone {ssao_wall:.3} ms, a cost of {ssao_cost:.3} ms. \
+         A preset's whole AO cost is its frame less the frame without AO (every pass and any CPU work it adds):\n",
+        frames * rounds
+    );
+    println!("| HAO quality | frames accumulated | frame ms | whole AO ms | whole / SSAO |");
+    println!("|---|---:|---:|---:|---:|");
+    for (settings, (_, wall)) in &rows {
+        println!(
+            "| {:?} | {} | {wall:.3} | {:.3} | {:.2} |",
+            settings.quality,
+            settings.accumulation_frames,
+            wall - no_ao,
+            (wall - no_ao) / ssao_cost
         );
     }
     println!(
