@@ -493,6 +493,30 @@ pub mod args {
     use bevy::math::{UVec2, Vec3};
     use bevy_hao::HaoDebugView;
 
+    /// A HAO quality preset (`--quality`): [`bevy_hao::HaoQuality`]'s presets by their command-line names.
+    #[derive(Clone, Copy, Debug, PartialEq, clap::ValueEnum)]
+    pub enum Quality {
+        /// `HaoQuality::Low`.
+        Low,
+        /// `HaoQuality::Medium`.
+        Medium,
+        /// `HaoQuality::High`.
+        High,
+        /// `HaoQuality::Ultra`.
+        Ultra,
+    }
+
+    impl From<Quality> for bevy_hao::HaoQuality {
+        fn from(q: Quality) -> Self {
+            match q {
+                Quality::Low => Self::Low,
+                Quality::Medium => Self::Medium,
+                Quality::High => Self::High,
+                Quality::Ultra => Self::Ultra,
+            }
+        }
+    }
+
     /// What a view shows (`--view`): [`HaoDebugView`]'s choices by their command-line names.
     #[derive(Clone, Copy, Debug, clap::ValueEnum)]
     pub enum View {

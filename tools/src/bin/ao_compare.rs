@@ -59,8 +59,8 @@ struct Args {
     #[arg(long, default_value_t = HybridAmbientOcclusion::default().start_offset)]
     start_offset: f32,
     /// HAO's quality preset.
-    #[arg(long, value_enum, default_value_t = Quality::Medium)]
-    quality: Quality,
+    #[arg(long, value_enum, default_value_t = args::Quality::Medium)]
+    quality: args::Quality,
     /// Camera position X,Y,Z (with --look; default: inside, down the long axis).
     #[arg(long, value_parser = args::vec3, requires = "look")]
     camera: Option<Vec3>,
@@ -111,25 +111,6 @@ struct Args {
     /// The PNG written: HAO, HAO + near field, SSAO and the reference side by side.
     #[arg(long, default_value = "ao_compare.png")]
     out: String,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-enum Quality {
-    Low,
-    Medium,
-    High,
-    Ultra,
-}
-
-impl From<Quality> for HaoQuality {
-    fn from(q: Quality) -> Self {
-        match q {
-            Quality::Low => HaoQuality::Low,
-            Quality::Medium => HaoQuality::Medium,
-            Quality::High => HaoQuality::High,
-            Quality::Ultra => HaoQuality::Ultra,
-        }
-    }
 }
 
 #[derive(Clone, Copy, PartialEq, ValueEnum)]

@@ -3,15 +3,14 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--rounds 1]
-//!     [--res N] [--attributes]
+//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes]
 //! ```
 //!
 //! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
-//! warm-up, `--rounds` times in turn:
+//! warm-up, `--rounds` times in turn, each right after a phase without ambient occlusion:
 //!
-//! 1. no ambient occlusion;
-//! 2. Bevy's SSAO alone, at its default quality (High), on a camera without HAO: the `ssao` span;
-//! 3. for each HAO quality preset, the camera with `HybridAmbientOcclusion` at its defaults (near field
+//! 1. Bevy's SSAO alone, at its default quality (High), on a camera without HAO: the `ssao` span;
+//! 2. for each HAO quality preset, the camera with `HybridAmbientOcclusion` at its defaults (near field
 //!    off, 16 frames accumulated), then without accumulation (`accumulation_frames: 1`, the presets' rays
 //!    before it): the spans `hao/trace`, `hao/neighborhood`, `hao/temporal`, `hao/denoise`, `hao/apply`, and
 //!    `ssao` if Bevy's SSAO passes ran (the plugin skips them when HAO overwrites their result; "not run"
@@ -21,8 +20,8 @@
 //! and its ratio to Bevy's SSAO alone. Voxelization is not counted there (see `bench_voxelize`).
 //!
 //! A second table times whole frames on the wall clock, the device waited for after each: a preset's whole
-//! AO cost is its frame less the frame without AO, and its ratio is taken to Bevy's SSAO High measured the
-//! same way. This is the measure on lavapipe, whose timestamps are taken when its rasterizer runs a scene
+//! AO cost is its frame less the frame without AO measured just before it, and its ratio is taken to Bevy's
+//! SSAO High measured the same way. This is the measure on lavapipe, whose timestamps are taken when its rasterizer runs a scene
 //! and can miss compute passes between render passes (the `hao/neighborhood` and `hao/denoise` spans read
 //! about 0.05 ms there however long the passes run); on a GPU the spans are the measure. On a software
 //! rasterizer such as lavapipe the times are CPU times of the emulated GPU: compare ratios within one run,
@@ -64,6 +63,9 @@ struct Args {
     /// Times every phase is measured, in turn; the medians are over the frames of all rounds.
     #[arg(long, default_value_t = 1)]
     rounds: usize,
+    /// Only this preset (repeat for more; default: every preset).
+    #[arg(long, value_enum)]
+    quality: Vec<bevy_hao_tools::harness::args::Quality>,
     /// A single grid fitted to the scene with this many cells on its longest axis (default: the plugin's
     /// default volume, camera-following cascades).
     #[arg(long)]
@@ -74,7 +76,7 @@ struct Args {
 }
 
 fn main() {
-    let Args { scene, size, frames, rounds, res, attributes } = Args::parse();
+    let Args { scene, size, frames, rounds, quality, res, attributes } = Args::parse();
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)
@@ -169,28 +171,33 @@ fn main() {
             [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra]
                 .map(|quality| HybridAmbientOcclusion { quality, accumulation_frames, ..default() })
         })
+        .filter(|settings| quality.is_empty() || quality.iter().any(|&q| HaoQuality::from(q) == settings.quality))
         .collect();
-    // Each round: no AO, Bevy's SSAO alone, then each preset with and without accumulation; the samples of
-    // every round are pooled (rounds spread the drift of a long run over every phase).
-    let bar = bevy_hao_tools::harness::progress_bar((rounds * (2 + presets.len())) as u64, "bench_ao");
-    let mut no_ao_walls = Vec::new();
-    let (mut ssao_samples, mut ssao_walls) = (Vec::new(), Vec::new());
-    let mut preset_samples = vec![(vec![Vec::new(); spans.len()], Vec::new()); presets.len()];
-    for _ in 0..rounds {
-        // No AO: the plugin takes the SSAO it added away with HAO (in the next frame).
+    // Each round: Bevy's SSAO alone, then each preset with and without accumulation, each phase right after a
+    // phase without AO (its baseline: a phase's cost is its frame less the frame just before it without AO,
+    // which leaves out the drift of a long run); the samples of every round are pooled.
+    let bar = bevy_hao_tools::harness::progress_bar((rounds * 2 * (1 + presets.len())) as u64, "bench_ao");
+    let without_ao = |app: &mut App| {
+        // The plugin takes the SSAO it added away with HAO (in the next frame).
         app.world_mut().entity_mut(cam).remove::<(HybridAmbientOcclusion, bevy::pbr::ScreenSpaceAmbientOcclusion)>();
         app.update();
-        no_ao_walls.extend(measure(&mut app, &[]).1);
+        measure(app, &[]).1
+    };
+    let mut ssao = (Vec::new(), Vec::new(), Vec::new());
+    let mut preset_samples = vec![(vec![Vec::new(); spans.len()], Vec::new(), Vec::new()); presets.len()];
+    for _ in 0..rounds {
+        ssao.2.extend(without_ao(&mut app));
         bar.inc(1);
         // Bevy's SSAO alone, at its default quality (High).
         app.world_mut().entity_mut(cam).insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
         let (s, w) = measure(&mut app, &["ssao"]);
-        ssao_samples.extend(s.into_iter().flatten());
-        ssao_walls.extend(w);
+        ssao.0.extend(s.into_iter().flatten());
+        ssao.1.extend(w);
         bar.inc(1);
-        // HAO: the plugin adds its own (cheapest) SSAO again once the user's is gone.
-        app.world_mut().entity_mut(cam).remove::<bevy::pbr::ScreenSpaceAmbientOcclusion>();
-        for (settings, (samples, walls)) in presets.iter().zip(preset_samples.iter_mut()) {
+        for (settings, (samples, walls, baseline)) in presets.iter().zip(preset_samples.iter_mut()) {
+            baseline.extend(without_ao(&mut app));
+            bar.inc(1);
+            // HAO: the plugin adds its own (cheapest) SSAO.
             app.world_mut().entity_mut(cam).insert(settings.clone());
             let (s, w) = measure(&mut app, &spans);
             for (all, new) in samples.iter_mut().zip(s) {
@@ -201,14 +208,15 @@ fn main() {
         }
     }
     let median = bevy_hao_tools::harness::median;
-    let ssao_alone = median(ssao_samples);
-    let no_ao = median(no_ao_walls).unwrap_or(f64::NAN);
-    let ssao_wall = median(ssao_walls).unwrap_or(f64::NAN);
-    let rows: Vec<(HybridAmbientOcclusion, (Vec<Option<f64>>, f64))> = presets
+    let wall = |walls: Vec<f64>| median(walls).unwrap_or(f64::NAN);
+    let ssao_alone = median(ssao.0);
+    let (ssao_wall, ssao_no_ao) = (wall(ssao.1), wall(ssao.2));
+    // Per preset: the spans' medians, and the wall clock's frame and the frame without AO before it.
+    let rows: Vec<(HybridAmbientOcclusion, (Vec<Option<f64>>, f64, f64))> = presets
         .into_iter()
         .zip(preset_samples)
-        .map(|(settings, (samples, walls))| {
-            (settings, (samples.into_iter().map(median).collect(), median(walls).unwrap_or(f64::NAN)))
+        .map(|(settings, (samples, walls, baseline))| {
+            (settings, (samples.into_iter().map(median).collect(), wall(walls), wall(baseline)))
         })
         .collect();
     // With attributes: the Medium trace with rays stopping at backs, then passing through them.
@@ -249,7 +257,7 @@ fn main() {
     );
     println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
-    for (settings, (m, _)) in &rows {
+    for (settings, (m, _, _)) in &rows {
         let (rays, steps, half) = settings.trace_parameters();
         // No `hao/apply` span: without the near field the denoiser writes the AO PBR reads itself.
         let passes = match (m[0], m[1], m[2], m[3]) {
@@ -279,19 +287,20 @@ fn main() {
             f(ssao_alone)
         );
     }
-    // The wall-clock costs: each frame less the frame without AO.
-    let ssao_cost = ssao_wall - no_ao;
+    // The wall-clock costs: each frame less the frame without AO just before it.
+    let ssao_cost = ssao_wall - ssao_no_ao;
     println!(
         "\nWall-clock frames, the device waited for after each (medians of {} frames in {rounds} round(s)): \
-         without AO {no_ao:.3} ms; with Bevy's SSAO High alone {ssao_wall:.3} ms, a cost of {ssao_cost:.3} ms. \
-         A preset's whole AO cost is its frame less the frame without AO (every pass and any CPU work it adds):\n",
+         Bevy's SSAO High alone {ssao_wall:.3} ms against {ssao_no_ao:.3} ms without AO just before it, a cost \
+         of {ssao_cost:.3} ms. A preset's whole AO cost is its frame less the frame without AO just before it \
+         (every pass and any CPU work it adds):\n",
         frames * rounds
     );
-    println!("| HAO quality | frames accumulated | frame ms | whole AO ms | whole / SSAO |");
-    println!("|---|---:|---:|---:|---:|");
-    for (settings, (_, wall)) in &rows {
+    println!("| HAO quality | frames accumulated | frame ms | frame without AO ms | whole AO ms | whole / SSAO |");
+    println!("|---|---:|---:|---:|---:|---:|");
+    for (settings, (_, wall, no_ao)) in &rows {
         println!(
-            "| {:?} | {} | {wall:.3} | {:.3} | {:.2} |",
+            "| {:?} | {} | {wall:.3} | {no_ao:.3} | {:.3} | {:.2} |",
             settings.quality,
             settings.accumulation_frames,
             wall - no_ao,
