@@ -29,7 +29,7 @@
 //! every fourth frame: a frame that traced another pixel of its block leaves its history as it is
 //! ([`temporal_update`]). A pixel without history (a disocclusion), or near voxels that may have changed, takes
 //! the traced pixels of its neighbourhood that show its surface in place of its own trace
-//! ([`traced_neighbourhood`]). `accumulation_frames` counts a pixel's own traces, so at half resolution the
+//! ([`stand_in`]). `accumulation_frames` counts a pixel's own traces, so at half resolution the
 //! history spans four times as many frames.
 
 /// Added to the neighbourhood window on each side, so that a pixel whose neighbours saw no occluder this
