@@ -63,6 +63,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
                 vec![],
                 vec![("MULTISAMPLED", ShaderDefValue::Bool(true))],
                 vec![("BACK_HITS", ShaderDefValue::Bool(true))],
+                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("BACK_HITS", ShaderDefValue::Bool(true))],
             ],
         ),
         ("src/ao/hao_neighborhood.wgsl", vec![vec![]]),
