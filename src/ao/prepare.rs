@@ -160,10 +160,10 @@ pub fn prepare_hao_textures(
     )>,
     mut frame: Local<u32>,
     mut histories: Local<HashMap<Entity, ViewHistory>>,
-    voxel_grid: Res<ExtractedVoxelGrid>,
+    voxel_grid: Option<Res<ExtractedVoxelGrid>>,
 ) {
     *frame = frame.wrapping_add(1);
-    let grid_has_attributes = voxel_grid.assets.as_ref().is_some_and(|a| a.attributes.is_some());
+    let grid_has_attributes = voxel_grid.is_some_and(|g| g.assets.as_ref().is_some_and(|a| a.attributes.is_some()));
     for (entity, camera, hao, msaa, jitter, previous_view) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
         let samples = msaa.samples();

@@ -61,8 +61,8 @@ struct Args {
     #[arg(long, default_value_t = 20)]
     frames: usize,
     /// Times every phase is measured, in turn; the medians are over the frames of all rounds.
-    #[arg(long, default_value_t = 1)]
-    rounds: usize,
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    rounds: u64,
     /// Only this preset (repeat for more; default: every preset).
     #[arg(long, value_enum)]
     quality: Vec<bevy_hao_tools::harness::args::Quality>,
@@ -77,6 +77,7 @@ struct Args {
 
 fn main() {
     let Args { scene, size, frames, rounds, quality, res, attributes } = Args::parse();
+    let rounds = rounds as usize;
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
         std::process::exit(1)
@@ -247,8 +248,14 @@ fn main() {
     }
     let grid = bevy_hao_tools::harness::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
     println!(
-        "GPU: {adapter}; {scene} at {}x{}, voxel grid {}x{}x{}; medians of {frames} frames\n",
-        size.x, size.y, grid.x, grid.y, grid.z
+        "GPU: {adapter}; {scene} at {}x{}, voxel grid {}x{}x{}; medians of {} frames ({frames} in each of {rounds} \
+         round(s))\n",
+        size.x,
+        size.y,
+        grid.x,
+        grid.y,
+        grid.z,
+        frames * rounds
     );
     println!(
         "| HAO quality | frames accumulated | rays x steps a frame | trace ms | neighborhood ms | temporal ms \
@@ -300,11 +307,12 @@ fn main() {
     println!("|---|---:|---:|---:|---:|---:|");
     for (settings, (_, wall, no_ao)) in &rows {
         println!(
-            "| {:?} | {} | {wall:.3} | {no_ao:.3} | {:.3} | {:.2} |",
+            "| {:?} | {} | {wall:.3} | {no_ao:.3} | {:.3} | {} |",
             settings.quality,
             settings.accumulation_frames,
             wall - no_ao,
-            (wall - no_ao) / ssao_cost
+            // No ratio where SSAO's cost came out at nothing or less (noise on a fast device).
+            if ssao_cost > 0.0 { format!("{:.2}", (wall - no_ao) / ssao_cost) } else { "-".into() }
         );
     }
     println!(
