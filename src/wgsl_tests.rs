@@ -198,7 +198,11 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 history_valid,
                 origin_x,
                 origin_y,
-                padding,
+                view_width,
+                view_height,
+                padding_a,
+                padding_b,
+                padding_c,
             ]
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),

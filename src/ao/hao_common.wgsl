@@ -28,7 +28,17 @@ struct HaoSettings {
     // the prepass textures and in the AO texture PBR reads, which are the target's size.
     origin_x: u32,
     origin_y: u32,
-    padding: u32,
+    // The view's size in pixels: the temporal history's rows (`history_index`).
+    view_width: u32,
+    view_height: u32,
+    padding_a: u32,
+    padding_b: u32,
+    padding_c: u32,
+}
+
+// Where the temporal history holds pixel `p` of the view: its buffers are the view's pixels row by row.
+fn history_index(settings: HaoSettings, p: vec2<u32>) -> u32 {
+    return p.y * settings.view_width + p.x;
 }
 
 // Where pixel `p` of the view (0 at its viewport's corner) lies in the render target.
@@ -150,40 +160,6 @@ fn denoise_radius(radius: u32, frames: f32) -> i32 {
     return i32(ceil(f32(radius) * min(1.0, 2.0 / sqrt(max(frames, 1.0)))));
 }
 
-// cpu/denoise.rs: bilateral_tap. One tap of the denoiser at `p` (clamped to the texture), `offset` texels
-// from the center: (weight x AO, weight); nothing from the background.
-fn bilateral_tap(input: texture_2d<u32>, p: vec2<i32>, offset: f32, radius: f32, center: vec4<f32>, center_normal: vec3<f32>) -> vec2<f32> {
-    let tap = load_history(input, clamp(p, vec2<i32>(0), vec2<i32>(textureDimensions(input)) - 1));
-    if tap.y <= 0.0 {
-        return vec2<f32>(0.0);
-    }
-    let w = bilateral_weight(offset, radius, center.y, tap.y, center_normal, unpack_direction(tap.z));
-    return vec2<f32>(w * tap.x, w);
-}
-
-// cpu/denoise.rs: bilateral_cross. The denoiser (`hao_denoise.wgsl`): the AO of texel `pixel` of `input`
-// (the temporal history: ao, view depth, packed normal, frames) filtered in one pass over a cross, the
-// center and the texels up to `denoise_radius` away along its row and column, each weighed by
-// `bilateral_weight`. The background keeps its value.
-fn bilateral_cross(input: texture_2d<u32>, pixel: vec2<u32>, radius: u32) -> f32 {
-    let center = load_history(input, vec2<i32>(pixel));
-    if center.y <= 0.0 {
-        return center.x;
-    }
-    let n0 = unpack_normal(center.z);
-    let r = denoise_radius(radius, center.w);
-    let c = vec2<i32>(pixel);
-    var sum = vec2<f32>(center.x, 1.0);
-    for (var d = 1; d <= r; d++) {
-        let o = f32(d);
-        sum += bilateral_tap(input, c + vec2<i32>(d, 0), o, f32(r), center, n0);
-        sum += bilateral_tap(input, c - vec2<i32>(d, 0), o, f32(r), center, n0);
-        sum += bilateral_tap(input, c + vec2<i32>(0, d), o, f32(r), center, n0);
-        sum += bilateral_tap(input, c - vec2<i32>(0, d), o, f32(r), center, n0);
-    }
-    return sum.x / sum.y;
-}
-
 // Packs an octahedral normal into one float exactly (11 bits per coordinate: an integer below 2^22), for the
 // temporal history.
 fn pack_normal(e: vec2<f32>) -> f32 {
@@ -259,18 +235,18 @@ fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: boo
 }
 
 // cpu/denoise.rs: HistoryTexel::stored. The temporal history's texel (ao, view depth, packed normal, frames
-// of weight) in 64 bits, an rg32uint texel: x holds the view depth rounded to 11 bits of mantissa (its top 19
-// bits: a positive float's exponent and mantissa) above the AO to 1/8191 (13 bits); y the packed normal's 22
-// bits above the frames to an eighth (10 bits, at most 127).
-fn pack_history(v: vec4<f32>) -> vec4<u32> {
+// of weight) in 64 bits, one element of the history buffer: x holds the view depth rounded to 11 bits of
+// mantissa (its top 19 bits: a positive float's exponent and mantissa) above the AO to 1/8191 (13 bits); y the
+// packed normal's 22 bits above the frames to an eighth (10 bits, at most 127).
+fn pack_history(v: vec4<f32>) -> vec2<u32> {
     let depth = (bitcast<u32>(max(v.y, 0.0)) + 0x800u) >> 12u;
     let ao = u32(round(clamp(v.x, 0.0, 1.0) * 8191.0));
     let frames = u32(round(clamp(v.w, 0.0, 127.0) * 8.0));
-    return vec4<u32>((depth << 13u) | ao, (u32(v.z) << 10u) | frames, 0u, 0u);
+    return vec2<u32>((depth << 13u) | ao, (u32(v.z) << 10u) | frames);
 }
 
-// The texel of the history at `p`, unpacked (`pack_history`).
-fn load_history(history: texture_2d<u32>, p: vec2<i32>) -> vec4<f32> {
-    let h = textureLoad(history, p, 0).xy;
+// A texel of the history, unpacked (`pack_history`): (ao, view depth, packed normal, frames); all zero (no
+// history) where never written.
+fn unpack_history(h: vec2<u32>) -> vec4<f32> {
     return vec4<f32>(f32(h.x & 8191u) / 8191.0, bitcast<f32>((h.x >> 13u) << 12u), f32(h.y >> 10u), f32(h.y & 1023u) * 0.125);
 }

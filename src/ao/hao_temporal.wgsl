@@ -4,13 +4,14 @@
 // around it (its block's, from the neighborhood pass), and blended with its own trace. At half resolution a
 // pixel is traced every fourth frame; in the other frames its history stays as it is, and where it has none
 // its traced neighbours on its surface stand in. Writes the new history (ao, view depth, packed normal,
-// frames of weight, in 64 bits: `pack_history`), which the denoiser reads and the next frame reprojects. Near
+// frames of weight, in 64 bits: `pack_history`; a buffer of the view's pixels row by row), which the denoiser
+// reads and the next frame reprojects. Near
 // voxels that may have changed (moving occluders) the history is kept short.
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, history_accepts, load_history, octahedral_direction, octahedral_encode,
-    pack_history, pack_normal, target_pixel, temporal_update, traced_pixel, unpack_direction,
+    HaoSettings, history_accepts, history_index, octahedral_direction, octahedral_encode,
+    pack_history, pack_normal, target_pixel, temporal_update, traced_pixel, unpack_direction, unpack_history,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
 
@@ -26,7 +27,8 @@ struct PreviousViewData {
 @group(0) @binding(0) var noisy: texture_2d<f32>;
 // The neighborhood pass's window of each texel of the trace.
 @group(0) @binding(1) var trace_window: texture_2d<f32>;
-@group(0) @binding(2) var history: texture_2d<u32>;
+// Last frame's history (`history_index`; zero where there is none).
+@group(0) @binding(2) var<storage, read> history: array<vec2<u32>>;
 // The prepasses, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
 #ifdef MULTISAMPLED
 @group(0) @binding(3) var depth_texture: texture_depth_multisampled_2d;
@@ -36,7 +38,7 @@ struct PreviousViewData {
 @group(0) @binding(4) var normal_texture: texture_2d<f32>;
 #endif
 @group(0) @binding(5) var<uniform> settings: HaoSettings;
-@group(0) @binding(6) var history_out: texture_storage_2d<rg32uint, write>;
+@group(0) @binding(6) var<storage, read_write> history_out: array<vec2<u32>>;
 
 @group(1) @binding(0) var<uniform> view: View;
 @group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
@@ -71,7 +73,7 @@ fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32) -> 
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let size = textureDimensions(history);
+    let size = vec2<u32>(settings.view_width, settings.view_height);
     if any(gid.xy >= size) {
         return;
     }
@@ -79,7 +81,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     if depth <= 0.0 {
         // Background: no history.
-        textureStore(history_out, pixel, pack_history(vec4<f32>(1.0, 0.0, 0.0, 0.0)));
+        history_out[history_index(settings, pixel)] = pack_history(vec4<f32>(1.0, 0.0, 0.0, 0.0));
         return;
     }
     let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
@@ -119,7 +121,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
             if any(t < vec2<i32>(0)) || any(t >= vec2<i32>(size)) {
                 continue;
             }
-            let h = load_history(history, t);
+            let h = unpack_history(history[history_index(settings, vec2<u32>(t))]);
             if h.w <= 0.0 || !history_accepts(expected_depth, h.y, normal, unpack_direction(h.z)) {
                 continue;
             }
@@ -144,5 +146,6 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
         current = textureLoad(noisy, block, 0).x;
     }
     let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
-    textureStore(history_out, pixel, pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y)));
+    history_out[history_index(settings, pixel)] =
+        pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
 }

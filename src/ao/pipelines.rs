@@ -7,19 +7,21 @@ use bevy::asset::load_embedded_asset;
 use bevy::core_pipeline::prepass::PreviousViewData;
 use bevy::prelude::*;
 use bevy::render::render_resource::binding_types::{
-    texture_2d, texture_2d_multisampled, texture_depth_2d, texture_depth_2d_multisampled, texture_storage_2d,
-    uniform_buffer,
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_2d, texture_2d_multisampled, texture_depth_2d,
+    texture_depth_2d_multisampled, texture_storage_2d, uniform_buffer,
 };
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderAdapter;
 use bevy::render::view::ViewUniform;
 use bevy::shader::ShaderDefVal;
 
-/// The temporal history's texel: 64 bits, packed by `pack_history` in hao_common.wgsl (the view depth and
-/// AO in one word, the packed normal and frames of weight in the other; CPU twin
-/// `cpu::denoise::HistoryTexel::stored`). Half the bytes of four floats, which the temporal pass writes at
-/// full resolution every frame.
-pub(crate) const HISTORY_FORMAT: TextureFormat = TextureFormat::Rg32Uint;
+/// Bytes of a pixel of the temporal history: two `u32`, packed by `pack_history` in hao_common.wgsl (the view
+/// depth and AO in one word, the packed normal and frames of weight in the other; CPU twin
+/// `cpu::denoise::HistoryTexel::stored`), which the temporal pass writes at full resolution every frame. The
+/// history is a storage buffer of the view's pixels row by row rather than a texture: the temporal pass and
+/// the denoiser read nine of its texels a pixel, and a software rasterizer such as lavapipe loads from a
+/// buffer for less than it fetches a texel.
+pub(crate) const HISTORY_TEXEL_BYTES: u64 = 8;
 
 /// The window of each texel of the trace that bounds the history (lower and upper bound), which the
 /// neighborhood pass writes and the temporal pass reads.
@@ -186,11 +188,11 @@ fn prepass_readers(
             (
                 texture_2d(unfilterable),
                 texture_2d(unfilterable),
-                texture_2d(TextureSampleType::Uint),
+                storage_buffer_read_only_sized(false, None),
                 depth,
                 normal,
                 uniform_buffer::<GpuHaoSettings>(false),
-                texture_storage_2d(HISTORY_FORMAT, StorageTextureAccess::WriteOnly),
+                storage_buffer_sized(false, None),
             ),
         ),
     );
@@ -243,7 +245,7 @@ impl FromWorld for HaoPipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    texture_2d(TextureSampleType::Uint),
+                    storage_buffer_read_only_sized(false, None),
                     uniform_buffer::<GpuHaoSettings>(false),
                     texture_storage_2d(ao_format, StorageTextureAccess::WriteOnly),
                 ),
@@ -254,7 +256,7 @@ impl FromWorld for HaoPipelines {
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
                 (
-                    texture_2d(TextureSampleType::Uint),
+                    storage_buffer_read_only_sized(false, None),
                     uniform_buffer::<GpuHaoSettings>(false),
                     texture_2d(unfilterable),
                     texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),

@@ -2,7 +2,7 @@
 
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
-use super::pipelines::{HISTORY_FORMAT, HaoPipelines, WINDOW_FORMAT};
+use super::pipelines::{HISTORY_TEXEL_BYTES, HaoPipelines, WINDOW_FORMAT};
 use crate::voxel::bindings::GpuVoxelGrid;
 use crate::voxel::extract::ExtractedVoxelGrid;
 use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
@@ -52,8 +52,16 @@ pub struct GpuHaoSettings {
     pub origin_x: u32,
     /// And y.
     pub origin_y: u32,
+    /// The view's width in pixels: the temporal history's rows.
+    pub view_width: u32,
+    /// The view's height in pixels.
+    pub view_height: u32,
     /// Padding to the WGSL struct's 16-byte multiple.
-    pub padding: u32,
+    pub padding_a: u32,
+    /// Padding.
+    pub padding_b: u32,
+    /// Padding.
+    pub padding_c: u32,
 }
 
 /// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, and when.
@@ -88,10 +96,11 @@ pub struct HaoViewResources {
     pub noisy: CachedTexture,
     /// The window of each texel of the trace that bounds the history (the neighborhood pass's output).
     pub window: CachedTexture,
-    /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames.
-    pub history: CachedTexture,
+    /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames,
+    /// 64 bits a pixel, the view's pixels row by row.
+    pub history: Buffer,
     /// The temporal history this frame writes, same layout; the denoiser reads it.
-    pub history_out: CachedTexture,
+    pub history_out: Buffer,
     /// With the near field: the denoised AO combined with Bevy's SSAO, which apply copies into the texture
     /// PBR reads (without, the denoiser writes there itself).
     pub result: Option<CachedTexture>,
@@ -160,12 +169,28 @@ pub fn prepare_hao_textures(
     )>,
     mut frame: Local<u32>,
     mut histories: Local<HashMap<Entity, ViewHistory>>,
+    mut history_buffers: Local<HashMap<Entity, HistoryBuffers>>,
+    mut too_large: Local<bevy::platform::collections::HashSet<Entity>>,
     voxel_grid: Option<Res<ExtractedVoxelGrid>>,
 ) {
     *frame = frame.wrapping_add(1);
     let grid_has_attributes = voxel_grid.is_some_and(|g| g.assets.as_ref().is_some_and(|a| a.attributes.is_some()));
     for (entity, camera, hao, msaa, jitter, previous_view) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
+        let history_bytes = u64::from(view_size.x.max(1)) * u64::from(view_size.y.max(1)) * HISTORY_TEXEL_BYTES;
+        let limits = device.limits();
+        let history_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        if history_bytes > history_limit {
+            if too_large.insert(entity) {
+                warn!(
+                    "bevy_hao: view {entity} of {}x{} pixels needs a temporal history of {history_bytes} bytes, over \
+                     the device's Limits::max_storage_buffer_binding_size ({history_limit}); HAO is off on this view",
+                    view_size.x, view_size.y
+                );
+            }
+            commands.entity(entity).remove::<(HaoViewResources, HaoBindGroups)>();
+            continue;
+        }
         let samples = msaa.samples();
         let origin = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
@@ -192,10 +217,17 @@ pub fn prepare_hao_textures(
         };
         let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
         let window = texture(&mut texture_cache, "hao_window_texture", trace_size, WINDOW_FORMAT);
-        // Two histories, read and written in turn (the texture cache hands each label's texture back while
-        // it is used every frame; a new one is zeroed, which reads as no history).
-        let a = texture(&mut texture_cache, "hao_history_a_texture", view_size, HISTORY_FORMAT);
-        let b = texture(&mut texture_cache, "hao_history_b_texture", view_size, HISTORY_FORMAT);
+        // Two histories, read and written in turn, kept while the view is prepared every frame at its size (new
+        // ones are zeroed, which reads as no history).
+        let buffers = history_buffers
+            .entry(entity)
+            .and_modify(|h| {
+                if h.view_size != view_size {
+                    *h = HistoryBuffers::new(&device, view_size, history_bytes);
+                }
+            })
+            .or_insert_with(|| HistoryBuffers::new(&device, view_size, history_bytes));
+        let [a, b] = buffers.buffers.clone();
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
@@ -230,7 +262,11 @@ pub fn prepare_hao_textures(
             history_valid: (history_valid && previous_view.is_some()) as u32,
             origin_x: origin.x,
             origin_y: origin.y,
-            padding: 0,
+            view_width: view_size.x,
+            view_height: view_size.y,
+            padding_a: 0,
+            padding_b: 0,
+            padding_c: 0,
         };
         let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {
@@ -251,6 +287,28 @@ pub fn prepare_hao_textures(
     // Views not prepared this frame (off, removed, despawned) are forgotten; when they come back their
     // history starts again.
     histories.retain(|_, h| h.frame == *frame);
+    history_buffers.retain(|entity, _| histories.contains_key(entity));
+    too_large.retain(|entity| views.contains(*entity));
+}
+
+/// A view's two temporal histories (`HaoViewResources::history`), for one view size.
+pub struct HistoryBuffers {
+    view_size: UVec2,
+    buffers: [Buffer; 2],
+}
+
+impl HistoryBuffers {
+    fn new(device: &RenderDevice, view_size: UVec2, bytes: u64) -> Self {
+        let buffer = |label| {
+            device.create_buffer(&BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            })
+        };
+        Self { view_size, buffers: [buffer("hao_history_a_buffer"), buffer("hao_history_b_buffer")] }
+    }
 }
 
 /// Creates the per-view bind groups.
@@ -296,11 +354,11 @@ pub fn prepare_hao_bind_groups(
             &BindGroupEntries::sequential((
                 &res.noisy.default_view,
                 &res.window.default_view,
-                &res.history.default_view,
+                res.history.as_entire_binding(),
                 depth,
                 normal,
                 res.settings.as_entire_binding(),
-                &res.history_out.default_view,
+                res.history_out.as_entire_binding(),
             )),
         );
         let (denoise, apply) = match &res.result {
@@ -309,7 +367,7 @@ pub fn prepare_hao_bind_groups(
                     "hao_denoise_bind_group",
                     &cache.get_bind_group_layout(&pipelines.denoise_layout),
                     &BindGroupEntries::sequential((
-                        &res.history_out.default_view,
+                        res.history_out.as_entire_binding(),
                         res.settings.as_entire_binding(),
                         ssao_view,
                     )),
@@ -321,7 +379,7 @@ pub fn prepare_hao_bind_groups(
                     "hao_denoise_near_field_bind_group",
                     &cache.get_bind_group_layout(&pipelines.denoise_near_field_layout),
                     &BindGroupEntries::sequential((
-                        &res.history_out.default_view,
+                        res.history_out.as_entire_binding(),
                         res.settings.as_entire_binding(),
                         ssao_view,
                         &result.default_view,

@@ -19,7 +19,7 @@ pub struct HistoryTexel {
 
 impl HistoryTexel {
     /// The texel as the temporal pass stores it, in 64 bits (WGSL: `pack_history`, read back by
-    /// `load_history`): the AO to 1/8191, the view depth rounded to 11 bits of mantissa (within 1/4096 of
+    /// `unpack_history`): the AO to 1/8191, the view depth rounded to 11 bits of mantissa (within 1/4096 of
     /// itself), the frames of weight to an eighth (at most 127). The normal is kept as it is: the GPU's 11 bits
     /// per octahedral coordinate are finer than its tests tell.
     pub fn stored(self) -> Self {
