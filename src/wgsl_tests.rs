@@ -200,9 +200,9 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 origin_y,
                 view_width,
                 view_height,
-                padding_a,
-                padding_b,
-                padding_c,
+                trace_width,
+                trace_height,
+                padding,
             ]
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),

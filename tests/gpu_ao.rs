@@ -486,7 +486,7 @@ fn walls_app_and_voxels(
 
 /// The CPU twin's trace of render frame `frame` as the GPU stores it: one texel per pixel, or per 2x2 block
 /// at half resolution, traced from the block's pixel of the frame (`traced_pixel`) with that pixel's noise
-/// (`noise_frame`), the AO rounded to f16.
+/// (`noise_frame`), stored as the GPU stores it (`TracedTexel::stored`).
 fn cpu_trace_frame(
     samples: &[Option<(Vec3, Vec3)>],
     (w, h): (u32, u32),
@@ -515,10 +515,8 @@ fn cpu_trace_frame(
     let texels = traced
         .iter()
         .map(|&pixel| {
-            samples[pixel].map(|(world, normal)| TracedTexel {
-                ao: half::f16::from_f32(ao[pixel]).to_f32(),
-                depth: -view_from_world.transform_point3(world).z,
-                normal,
+            samples[pixel].map(|(world, normal)| {
+                TracedTexel { ao: ao[pixel], depth: -view_from_world.transform_point3(world).z, normal }.stored()
             })
         })
         .collect();
@@ -622,14 +620,14 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
     let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
     let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let (noisy, _) = cpu_trace(&samples, w, &settings, &levels, 0);
-    // The history as the temporal pass writes it: the trace's AO (stored as f16), view depth, normal, in its
-    // 64 bits (`HistoryTexel::stored`).
+    // The history as the temporal pass writes it: the trace's AO, view depth, normal, in its 64 bits
+    // (`HistoryTexel::stored`; the trace stores its AO so too).
     let history: Vec<HistoryTexel> = samples
         .iter()
         .zip(&noisy)
         .map(|(s, &ao)| match s {
             Some((world, normal)) => HistoryTexel {
-                ao: half::f16::from_f32(ao).to_f32(),
+                ao,
                 depth: -view_from_world.transform_point3(*world).z,
                 normal: *normal,
                 frames: 1.0,

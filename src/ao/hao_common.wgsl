@@ -31,14 +31,20 @@ struct HaoSettings {
     // The view's size in pixels: the temporal history's rows (`history_index`).
     view_width: u32,
     view_height: u32,
-    padding_a: u32,
-    padding_b: u32,
-    padding_c: u32,
+    // The trace's size: the view's, or half of it rounded up (`trace_index`).
+    trace_width: u32,
+    trace_height: u32,
+    padding: u32,
 }
 
 // Where the temporal history holds pixel `p` of the view: its buffers are the view's pixels row by row.
 fn history_index(settings: HaoSettings, p: vec2<u32>) -> u32 {
     return p.y * settings.view_width + p.x;
+}
+
+// Where the trace's buffers (its AO, the neighborhood pass's windows) hold its texel `t`: row by row.
+fn trace_index(settings: HaoSettings, t: vec2<u32>) -> u32 {
+    return t.y * settings.trace_width + t.x;
 }
 
 // Where pixel `p` of the view (0 at its viewport's corner) lies in the render target.
@@ -235,7 +241,7 @@ fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: boo
 }
 
 // cpu/denoise.rs: HistoryTexel::stored. The temporal history's texel (ao, view depth, packed normal, frames
-// of weight) in 64 bits, one element of the history buffer: x holds the view depth rounded to 11 bits of
+// of weight) in 64 bits, one element of the history buffer (and of the trace's, with no frames): x holds the view depth rounded to 11 bits of
 // mantissa (its top 19 bits: a positive float's exponent and mantissa) above the AO to 1/8191 (13 bits); y the
 // packed normal's 22 bits above the frames to an eighth (10 bits, at most 127).
 fn pack_history(v: vec4<f32>) -> vec2<u32> {

@@ -4,14 +4,16 @@
 // the four pixels of a 2x2 block share their block's window, so it is computed here once, at the trace's
 // resolution, instead of read from nine texels by every pixel of the temporal pass.
 // CPU twin: `bevy_hao::cpu::temporal::trace_window`.
-#import bevy_hao::hao_common::neighborhood_window
+#import bevy_hao::hao_common::{HaoSettings, neighborhood_window, trace_index, unpack_history}
 
-@group(0) @binding(0) var noisy: texture_2d<f32>;
-@group(0) @binding(1) var window_out: texture_storage_2d<rg32float, write>;
+// The trace's texels and their windows, row by row (`trace_index`).
+@group(0) @binding(0) var<storage, read> noisy: array<vec2<u32>>;
+@group(0) @binding(1) var<uniform> settings: HaoSettings;
+@group(0) @binding(2) var<storage, read_write> window_out: array<vec2<f32>>;
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let size = vec2<i32>(textureDimensions(noisy));
+    let size = vec2<i32>(i32(settings.trace_width), i32(settings.trace_height));
     let texel = vec2<i32>(gid.xy);
     if any(texel >= size) {
         return;
@@ -26,7 +28,7 @@ fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
                 continue;
             }
             // (ao, view depth, ...): depth 0 is the background.
-            let v = textureLoad(noisy, t, 0).xy;
+            let v = unpack_history(noisy[trace_index(settings, vec2<u32>(t))]).xy;
             if v.y > 0.0 {
                 sum += v.x;
                 squares += v.x * v.x;
@@ -38,5 +40,5 @@ fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
     if n > 0.0 {
         window = neighborhood_window(sum, squares, n);
     }
-    textureStore(window_out, gid.xy, vec4<f32>(window, 0.0, 0.0));
+    window_out[trace_index(settings, gid.xy)] = window;
 }

@@ -10,8 +10,8 @@
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, history_accepts, history_index, octahedral_direction, octahedral_encode,
-    pack_history, pack_normal, target_pixel, temporal_update, traced_pixel, unpack_direction, unpack_history,
+    HaoSettings, history_accepts, history_index, octahedral_encode, pack_history, pack_normal, target_pixel,
+    temporal_update, trace_index, traced_pixel, unpack_direction, unpack_history,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
 
@@ -24,9 +24,9 @@ struct PreviousViewData {
     view_from_clip: mat4x4<f32>,
 }
 
-@group(0) @binding(0) var noisy: texture_2d<f32>;
-// The neighborhood pass's window of each texel of the trace.
-@group(0) @binding(1) var trace_window: texture_2d<f32>;
+// The trace's texels (ao, view depth, packed normal: `unpack_history`) and the neighborhood pass's window of each, row by row (`trace_index`).
+@group(0) @binding(0) var<storage, read> noisy: array<vec2<u32>>;
+@group(0) @binding(1) var<storage, read> trace_window: array<vec2<f32>>;
 // Last frame's history (`history_index`; zero where there is none).
 @group(0) @binding(2) var<storage, read> history: array<vec2<u32>>;
 // The prepasses, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
@@ -48,7 +48,7 @@ struct PreviousViewData {
 // that show geometry, else 1. `taps`: 9, or 0 where it is not used (a loop rather than a branch: lavapipe
 // runs both sides of every branch, taken or not, but leaves a loop once none of its invocations goes on).
 fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32) -> f32 {
-    let trace_size = vec2<i32>(textureDimensions(noisy));
+    let trace_size = vec2<i32>(i32(settings.trace_width), i32(settings.trace_height));
     var sum = 0.0;
     var n = 0.0;
     var same_sum = 0.0;
@@ -58,11 +58,11 @@ fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32) -> 
         if any(t < vec2<i32>(0)) || any(t >= trace_size) {
             continue;
         }
-        let v = textureLoad(noisy, t, 0);
+        let v = unpack_history(noisy[trace_index(settings, vec2<u32>(t))]);
         if v.y > 0.0 {
             sum += v.x;
             n += 1.0;
-            if history_accepts(view_depth, v.y, normal, octahedral_direction(v.zw)) {
+            if history_accepts(view_depth, v.y, normal, unpack_direction(v.z)) {
                 same_sum += v.x;
                 same_n += 1.0;
             }
@@ -97,7 +97,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let block = pixel / select(1u, 2u, half);
     let traced = all(traced_pixel(block, settings.frame, vec2<u32>(view.viewport.zw), half) == pixel);
     // The window of the trace around its block bounds the history.
-    let window = textureLoad(trace_window, block, 0).xy;
+    let window = trace_window[trace_index(settings, block)];
 
     // Where this surface was: its world position in the previous view, as that frame was rendered (with its
     // own TAA jitter, as this frame's world_from_clip has this frame's).
@@ -143,7 +143,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let stand_in_used = !traced && (history_count <= 0.0 || near_change || settings.accumulation_frames <= 1u);
     var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
     if traced {
-        current = textureLoad(noisy, block, 0).x;
+        current = unpack_history(noisy[trace_index(settings, block)]).x;
     }
     let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
     history_out[history_index(settings, pixel)] =

@@ -2,12 +2,12 @@
 // turn it is: `traced_pixel`), cosine-weighted rays from the surface (position from the depth prepass,
 // normal from the normal prepass) through the voxel texture, with empty-space skipping on its max-reduced
 // mips. Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral
-// normal, which the temporal pass weighs by.
+// normal, which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`, with no frames).
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`. The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff,
-    octahedral_encode, traced_pixel, noise_frame, target_pixel,
+    octahedral_encode, traced_pixel, noise_frame, target_pixel, trace_index, pack_history, pack_normal,
 }
 #import bevy_hao::voxel_grid::{
     voxel_grid, ray_start_level, march_cascades, level_position, voxel_normal_at, safe_inverse, ray_box,
@@ -22,7 +22,7 @@
 @group(0) @binding(1) var normal_texture: texture_2d<f32>;
 #endif
 @group(0) @binding(2) var<uniform> settings: HaoSettings;
-@group(0) @binding(3) var ao_out: texture_storage_2d<rgba16float, write>;
+@group(0) @binding(3) var<storage, read_write> noisy: array<vec2<u32>>;
 @group(1) @binding(0) var<uniform> view: View;
 
 // cpu/ao.rs: BACK_HIT_COS, MAX_BACK_HITS
@@ -53,10 +53,10 @@ fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let out_size = textureDimensions(ao_out);
-    if any(gid.xy >= out_size) {
+    if any(gid.xy >= vec2<u32>(settings.trace_width, settings.trace_height)) {
         return;
     }
+    let at = trace_index(settings, gid.xy);
     // At half resolution, the pixel of the 2x2 block whose turn it is: each pixel traces every fourth frame,
     // and the temporal pass accumulates each pixel's own rays at full resolution.
     let half = settings.half_resolution != 0u;
@@ -64,15 +64,15 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     if depth <= 0.0 {
         // Background: depth 0 tells the passes after this one to skip it.
-        textureStore(ao_out, gid.xy, vec4<f32>(1.0, 0.0, 0.0, 0.0));
+        noisy[at] = pack_history(vec4<f32>(1.0, 0.0, 0.0, 0.0));
         return;
     }
     let world = world_position(pixel, depth);
     let normal = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
     let view_depth = -(view.view_from_world * vec4<f32>(world, 1.0)).z;
-    let packed_normal = octahedral_encode(normal);
+    let packed_normal = pack_normal(octahedral_encode(normal));
     if voxel_grid.level_count == 0u {
-        textureStore(ao_out, gid.xy, vec4<f32>(1.0, view_depth, packed_normal));
+        noisy[at] = pack_history(vec4<f32>(1.0, view_depth, packed_normal, 0.0));
         return;
     }
     let pf = vec2<f32>(pixel);
@@ -107,5 +107,5 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let ao = clamp(1.0 - settings.intensity * occlusion / f32(settings.rays), 0.0, 1.0);
-    textureStore(ao_out, gid.xy, vec4<f32>(ao, view_depth, packed_normal));
+    noisy[at] = pack_history(vec4<f32>(ao, view_depth, packed_normal, 0.0));
 }

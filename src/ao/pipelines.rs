@@ -23,9 +23,13 @@ use bevy::shader::ShaderDefVal;
 /// buffer for less than it fetches a texel.
 pub(crate) const HISTORY_TEXEL_BYTES: u64 = 8;
 
-/// The window of each texel of the trace that bounds the history (lower and upper bound), which the
-/// neighborhood pass writes and the temporal pass reads.
-pub(crate) const WINDOW_FORMAT: TextureFormat = TextureFormat::Rg32Float;
+/// Bytes of a texel of the trace (ao, view depth, packed normal, packed as a texel of the history with no
+/// frames: `pack_history` in hao_common.wgsl), in a storage buffer of its texels row by row, as the history.
+pub(crate) const TRACE_TEXEL_BYTES: u64 = 8;
+
+/// Bytes of the window of a texel of the trace that bounds the history (lower and upper bound, two floats),
+/// which the neighborhood pass writes and the temporal pass reads, in a buffer laid out as the trace's.
+pub(crate) const WINDOW_TEXEL_BYTES: u64 = 8;
 
 /// The passes that read the depth and normal prepasses (trace, temporal), for one kind of prepass
 /// texture: single-sampled, or multisampled on a camera with MSAA (they read sample 0).
@@ -177,7 +181,7 @@ fn prepass_readers(
                 depth,
                 normal,
                 uniform_buffer::<GpuHaoSettings>(false),
-                texture_storage_2d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                storage_buffer_sized(false, None),
             ),
         ),
     );
@@ -186,8 +190,8 @@ fn prepass_readers(
         &BindGroupLayoutEntries::sequential(
             ShaderStages::COMPUTE,
             (
-                texture_2d(unfilterable),
-                texture_2d(unfilterable),
+                storage_buffer_read_only_sized(false, None),
+                storage_buffer_read_only_sized(false, None),
                 storage_buffer_read_only_sized(false, None),
                 depth,
                 normal,
@@ -237,7 +241,11 @@ impl FromWorld for HaoPipelines {
             "hao_neighborhood_layout",
             &BindGroupLayoutEntries::sequential(
                 ShaderStages::COMPUTE,
-                (texture_2d(unfilterable), texture_storage_2d(WINDOW_FORMAT, StorageTextureAccess::WriteOnly)),
+                (
+                    storage_buffer_read_only_sized(false, None),
+                    uniform_buffer::<GpuHaoSettings>(false),
+                    storage_buffer_sized(false, None),
+                ),
             ),
         );
         let denoise_layout = BindGroupLayoutDescriptor::new(

@@ -2,7 +2,7 @@
 
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
-use super::pipelines::{HISTORY_TEXEL_BYTES, HaoPipelines, WINDOW_FORMAT};
+use super::pipelines::{HISTORY_TEXEL_BYTES, HaoPipelines, TRACE_TEXEL_BYTES, WINDOW_TEXEL_BYTES};
 use crate::voxel::bindings::GpuVoxelGrid;
 use crate::voxel::extract::ExtractedVoxelGrid;
 use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
@@ -56,12 +56,12 @@ pub struct GpuHaoSettings {
     pub view_width: u32,
     /// The view's height in pixels.
     pub view_height: u32,
+    /// The trace's width in texels: the rows of its buffers.
+    pub trace_width: u32,
+    /// The trace's height in texels.
+    pub trace_height: u32,
     /// Padding to the WGSL struct's 16-byte multiple.
-    pub padding_a: u32,
-    /// Padding.
-    pub padding_b: u32,
-    /// Padding.
-    pub padding_c: u32,
+    pub padding: u32,
 }
 
 /// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, and when.
@@ -92,10 +92,12 @@ pub fn previous_clip_from_world(previous: &PreviousViewData, jitter: Vec2, view_
 /// A view's HAO textures and settings.
 #[derive(Component)]
 pub struct HaoViewResources {
-    /// The traced AO with the traced pixel's view depth and normal (half or full resolution).
-    pub noisy: CachedTexture,
-    /// The window of each texel of the trace that bounds the history (the neighborhood pass's output).
-    pub window: CachedTexture,
+    /// The traced AO with the traced pixel's view depth and normal (half or full resolution), its texels row by
+    /// row.
+    pub noisy: Buffer,
+    /// The window of each texel of the trace that bounds the history (the neighborhood pass's output), laid
+    /// out as `noisy`.
+    pub window: Buffer,
     /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames,
     /// 64 bits a pixel, the view's pixels row by row.
     pub history: Buffer,
@@ -106,7 +108,7 @@ pub struct HaoViewResources {
     pub result: Option<CachedTexture>,
     /// The settings uniform.
     pub settings: Buffer,
-    /// Size of the noisy texture.
+    /// Size of the trace.
     pub trace_size: UVec2,
     /// Size of the view.
     pub view_size: UVec2,
@@ -169,7 +171,7 @@ pub fn prepare_hao_textures(
     )>,
     mut frame: Local<u32>,
     mut histories: Local<HashMap<Entity, ViewHistory>>,
-    mut history_buffers: Local<HashMap<Entity, HistoryBuffers>>,
+    mut view_buffers: Local<HashMap<Entity, ViewBuffers>>,
     mut too_large: Local<bevy::platform::collections::HashSet<Entity>>,
     voxel_grid: Option<Res<ExtractedVoxelGrid>>,
 ) {
@@ -215,20 +217,19 @@ pub fn prepare_hao_textures(
                 },
             )
         };
-        let noisy = texture(&mut texture_cache, "hao_noisy_texture", trace_size, TextureFormat::Rgba16Float);
-        let window = texture(&mut texture_cache, "hao_window_texture", trace_size, WINDOW_FORMAT);
-        // Two histories, read and written in turn, kept while the view is prepared every frame at its size (new
-        // ones are zeroed, which reads as no history).
-        let buffers = history_buffers
+        // The view's buffers, kept while it is prepared every frame at its sizes: the trace, its windows, and
+        // two histories read and written in turn (new ones are zeroed, which reads as no history).
+        let buffers = view_buffers
             .entry(entity)
-            .and_modify(|h| {
-                if h.view_size != view_size {
-                    *h = HistoryBuffers::new(&device, view_size, history_bytes);
+            .and_modify(|b| {
+                if (b.view_size, b.trace_size) != (view_size, trace_size) {
+                    *b = ViewBuffers::new(&device, view_size, trace_size);
                 }
             })
-            .or_insert_with(|| HistoryBuffers::new(&device, view_size, history_bytes));
-        let [a, b] = buffers.buffers.clone();
+            .or_insert_with(|| ViewBuffers::new(&device, view_size, trace_size));
+        let [a, b] = buffers.history.clone();
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
+        let (noisy, window) = (buffers.noisy.clone(), buffers.window.clone());
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
         let near_field = hao.near_field && super::near_field_can_run(samples, origin);
@@ -264,9 +265,9 @@ pub fn prepare_hao_textures(
             origin_y: origin.y,
             view_width: view_size.x,
             view_height: view_size.y,
-            padding_a: 0,
-            padding_b: 0,
-            padding_c: 0,
+            trace_width: trace_size.x,
+            trace_height: trace_size.y,
+            padding: 0,
         };
         let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {
@@ -287,27 +288,39 @@ pub fn prepare_hao_textures(
     // Views not prepared this frame (off, removed, despawned) are forgotten; when they come back their
     // history starts again.
     histories.retain(|_, h| h.frame == *frame);
-    history_buffers.retain(|entity, _| histories.contains_key(entity));
+    view_buffers.retain(|entity, _| histories.contains_key(entity));
     too_large.retain(|entity| views.contains(*entity));
 }
 
-/// A view's two temporal histories (`HaoViewResources::history`), for one view size.
-pub struct HistoryBuffers {
+/// A view's buffers (see `HaoViewResources`), for one view size and trace size.
+pub struct ViewBuffers {
     view_size: UVec2,
-    buffers: [Buffer; 2],
+    trace_size: UVec2,
+    noisy: Buffer,
+    window: Buffer,
+    history: [Buffer; 2],
 }
 
-impl HistoryBuffers {
-    fn new(device: &RenderDevice, view_size: UVec2, bytes: u64) -> Self {
-        let buffer = |label| {
+impl ViewBuffers {
+    fn new(device: &RenderDevice, view_size: UVec2, trace_size: UVec2) -> Self {
+        let buffer = |label, size: UVec2, texel_bytes: u64| {
             device.create_buffer(&BufferDescriptor {
                 label: Some(label),
-                size: bytes,
+                size: u64::from(size.x.max(1)) * u64::from(size.y.max(1)) * texel_bytes,
                 usage: BufferUsages::STORAGE,
                 mapped_at_creation: false,
             })
         };
-        Self { view_size, buffers: [buffer("hao_history_a_buffer"), buffer("hao_history_b_buffer")] }
+        Self {
+            view_size,
+            trace_size,
+            noisy: buffer("hao_noisy_buffer", trace_size, TRACE_TEXEL_BYTES),
+            window: buffer("hao_window_buffer", trace_size, WINDOW_TEXEL_BYTES),
+            history: [
+                buffer("hao_history_a_buffer", view_size, HISTORY_TEXEL_BYTES),
+                buffer("hao_history_b_buffer", view_size, HISTORY_TEXEL_BYTES),
+            ],
+        }
     }
 }
 
@@ -336,12 +349,21 @@ pub fn prepare_hao_bind_groups(
         let trace = device.create_bind_group(
             "hao_trace_bind_group",
             &cache.get_bind_group_layout(&readers.trace_layout),
-            &BindGroupEntries::sequential((depth, normal, res.settings.as_entire_binding(), &res.noisy.default_view)),
+            &BindGroupEntries::sequential((
+                depth,
+                normal,
+                res.settings.as_entire_binding(),
+                res.noisy.as_entire_binding(),
+            )),
         );
         let neighborhood = device.create_bind_group(
             "hao_neighborhood_bind_group",
             &cache.get_bind_group_layout(&pipelines.neighborhood_layout),
-            &BindGroupEntries::sequential((&res.noisy.default_view, &res.window.default_view)),
+            &BindGroupEntries::sequential((
+                res.noisy.as_entire_binding(),
+                res.settings.as_entire_binding(),
+                res.window.as_entire_binding(),
+            )),
         );
         let temporal_view = device.create_bind_group(
             "hao_temporal_view_bind_group",
@@ -352,8 +374,8 @@ pub fn prepare_hao_bind_groups(
             "hao_temporal_bind_group",
             &cache.get_bind_group_layout(&readers.temporal_layout),
             &BindGroupEntries::sequential((
-                &res.noisy.default_view,
-                &res.window.default_view,
+                res.noisy.as_entire_binding(),
+                res.window.as_entire_binding(),
                 res.history.as_entire_binding(),
                 depth,
                 normal,

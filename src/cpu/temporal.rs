@@ -106,6 +106,17 @@ pub struct TracedTexel {
     pub normal: Vec3,
 }
 
+impl TracedTexel {
+    /// The texel as the trace stores it: packed as a texel of the history with no frames (WGSL
+    /// `pack_history`; [`HistoryTexel::stored`](super::denoise::HistoryTexel::stored)), the AO to 1/8191 and
+    /// the view depth to 11 bits of mantissa.
+    pub fn stored(self) -> Self {
+        let h = super::denoise::HistoryTexel { ao: self.ao, depth: self.depth, normal: self.normal, frames: 0.0 }
+            .stored();
+        Self { ao: h.ao, depth: h.depth, normal: h.normal }
+    }
+}
+
 /// The trace's 3x3 texels around `texel` that exist, in the order the passes read them (rows, then columns),
 /// with `None` where the traced pixel shows no geometry.
 fn neighbourhood(
