@@ -16,7 +16,8 @@ fn groups(size: UVec2) -> (u32, u32) {
     (size.x.div_ceil(SCREEN_WORKGROUP), size.y.div_ceil(SCREEN_WORKGROUP))
 }
 
-/// Trace, bound the history (neighborhood), accumulate, denoise (and with the near field, apply).
+/// Trace, bound the history (neighborhood, when accumulating), accumulate, denoise (and with the near field,
+/// apply).
 pub fn hao(
     view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset, &PreviousViewUniformOffset)>,
     pipelines: Res<HaoPipelines>,
@@ -48,7 +49,8 @@ pub fn hao(
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);
     }
-    {
+    // Without accumulation the temporal pass keeps no history and reads no window.
+    if res.accumulates {
         let mut pass = encoder
             .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_neighborhood"), timestamp_writes: None });
         let span = diagnostics.pass_span(&mut pass, "hao/neighborhood");

@@ -120,6 +120,9 @@ pub struct HaoViewResources {
     /// Whether the minimum with Bevy's SSAO is taken: the near field asked for, on a view Bevy's SSAO can run
     /// on (no MSAA, a viewport at the target's corner).
     pub near_field: bool,
+    /// Whether the view accumulates frames (`accumulation_frames` above 1): only then does the temporal pass
+    /// bound the history by the neighborhood pass's windows, so only then does that pass run.
+    pub accumulates: bool,
     /// The texture PBR reads AO from in place of Bevy's SSAO texture, the target's size, where the viewport
     /// does not start at the target's corner (PBR reads it at target coordinates; Bevy's is the viewport's
     /// size). See `pbr_texture`.
@@ -282,6 +285,7 @@ pub fn prepare_hao_textures(
             samples,
             ignore_back_hits: hao.ignore_back_hits,
             near_field,
+            accumulates: hao.accumulation_frames > 1,
             pbr_texture,
         });
     }

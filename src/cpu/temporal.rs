@@ -248,8 +248,9 @@ mod tests {
         // At the cap, an exponential average with weight 1/cap.
         let (a, c) = temporal_blend(0.5, 4.0, window, 1.0, 4.0, false);
         assert_eq!((a, c), (0.625, 4.0));
-        // A cap of 1 keeps no history.
+        // A cap of 1 keeps no history, whatever the window (the GPU does not compute it then).
         assert_eq!(temporal_blend(0.5, 9.0, window, 0.1, 1.0, false), (0.1, 1.0));
+        assert_eq!(temporal_blend(0.5, 9.0, (0.0, 0.0), 0.1, 1.0, true), (0.1, 1.0));
     }
 
     #[test]
