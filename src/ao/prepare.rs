@@ -182,7 +182,7 @@ pub fn prepare_hao_textures(
     let grid_has_attributes = voxel_grid.is_some_and(|g| g.assets.as_ref().is_some_and(|a| a.attributes.is_some()));
     for (entity, camera, hao, msaa, jitter, previous_view) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
-        let history_bytes = u64::from(view_size.x.max(1)) * u64::from(view_size.y.max(1)) * HISTORY_TEXEL_BYTES;
+        let history_bytes = history_bytes(view_size);
         let limits = device.limits();
         let history_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
         if history_bytes > history_limit {
@@ -294,6 +294,11 @@ pub fn prepare_hao_textures(
     histories.retain(|_, h| h.frame == *frame);
     view_buffers.retain(|entity, _| histories.contains_key(entity));
     too_large.retain(|entity| views.contains(*entity));
+}
+
+/// The bytes of one of a view's temporal histories (a storage buffer, bound whole).
+fn history_bytes(view_size: UVec2) -> u64 {
+    u64::from(view_size.x.max(1)) * u64::from(view_size.y.max(1)) * HISTORY_TEXEL_BYTES
 }
 
 /// A view's buffers (see `HaoViewResources`), for one view size and trace size.
@@ -447,6 +452,17 @@ mod tests {
         assert!(!h.continues(UVec2::new(64, 48), UVec2::new(32, 24), 7));
         let wrapping = ViewHistory { frame: u32::MAX, ..h };
         assert!(wrapping.continues(UVec2::new(64, 48), UVec2::new(32, 24), 0));
+    }
+
+    #[test]
+    fn a_history_fits_webgpus_default_binding_limit_up_to_about_16_million_pixels() {
+        let limit = bevy::render::settings::WgpuLimits::default().max_storage_buffer_binding_size;
+        assert!(history_bytes(UVec2::new(5120, 2880)) <= limit);
+        assert!(history_bytes(UVec2::new(4096, 4096)) <= limit);
+        assert!(history_bytes(UVec2::new(4097, 4096)) > limit);
+        assert!(history_bytes(UVec2::new(7680, 4320)) > limit);
+        // A side of 0 still gets a buffer that can be bound (the view is not drawn then).
+        assert_eq!(history_bytes(UVec2::new(0, 720)), 720 * HISTORY_TEXEL_BYTES);
     }
 
     #[test]
