@@ -8,9 +8,9 @@
 //!    frames are accumulated or TAA jitters the view), start about a voxel off the surface and march the
 //!    voxel texture up to `max_distance`, skipping empty space on its mips; each hit weighs
 //!    `(1 - d/max)^falloff`. At half resolution each 2x2 block traces one of its pixels a frame, in turn;
-//! 2. **neighborhood** (`hao_neighborhood.wgsl`, `hao/neighborhood`), at the trace's resolution: the window
-//!    each texel's 3x3 neighbourhood of traced AO allows the history (mean plus or minus two standard
-//!    deviations), once for the pixels that read it;
+//! 2. **neighborhood** (`hao_neighborhood.wgsl`, `hao/neighborhood`), at the trace's resolution, where frames
+//!    are accumulated: the window each texel's 3x3 neighbourhood of traced AO allows the history (mean plus
+//!    or minus two standard deviations), once for the pixels that read it;
 //! 3. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
 //!    checked, clamped to its window and blended with the pixel's own trace (at half resolution every fourth
 //!    frame; a pixel without history takes its traced neighbours on its surface meanwhile);
@@ -118,20 +118,33 @@ pub fn viewport_supported(size: UVec2) -> bool {
 }
 
 /// Takes HAO and the SSAO it brings off this frame's render-world view where its viewport is too small for
-/// Bevy's SSAO textures (see [`MIN_VIEWPORT_PIXELS`]), with one warning per camera, before the views'
-/// pipeline keys are made (so PBR does not expect the texture either); a view with a side of 0 is not
-/// rendered at all this frame. The main world is untouched, so AO comes back when the view allows it again.
+/// Bevy's SSAO textures (see [`MIN_VIEWPORT_PIXELS`]) or so large that its temporal history exceeds the
+/// device's storage buffer binding limit, with one warning per camera and reason, before the views' pipeline
+/// keys are made (so PBR does not expect the texture either); a view with a side of 0 is not rendered at all
+/// this frame. The main world is untouched, so AO comes back when the view allows it again.
 fn skip_unsupported_views(
     mut commands: Commands,
     views: Query<(Entity, &MainEntity, &ExtractedCamera), With<HybridAmbientOcclusion>>,
-    mut warned: Local<bevy::platform::collections::HashSet<MainEntity>>,
+    device: Res<RenderDevice>,
+    mut warned: Local<bevy::platform::collections::HashSet<(MainEntity, bool)>>,
 ) {
+    let limits = device.limits();
+    let history_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
     for (entity, main, camera) in &views {
         let size = camera.physical_viewport_size.unwrap_or_default();
-        if viewport_supported(size) {
+        let too_large = prepare::history_bytes(size) > history_limit;
+        if viewport_supported(size) && !too_large {
             continue;
         }
-        if warned.insert(*main) {
+        if too_large && warned.insert((*main, true)) {
+            warn!(
+                "bevy_hao: camera {}'s viewport is {}x{} pixels: no ambient occlusion while its temporal history ({} bytes) exceeds the device's storage buffer binding limit ({history_limit} bytes, the smaller of Limits::max_storage_buffer_binding_size and max_buffer_size)",
+                main.id(),
+                size.x,
+                size.y,
+                prepare::history_bytes(size)
+            );
+        } else if !too_large && warned.insert((*main, false)) {
             warn!(
                 "bevy_hao: camera {}'s viewport is {}x{} pixels: no ambient occlusion while a side is 0 or both are under {MIN_VIEWPORT_PIXELS} (Bevy's SSAO textures, which carry it to PBR, cannot be that small)",
                 main.id(),

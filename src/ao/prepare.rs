@@ -89,7 +89,7 @@ pub fn previous_clip_from_world(previous: &PreviousViewData, jitter: Vec2, view_
     clip_from_view * previous.view_from_world
 }
 
-/// A view's HAO textures and settings.
+/// A view's HAO buffers, textures and settings.
 #[derive(Component)]
 pub struct HaoViewResources {
     /// The traced AO with the traced pixel's view depth and normal (half or full resolution), its texels row by
@@ -175,27 +175,12 @@ pub fn prepare_hao_textures(
     mut frame: Local<u32>,
     mut histories: Local<HashMap<Entity, ViewHistory>>,
     mut view_buffers: Local<HashMap<Entity, ViewBuffers>>,
-    mut too_large: Local<bevy::platform::collections::HashSet<Entity>>,
     voxel_grid: Option<Res<ExtractedVoxelGrid>>,
 ) {
     *frame = frame.wrapping_add(1);
     let grid_has_attributes = voxel_grid.is_some_and(|g| g.assets.as_ref().is_some_and(|a| a.attributes.is_some()));
     for (entity, camera, hao, msaa, jitter, previous_view) in &views {
         let Some(view_size) = camera.physical_viewport_size else { continue };
-        let history_bytes = history_bytes(view_size);
-        let limits = device.limits();
-        let history_limit = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        if history_bytes > history_limit {
-            if too_large.insert(entity) {
-                warn!(
-                    "bevy_hao: view {entity} of {}x{} pixels needs a temporal history of {history_bytes} bytes, over \
-                     the device's Limits::max_storage_buffer_binding_size ({history_limit}); HAO is off on this view",
-                    view_size.x, view_size.y
-                );
-            }
-            commands.entity(entity).remove::<(HaoViewResources, HaoBindGroups)>();
-            continue;
-        }
         let samples = msaa.samples();
         let origin = camera.viewport.as_ref().map_or(UVec2::ZERO, |v| v.physical_position);
         // Invalid values are replaced (and reported once in the main world, by `report_invalid_settings`).
@@ -293,11 +278,11 @@ pub fn prepare_hao_textures(
     // history starts again.
     histories.retain(|_, h| h.frame == *frame);
     view_buffers.retain(|entity, _| histories.contains_key(entity));
-    too_large.retain(|entity| views.contains(*entity));
 }
 
-/// The bytes of one of a view's temporal histories (a storage buffer, bound whole).
-fn history_bytes(view_size: UVec2) -> u64 {
+/// The bytes of one of a view's temporal histories (a storage buffer, bound whole; a view whose history
+/// exceeds the device's binding limit gets no AO: `skip_unsupported_views`).
+pub(crate) fn history_bytes(view_size: UVec2) -> u64 {
     u64::from(view_size.x.max(1)) * u64::from(view_size.y.max(1)) * HISTORY_TEXEL_BYTES
 }
 

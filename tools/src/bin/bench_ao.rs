@@ -268,8 +268,9 @@ fn main() {
         let (rays, steps, half) = settings.trace_parameters();
         // No `hao/apply` span: without the near field the denoiser writes the AO PBR reads itself. No
         // `hao/neighborhood` span: the view does not accumulate frames, and the pass does not run.
-        let passes = match (m[0], m[2], m[3]) {
-            (Some(a), Some(c), Some(d)) => Some(a + m[1].unwrap_or(0.0) + c + d + m[4].unwrap_or(0.0)),
+        let neighborhood = if settings.accumulation_frames > 1 { m[1] } else { Some(0.0) };
+        let passes = match (m[0], neighborhood, m[2], m[3]) {
+            (Some(a), Some(b), Some(c), Some(d)) => Some(a + b + c + d + m[4].unwrap_or(0.0)),
             _ => None,
         };
         // No `ssao` span: the plugin skipped Bevy's SSAO passes (near field off), and they cost nothing.
@@ -285,7 +286,7 @@ fn main() {
             settings.accumulation_frames,
             if half { ", half res" } else { "" },
             f(m[0]),
-            m[1].map_or("not run".to_string(), |v| format!("{v:.3}")),
+            if settings.accumulation_frames > 1 { f(m[1]) } else { "not run".to_string() },
             f(m[2]),
             f(m[3]),
             m[4].map_or("not run".to_string(), |v| format!("{v:.3}")),
