@@ -626,13 +626,10 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
         .iter()
         .zip(&noisy)
         .map(|(s, &ao)| match s {
-            Some((world, normal)) => HistoryTexel {
-                ao,
-                depth: -view_from_world.transform_point3(*world).z,
-                normal: *normal,
-                frames: 1.0,
+            Some((world, normal)) => {
+                HistoryTexel { ao, depth: -view_from_world.transform_point3(*world).z, normal: *normal, frames: 1.0 }
+                    .stored()
             }
-            .stored(),
             None => HistoryTexel { ao: 1.0, depth: 0.0, normal: Vec3::Z, frames: 0.0 },
         })
         .collect();

@@ -177,12 +177,7 @@ fn prepass_readers(
         label("hao_trace_layout", "hao_trace_multisampled_layout"),
         &BindGroupLayoutEntries::sequential(
             ShaderStages::COMPUTE,
-            (
-                depth,
-                normal,
-                uniform_buffer::<GpuHaoSettings>(false),
-                storage_buffer_sized(false, None),
-            ),
+            (depth, normal, uniform_buffer::<GpuHaoSettings>(false), storage_buffer_sized(false, None)),
         ),
     );
     let temporal_layout = BindGroupLayoutDescriptor::new(

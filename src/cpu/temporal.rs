@@ -111,8 +111,8 @@ impl TracedTexel {
     /// `pack_history`; [`HistoryTexel::stored`](super::denoise::HistoryTexel::stored)), the AO to 1/8191 and
     /// the view depth to 11 bits of mantissa.
     pub fn stored(self) -> Self {
-        let h = super::denoise::HistoryTexel { ao: self.ao, depth: self.depth, normal: self.normal, frames: 0.0 }
-            .stored();
+        let h =
+            super::denoise::HistoryTexel { ao: self.ao, depth: self.depth, normal: self.normal, frames: 0.0 }.stored();
         Self { ao: h.ao, depth: h.depth, normal: h.normal }
     }
 }
