@@ -283,7 +283,13 @@ pub fn prepare_hao_textures(
 /// The bytes of one of a view's temporal histories (a storage buffer, bound whole; a view whose history
 /// exceeds the device's binding limit gets no AO: `skip_unsupported_views`).
 pub(crate) fn history_bytes(view_size: UVec2) -> u64 {
-    u64::from(view_size.x.max(1)) * u64::from(view_size.y.max(1)) * HISTORY_TEXEL_BYTES
+    buffer_bytes(view_size, HISTORY_TEXEL_BYTES)
+}
+
+/// The bytes of a buffer of `size` texels of `texel_bytes` each, row by row (at least one texel, so that it
+/// can be bound; saturating, so that an absurd size reads as too large rather than wrapping).
+fn buffer_bytes(size: UVec2, texel_bytes: u64) -> u64 {
+    u64::from(size.x.max(1)).saturating_mul(u64::from(size.y.max(1))).saturating_mul(texel_bytes)
 }
 
 /// A view's buffers (see `HaoViewResources`), for one view size and trace size.
@@ -300,7 +306,7 @@ impl ViewBuffers {
         let buffer = |label, size: UVec2, texel_bytes: u64| {
             device.create_buffer(&BufferDescriptor {
                 label: Some(label),
-                size: u64::from(size.x.max(1)) * u64::from(size.y.max(1)) * texel_bytes,
+                size: buffer_bytes(size, texel_bytes),
                 usage: BufferUsages::STORAGE,
                 mapped_at_creation: false,
             })
@@ -448,6 +454,8 @@ mod tests {
         assert!(history_bytes(UVec2::new(7680, 4320)) > limit);
         // A side of 0 still gets a buffer that can be bound (the view is not drawn then).
         assert_eq!(history_bytes(UVec2::new(0, 720)), 720 * HISTORY_TEXEL_BYTES);
+        // An absurd size is too large, not wrapped round to a small one.
+        assert!(history_bytes(UVec2::MAX) > limit);
     }
 
     #[test]
