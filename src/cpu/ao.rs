@@ -424,23 +424,49 @@ pub fn voxel_ambient_occlusion_counted(
     for i in 0..s.rays {
         let dir = hemisphere_direction(basis, i, s.rays, rotation);
         let start = ray_start_level(levels, world, i, rotation);
-        let origin = world + normal * (s.start_offset * levels[start].cell_size);
-        let mut hit = march_cascades_counted(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps, work);
-        // Through the backs of surfaces, a few times at most.
-        for _ in 0..MAX_BACK_HITS {
-            let Some(h) = hit.filter(|_| s.ignore_back_hits) else { break };
-            work.normal_loads += 1;
-            let Some(exit) = back_hit_exit(levels, origin, dir, h) else { break };
-            hit = march_cascades_counted(levels, origin, dir, h.1, exit, s.max_distance, s.steps, work);
-        }
-        if let Some((t, level)) = hit {
+        if let Some(hit) = voxel_ray_occluder(levels, world, normal, dir, start, s, work) {
             work.hits += 1;
-            // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
-            let d = (origin + dir * (t + 0.5 * levels[level].cell_size) - world).length();
-            occlusion += ao_falloff(d, s.max_distance, s.falloff);
+            occlusion += ao_falloff(hit.distance, s.max_distance, s.falloff);
         }
     }
     (1.0 - s.intensity * occlusion / s.rays as f32).clamp(0.0, 1.0)
+}
+
+/// The occluder one ray of [`voxel_ambient_occlusion`] finds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VoxelOccluder {
+    /// World distance from the surface point to the occluder, as the falloff takes it: half a cell past the
+    /// entry into the first occupied cell.
+    pub distance: f32,
+    /// The level whose cell stopped the ray.
+    pub level: usize,
+}
+
+/// The occluder that ray `dir` from the surface point `world` (normal `normal`), starting in level `start`,
+/// finds within `s.max_distance`, or `None` (WGSL: the body of the ray loop in `trace`).
+pub fn voxel_ray_occluder(
+    levels: &[TraceLevel],
+    world: Vec3,
+    normal: Vec3,
+    dir: Vec3,
+    start: usize,
+    s: &TraceSettings,
+    work: &mut TraceWork,
+) -> Option<VoxelOccluder> {
+    let origin = world + normal * (s.start_offset * levels[start].cell_size);
+    let mut hit = march_cascades_counted(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps, work);
+    // Through the backs of surfaces, a few times at most.
+    for _ in 0..MAX_BACK_HITS {
+        let Some(h) = hit.filter(|_| s.ignore_back_hits) else { break };
+        work.normal_loads += 1;
+        let Some(exit) = back_hit_exit(levels, origin, dir, h) else { break };
+        hit = march_cascades_counted(levels, origin, dir, h.1, exit, s.max_distance, s.steps, work);
+    }
+    // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
+    hit.map(|(t, level)| VoxelOccluder {
+        distance: (origin + dir * (t + 0.5 * levels[level].cell_size) - world).length(),
+        level,
+    })
 }
 
 #[cfg(test)]
@@ -555,6 +581,17 @@ mod tests {
         let near = voxel_ambient_occlusion(&level, Vec3::new(28.0, 10.5, 10.5), Vec3::X, Vec2::ZERO, &s);
         assert_eq!(open, 1.0);
         assert!(near < 0.6, "{near}");
+        // One ray straight at the wall from x = 24.5: it starts a cell off along the normal, skips a cell
+        // along its way and finds the wall's cell (entered at x = 30) at half a cell past its entry.
+        let mut work = TraceWork::default();
+        let hit = voxel_ray_occluder(&level, Vec3::new(24.5, 10.5, 10.5), Vec3::X, Vec3::X, 0, &s, &mut work).unwrap();
+        assert_eq!(hit.level, 0);
+        assert!((hit.distance - 6.0).abs() < 0.01, "{hit:?}");
+        assert!(work.texel_visits > 0);
+        // Away from the wall, none.
+        assert!(
+            voxel_ray_occluder(&level, Vec3::new(24.5, 10.5, 10.5), -Vec3::X, -Vec3::X, 0, &s, &mut work).is_none()
+        );
     }
 
     #[test]

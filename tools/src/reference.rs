@@ -31,13 +31,18 @@ impl ReferenceScene {
 
     /// The distance to the closest hit in `[t_min, t_max]`.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
+        self.closest_hit_normal(origin, dir, t_min, t_max).map(|(t, _)| t)
+    }
+
+    /// The distance to the closest hit in `[t_min, t_max]` and the unit normal of the triangle hit (by its
+    /// winding; zero for a degenerate triangle).
+    pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, Vec3)> {
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), t_min, t_max);
         let mut hit = RayHit::none();
+        let triangle = |id: usize| &self.triangles[self.bvh.primitive_indices[id] as usize];
         self.bvh
-            .ray_traverse(ray, &mut hit, |ray, id| {
-                self.triangles[self.bvh.primitive_indices[id] as usize].intersect(ray)
-            })
-            .then_some(hit.t)
+            .ray_traverse(ray, &mut hit, |ray, id| triangle(id).intersect(ray))
+            .then(|| (hit.t, Vec3::from(triangle(hit.primitive_id as usize).compute_normal()).normalize_or_zero()))
     }
 }
 
