@@ -150,14 +150,15 @@ fn octahedral_decode(e: vec2<f32>) -> vec3<f32> {
 // Gaussian in distance, falling with the relative depth difference and the normals' angle (its cosine to
 // the 16th power, from the squared cosine without a square root).
 fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, center_normal: vec3<f32>, direction: vec3<f32>) -> f32 {
-    let spatial = exp(-offset * offset / (2.0 * max(radius * radius, 1.0)));
-    let depth_w = exp(-abs(depth - center_depth) / (0.02 * abs(center_depth) + 1.0e-4));
+    // The Gaussian in distance times the fall with depth, as one exponential.
+    let spatial = offset * offset / (2.0 * max(radius * radius, 1.0));
+    let relative_depth = abs(depth - center_depth) / (0.02 * abs(center_depth) + 1.0e-4);
     let c = max(dot(center_normal, direction), 0.0);
     // (A zero direction, which no octahedral code decodes to, weighs nothing.)
     let c2 = c * c / max(dot(direction, direction), 1.0e-30);
     let c4 = c2 * c2;
     let c8 = c4 * c4;
-    return spatial * depth_w * c8 * c8;
+    return exp(-spatial - relative_depth) * c8 * c8;
 }
 
 // cpu/denoise.rs: denoise_radius. The denoiser's reach for a pixel whose history holds `frames` frames of

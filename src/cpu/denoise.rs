@@ -90,12 +90,13 @@ pub fn bilateral_weight(
     center_normal: Vec3,
     direction: Vec3,
 ) -> f32 {
-    let spatial = (-offset * offset / (2.0 * (radius * radius).max(1.0))).exp();
-    let depth_w = (-(depth - center_depth).abs() / (0.02 * center_depth.abs() + 1.0e-4)).exp();
+    // The Gaussian in distance times the fall with depth, as one exponential.
+    let spatial = offset * offset / (2.0 * (radius * radius).max(1.0));
+    let relative_depth = (depth - center_depth).abs() / (0.02 * center_depth.abs() + 1.0e-4);
     let c = center_normal.dot(direction).max(0.0);
     // (A zero direction, which no octahedral code decodes to, weighs nothing.)
     let c2 = c * c / direction.length_squared().max(1.0e-30);
-    spatial * depth_w * c2.powi(8)
+    (-spatial - relative_depth).exp() * c2.powi(8)
 }
 
 #[cfg(test)]

@@ -145,26 +145,29 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
     let top = voxel_grid.mip_levels - 1u;
     var mip = min(start_mip, top);
     var left = steps;
+    // The faces a ray leaves a texel through: the upper one on each axis it goes up (or along), else the
+    // lower (`ray_box`'s exit, without its entry).
+    let exit_side = select(vec3<f32>(0.0), vec3<f32>(1.0), dir >= vec3<f32>(0.0));
+    // One visit a step, without branches but its two ends (devices that run both sides of a branch, such as
+    // lavapipe, pay for both anyway): an occupied texel descends a mip, an empty one is stepped over.
     while left > 0u {
         if t > t_max {
             return MarchResult(-1.0, left);
         }
         left -= 1u;
         let p = origin + dir * t;
-        let scale = f32(1u << mip);
+        // 2^mip and 2^-mip, exact.
+        let scale = bitcast<f32>((127u + mip) << 23u);
         let size = l.size >> vec3<u32>(mip);
-        let texel = vec3<i32>(floor(p * (1.0 / scale)));
-        if level_occupied(l, texel, mip, size) {
-            if mip == 0u {
-                return MarchResult(t, left);
-            }
-            mip -= 1u;
-        } else {
-            let lo = vec3<f32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1))) * scale;
-            let exit = ray_box(origin, inv, lo, lo + vec3<f32>(scale)).y;
-            t = max(exit, t) + 1.0e-3;
-            mip = min(mip + 1u, top);
+        let texel = vec3<i32>(floor(p * bitcast<f32>((127u - mip) << 23u)));
+        let occupied = level_occupied(l, texel, mip, size);
+        if occupied && mip == 0u {
+            return MarchResult(t, left);
         }
+        let lo = vec3<f32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1))) * scale;
+        let exit = (lo + exit_side * scale - origin) * inv;
+        t = select(max(min(min(exit.x, exit.y), exit.z), t) + 1.0e-3, t, occupied);
+        mip = select(min(mip + 1u, top), mip - 1u, occupied);
     }
     return MarchResult(-1.0, 0u);
 }
