@@ -173,8 +173,7 @@ pub fn prepare_hao_textures(
         Option<&PreviousViewData>,
     )>,
     mut frame: Local<u32>,
-    mut histories: Local<HashMap<Entity, ViewHistory>>,
-    mut view_buffers: Local<HashMap<Entity, ViewBuffers>>,
+    mut histories: Local<HashMap<Entity, (ViewHistory, ViewBuffers)>>,
     voxel_grid: Option<Res<ExtractedVoxelGrid>>,
 ) {
     *frame = frame.wrapping_add(1);
@@ -205,16 +204,15 @@ pub fn prepare_hao_textures(
                 },
             )
         };
-        // The view's buffers, kept while it is prepared every frame at its sizes: the trace, its windows, and
-        // two histories read and written in turn (new ones are zeroed, which reads as no history).
-        let buffers = view_buffers
-            .entry(entity)
-            .and_modify(|b| {
-                if (b.view_size, b.trace_size) != (view_size, trace_size) {
-                    *b = ViewBuffers::new(&device, view_size, trace_size);
-                }
-            })
-            .or_insert_with(|| ViewBuffers::new(&device, view_size, trace_size));
+        // Last frame's record of the view and its buffers, kept while it is prepared every frame at one size:
+        // the trace, its windows, and two histories read and written in turn (new ones are zeroed, which
+        // reads as no history).
+        let (last, buffers) = match histories.remove(&entity) {
+            Some((last, buffers)) if (last.view_size, last.trace_size) == (view_size, trace_size) => {
+                (Some(last), buffers)
+            }
+            kept => (kept.map(|(last, _)| last), ViewBuffers::new(&device, view_size, trace_size)),
+        };
         let [a, b] = buffers.history.clone();
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let (noisy, window) = (buffers.noisy.clone(), buffers.window.clone());
@@ -224,8 +222,8 @@ pub fn prepare_hao_textures(
         let result =
             near_field.then(|| texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float));
         let jitter_offset = jitter.map_or(Vec2::ZERO, |j| j.offset);
-        let last =
-            histories.insert(entity, ViewHistory { jitter: jitter_offset, view_size, trace_size, frame: *frame });
+        let record = ViewHistory { jitter: jitter_offset, view_size, trace_size, frame: *frame };
+        histories.insert(entity, (record, buffers));
         let history_valid = last.is_some_and(|l| l.continues(view_size, trace_size, *frame));
         let previous_clip_from_world = match (previous_view, last) {
             (Some(previous), Some(last)) => previous_clip_from_world(previous, last.jitter, last.view_size),
@@ -276,8 +274,7 @@ pub fn prepare_hao_textures(
     }
     // Views not prepared this frame (off, removed, despawned) are forgotten; when they come back their
     // history starts again.
-    histories.retain(|_, h| h.frame == *frame);
-    view_buffers.retain(|entity, _| histories.contains_key(entity));
+    histories.retain(|_, (h, _)| h.frame == *frame);
 }
 
 /// The bytes of one of a view's temporal histories (a storage buffer, bound whole; a view whose history
@@ -292,10 +289,8 @@ fn buffer_bytes(size: UVec2, texel_bytes: u64) -> u64 {
     u64::from(size.x.max(1)).saturating_mul(u64::from(size.y.max(1))).saturating_mul(texel_bytes)
 }
 
-/// A view's buffers (see `HaoViewResources`), for one view size and trace size.
+/// A view's buffers (see `HaoViewResources`), for the view size and trace size of its `ViewHistory`.
 pub struct ViewBuffers {
-    view_size: UVec2,
-    trace_size: UVec2,
     noisy: Buffer,
     window: Buffer,
     history: [Buffer; 2],
@@ -312,8 +307,6 @@ impl ViewBuffers {
             })
         };
         Self {
-            view_size,
-            trace_size,
             noisy: buffer("hao_noisy_buffer", trace_size, TRACE_TEXEL_BYTES),
             window: buffer("hao_window_buffer", trace_size, WINDOW_TEXEL_BYTES),
             history: [
