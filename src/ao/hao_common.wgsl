@@ -242,9 +242,10 @@ fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: boo
 }
 
 // cpu/denoise.rs: HistoryTexel::stored. The temporal history's texel (ao, view depth, packed normal, frames
-// of weight) in 64 bits, one element of the history buffer (and of the trace's, with no frames): x holds the view depth rounded to 11 bits of
-// mantissa (its top 19 bits: a positive float's exponent and mantissa) above the AO to 1/8191 (13 bits); y the
-// packed normal's 22 bits above the frames to an eighth (10 bits, at most 127).
+// of weight) in 64 bits, one element of the history buffer (and of the trace's, with no frames): x holds the
+// view depth rounded to 11 bits of mantissa (its top 19 bits: a positive float's exponent and mantissa) above
+// the AO to 1/8191 (13 bits); y the packed normal's 22 bits above the frames to an eighth (10 bits, at most
+// 127).
 fn pack_history(v: vec4<f32>) -> vec2<u32> {
     let depth = (bitcast<u32>(max(v.y, 0.0)) + 0x800u) >> 12u;
     let ao = u32(round(clamp(v.x, 0.0, 1.0) * 8191.0));

@@ -24,7 +24,8 @@ struct PreviousViewData {
     view_from_clip: mat4x4<f32>,
 }
 
-// The trace's texels (ao, view depth, packed normal: `unpack_history`) and the neighborhood pass's window of each, row by row (`trace_index`).
+// The trace's texels (ao, view depth, packed normal: `unpack_history`) and the neighborhood pass's window of
+// each, row by row (`trace_index`).
 @group(0) @binding(0) var<storage, read> noisy: array<vec2<u32>>;
 @group(0) @binding(1) var<storage, read> trace_window: array<vec2<f32>>;
 // Last frame's history (`history_index`; zero where there is none).

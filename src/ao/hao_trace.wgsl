@@ -2,7 +2,8 @@
 // turn it is: `traced_pixel`), cosine-weighted rays from the surface (position from the depth prepass,
 // normal from the normal prepass) through the voxel texture, with empty-space skipping on its max-reduced
 // mips. Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral
-// normal, which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`, with no frames).
+// normal, which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`,
+// with no frames).
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`. The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
