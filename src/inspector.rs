@@ -200,7 +200,7 @@ fn inspector_window(
             ui.add(egui::Slider::new(&mut hao.falloff, 0.0..=4.0).text("falloff"));
             ui.add(egui::Slider::new(&mut hao.intensity, 0.0..=3.0).text("intensity"));
             ui.add(egui::Slider::new(&mut hao.start_offset, 0.0..=3.0).text("start offset (voxels)"));
-            ui.add(egui::Slider::new(&mut hao.denoise_radius, 0..=6).text("denoise radius"));
+            ui.add(egui::Slider::new(&mut hao.denoise_radius, 0..=6).text("denoise width"));
             if hao.near_field {
                 egui::ComboBox::from_label("near field (SSAO)")
                     .selected_text(format!("{:?}", hao.near_field_quality))
@@ -348,7 +348,6 @@ fn inspector_window(
                 "hao/trace",
                 "hao/neighborhood",
                 "hao/temporal",
-                "hao/denoise",
                 "hao/apply",
                 "ssao",
             ] {

@@ -67,13 +67,14 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
             ],
         ),
         ("src/ao/hao_neighborhood.wgsl", vec![vec![]]),
-        ("src/ao/hao_temporal.wgsl", multisampled.clone()),
         (
-            "src/ao/hao_denoise.wgsl",
+            "src/ao/hao_temporal.wgsl",
             vec![
                 vec![],
                 vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))],
                 vec![("NEAR_FIELD", ShaderDefValue::Bool(true))],
+                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("USE_R16FLOAT", ShaderDefValue::Bool(true))],
+                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("NEAR_FIELD", ShaderDefValue::Bool(true))],
             ],
         ),
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),

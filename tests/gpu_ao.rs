@@ -530,7 +530,8 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
     use bevy_hao::cpu::temporal::accumulate_still;
     let _gpu = gpu_lock();
     let quality = HaoQuality::Custom { rays: if half_resolution { 2 } else { 4 }, steps: 48, half_resolution };
-    let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 8, quality, ..hao_settings() };
+    // With the filter (`cpu::temporal::prefilter`), wider than its default.
+    let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 8, quality, ..hao_settings() };
     // Long enough for the first frames, traced while the grid was still being built, to have left the
     // history (their weight is (7/8)^50 by the end; at half resolution a pixel traces every fourth frame).
     let frames_run = if half_resolution { 220 } else { 60 };
@@ -549,7 +550,8 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
         .collect();
     let pixels: Vec<Option<(f32, Vec3)>> =
         samples.iter().map(|s| s.map(|(p, n)| (-view_from_world.transform_point3(p).z, n))).collect();
-    let accumulate = |frames| accumulate_still(frames, &pixels, UVec2::new(w, h), half_resolution, 8.0);
+    let accumulate =
+        |frames| accumulate_still(frames, &pixels, UVec2::new(w, h), half_resolution, 8.0, settings.denoise_radius);
     let error = |cpu: &[f32]| {
         let (mut sum, mut n) = (0.0f64, 0);
         for (i, g) in gpu.iter().enumerate() {
@@ -603,13 +605,13 @@ fn the_gpu_trace_matches_its_cpu_twin() {
     assert!(take_render_errors().is_empty());
 }
 
-/// The denoiser on the GPU as on its CPU twin (`bevy_hao::cpu::denoise::bilateral_cross`): without
-/// accumulation each pixel's history is this frame's trace (one frame of weight, so the full radius), and
-/// the AO PBR reads is the twin's filter over the twin's trace.
+/// The denoiser on the GPU as on its CPU twin (`bevy_hao::cpu::temporal::prefilter`): without accumulation
+/// each pixel's AO is this frame's trace filtered over its 3x3 neighbours, and the AO PBR reads is the twin's
+/// filter over the twin's trace.
 #[test]
 fn the_gpu_denoiser_matches_its_cpu_twin() {
     use bevy_hao::cpu::ao::TraceLevel;
-    use bevy_hao::cpu::denoise::{HistoryTexel, bilateral_cross};
+    use bevy_hao::cpu::temporal::{TracedTexel, prefilter};
     let _gpu = gpu_lock();
     let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 1, ..hao_settings() };
     let (mut app, mips, grid) = walls_app_and_voxels(&settings, 8);
@@ -620,26 +622,23 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
     let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
     let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let (noisy, _) = cpu_trace(&samples, w, &settings, &levels, 0);
-    // The history as the temporal pass writes it: the trace's AO, view depth, normal, in its 64 bits
-    // (`HistoryTexel::stored`; the trace stores its AO so too).
-    let history: Vec<HistoryTexel> = samples
+    // The trace as the GPU stores it: AO, view depth, normal, in its 64 bits (`TracedTexel::stored`).
+    let trace: Vec<Option<TracedTexel>> = samples
         .iter()
         .zip(&noisy)
-        .map(|(s, &ao)| match s {
-            Some((world, normal)) => {
-                HistoryTexel { ao, depth: -view_from_world.transform_point3(*world).z, normal: *normal, frames: 1.0 }
-                    .stored()
-            }
-            None => HistoryTexel { ao: 1.0, depth: 0.0, normal: Vec3::Z, frames: 0.0 },
+        .map(|(s, &ao)| {
+            s.map(|(world, normal)| {
+                TracedTexel { ao, depth: -view_from_world.transform_point3(world).z, normal }.stored()
+            })
         })
         .collect();
     let size = UVec2::new(w, h);
     let (mut filtered_error, mut noisy_error, mut n) = (0.0f64, 0.0f64, 0);
     for i in 0..samples.len() {
-        if samples[i].is_none() {
+        if trace[i].is_none() {
             continue;
         }
-        let twin = bilateral_cross(&history, size, UVec2::new(i as u32 % w, i as u32 / w), settings.denoise_radius);
+        let twin = prefilter(&trace, size, UVec2::new(i as u32 % w, i as u32 / w), settings.denoise_radius);
         filtered_error += (twin - gpu[i]).abs() as f64;
         noisy_error += (noisy[i] - gpu[i]).abs() as f64;
         n += 1;

@@ -1,6 +1,6 @@
-// Hybrid ambient occlusion, pass 3, with the near field only: the result into the texture Bevy's PBR shading
+// Hybrid ambient occlusion, pass 4, with the near field only: the result into the texture Bevy's PBR shading
 // reads ambient occlusion from (the screen-space AO texture), so it dims indirect light only, in forward and
-// deferred rendering. Without the near field the denoiser writes there itself; with it, the denoiser reads
+// deferred rendering. Without the near field the temporal pass writes there itself; with it, that pass reads
 // Bevy's SSAO from that texture, so it cannot write there in the same pass.
 // PBR reads it at each fragment's position in the render target, so the view's pixel p goes to
 // target_pixel(p) (the texture is the target's size where the viewport does not start at its corner).

@@ -161,12 +161,6 @@ fn bilateral_weight(offset: f32, radius: f32, center_depth: f32, depth: f32, cen
     return exp(-spatial - relative_depth) * c8 * c8;
 }
 
-// cpu/denoise.rs: denoise_radius. The denoiser's reach for a pixel whose history holds `frames` frames of
-// weight: `radius` up to 4 frames, narrowing as the history grows (half of it at 16).
-fn denoise_radius(radius: u32, frames: f32) -> i32 {
-    return i32(ceil(f32(radius) * min(1.0, 2.0 / sqrt(max(frames, 1.0)))));
-}
-
 // Packs an octahedral normal into one float exactly (11 bits per coordinate: an integer below 2^22), for the
 // temporal history.
 fn pack_normal(e: vec2<f32>) -> f32 {

@@ -1,15 +1,21 @@
-// Hybrid ambient occlusion, pass 1a: the window the temporal pass clamps each history to, once per texel of
-// the trace: the mean of the traced AO over its 3x3 texels that show geometry, plus and minus two standard
-// deviations and a margin (`neighborhood_window`; (-1, 2), no bound, where none does). At half resolution
-// the four pixels of a 2x2 block share their block's window, so it is computed here once, at the trace's
-// resolution, instead of read from nine texels by every pixel of the temporal pass.
-// CPU twin: `bevy_hao::cpu::temporal::trace_window`.
-#import bevy_hao::hao_common::{HaoSettings, neighborhood_window, trace_index, unpack_history}
+// Hybrid ambient occlusion, pass 2: once per texel of the trace, what the pixels of the temporal pass read
+// of its 3x3 texels: the window that bounds their history (the mean of the traced AO over the texels that
+// show geometry, plus and minus two standard deviations and a margin: `neighborhood_window`; (-1, 2), no
+// bound, where none does), and the texel's AO filtered over them (`bilateral_weight`: their distance in
+// texels over `denoise_radius`, their depth and normal against the traced pixel's), which the pixel it
+// traced blends into its history. At half resolution the four pixels of a 2x2 block share their block's
+// window, so it is computed here once, at the trace's resolution, instead of read from nine texels by every
+// pixel of the temporal pass.
+// CPU twin: `bevy_hao::cpu::temporal::trace_window`, `prefilter`.
+#import bevy_hao::hao_common::{
+    HaoSettings, bilateral_weight, neighborhood_window, trace_index, unpack_direction, unpack_history, unpack_normal,
+}
 
-// The trace's texels and their windows, row by row (`trace_index`).
+// The trace's texels, and what this pass makes of them (lower and upper bound, filtered AO, 0), row by row
+// (`trace_index`).
 @group(0) @binding(0) var<storage, read> noisy: array<vec2<u32>>;
 @group(0) @binding(1) var<uniform> settings: HaoSettings;
-@group(0) @binding(2) var<storage, read_write> window_out: array<vec2<f32>>;
+@group(0) @binding(2) var<storage, read_write> window_out: array<vec4<f32>>;
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -18,27 +24,34 @@ fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
     if any(texel >= size) {
         return;
     }
+    // (ao, view depth, packed normal): depth 0 is the background.
+    let center = unpack_history(noisy[trace_index(settings, gid.xy)]);
+    let center_normal = unpack_normal(center.z);
+    let radius = f32(settings.denoise_radius);
     var sum = 0.0;
     var squares = 0.0;
     var n = 0.0;
-    for (var dy = -1; dy <= 1; dy++) {
-        for (var dx = -1; dx <= 1; dx++) {
-            let t = texel + vec2<i32>(dx, dy);
-            if any(t < vec2<i32>(0)) || any(t >= size) {
-                continue;
-            }
-            // (ao, view depth, ...): depth 0 is the background.
-            let v = unpack_history(noisy[trace_index(settings, vec2<u32>(t))]).xy;
-            if v.y > 0.0 {
-                sum += v.x;
-                squares += v.x * v.x;
-                n += 1.0;
-            }
+    var filtered = vec2<f32>(0.0);
+    for (var k = 0; k < 9; k++) {
+        let d = vec2<i32>(k % 3 - 1, k / 3 - 1);
+        let t = texel + d;
+        if any(t < vec2<i32>(0)) || any(t >= size) {
+            continue;
+        }
+        let v = unpack_history(noisy[trace_index(settings, vec2<u32>(t))]);
+        if v.y > 0.0 {
+            sum += v.x;
+            squares += v.x * v.x;
+            n += 1.0;
+            let w = bilateral_weight(length(vec2<f32>(d)), radius, center.y, v.y, center_normal, unpack_direction(v.z));
+            filtered += vec2<f32>(w * v.x, w);
         }
     }
     var window = vec2<f32>(-1.0, 2.0);
     if n > 0.0 {
         window = neighborhood_window(sum, squares, n);
     }
-    window_out[trace_index(settings, gid.xy)] = window;
+    // Radius 0, or a texel that shows no geometry (no pixel blends it): the texel as traced.
+    let ao = select(center.x, filtered.x / filtered.y, settings.denoise_radius > 0u && center.y > 0.0 && filtered.y > 0.0);
+    window_out[trace_index(settings, gid.xy)] = vec4<f32>(window, ao, 0.0);
 }

@@ -8,18 +8,17 @@
 //!    frames are accumulated or TAA jitters the view), start about a voxel off the surface and march the
 //!    voxel texture up to `max_distance`, skipping empty space on its mips; each hit weighs
 //!    `(1 - d/max)^falloff`. At half resolution each 2x2 block traces one of its pixels a frame, in turn;
-//! 2. **neighborhood** (`hao_neighborhood.wgsl`, `hao/neighborhood`), at the trace's resolution, where frames
-//!    are accumulated: the window each texel's 3x3 neighbourhood of traced AO allows the history (mean plus
-//!    or minus two standard deviations), once for the pixels that read it;
+//! 2. **neighborhood** (`hao_neighborhood.wgsl`, `hao/neighborhood`), at the trace's resolution: from each
+//!    texel's 3x3 neighbourhood of traced AO, the window its pixels allow their history (mean plus or minus
+//!    two standard deviations), and its AO filtered over them by a depth- and normal-aware bilateral weight
+//!    (the denoiser), once for the pixels that read it;
 //! 3. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
-//!    checked, clamped to its window and blended with the pixel's own trace (at half resolution every fourth
-//!    frame; a pixel without history takes its traced neighbours on its surface meanwhile);
-//! 4. **denoise** (`hao_denoise.wgsl`, `hao/denoise`): a depth- and normal-aware bilateral filter in one
-//!    pass over a cross (the center and the texels along its row and column), written into the texture
-//!    Bevy's PBR reads AO from, so it dims indirect light only;
-//! 5. with the near field only, the denoiser writes a texture of its own with the minimum of Bevy's SSAO,
-//!    and **apply** (`hao_apply.wgsl`, `hao/apply`) copies it into the texture PBR reads (which holds
-//!    Bevy's SSAO until then, so the denoiser cannot write there itself).
+//!    checked, clamped to its window and blended with the pixel's own filtered trace (at half resolution
+//!    every fourth frame; a pixel without history takes its traced neighbours on its surface meanwhile). It
+//!    writes the result into the texture Bevy's PBR reads AO from, so it dims indirect light only;
+//! 4. with the near field only, the temporal pass writes a texture of its own with the minimum of Bevy's
+//!    SSAO, and **apply** (`hao_apply.wgsl`, `hao/apply`) copies it into the texture PBR reads (which holds
+//!    Bevy's SSAO until then, so the temporal pass cannot write there itself).
 //!
 //! The CPU twins: [`crate::cpu::ao`] (trace), [`crate::cpu::temporal`], [`crate::cpu::denoise`].
 
@@ -57,7 +56,6 @@ impl Plugin for HybridAmbientOcclusionPlugin {
         embedded_asset!(app, "hao_trace.wgsl");
         embedded_asset!(app, "hao_neighborhood.wgsl");
         embedded_asset!(app, "hao_temporal.wgsl");
-        embedded_asset!(app, "hao_denoise.wgsl");
         embedded_asset!(app, "hao_apply.wgsl");
         app.register_type::<HybridAmbientOcclusion>()
             .add_plugins(ExtractComponentPlugin::<HybridAmbientOcclusion>::default())
@@ -181,7 +179,7 @@ fn skip_unsupported_views(
 }
 
 /// Keeps Bevy's SSAO passes from running on a HAO view whose near field is off: their result would be
-/// overwritten by HAO's denoiser, which writes every texel of the texture PBR reads. Bevy's SSAO node
+/// overwritten by HAO's temporal pass, which writes every texel of the texture PBR reads. Bevy's SSAO node
 /// runs only on views with an `SsaoPipelineId`, so removing it this frame skips the passes while the texture
 /// and PBR's binding of it stay. Only when HAO's passes will run this frame (their bind groups, the voxel
 /// grid and the pipelines are ready); otherwise SSAO fills the texture as before.
@@ -336,8 +334,9 @@ pub struct HybridAmbientOcclusion {
     /// The quality of Bevy's SSAO when it provides the near field. Without the near field the plugin keeps
     /// SSAO at its cheapest, since its result is not used.
     pub near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel,
-    /// Radius in pixels of the bilateral denoiser, along the pixel's row and column (a cross); 0 turns it
-    /// off. It narrows as a pixel's temporal history grows (half of it at 16 frames).
+    /// Width of the denoiser, in texels of the trace: each frame, before it is accumulated, a pixel's trace
+    /// is averaged with the trace's 3x3 texels around it, weighed by a Gaussian of this width and by how
+    /// close their depth and normal are to the pixel's (a bilateral filter); 0 turns it off.
     pub denoise_radius: u32,
     /// Temporal accumulation: each pixel averages its AO over at most this many frames (1: none; at most
     /// 64), with the ray noise turned every frame, so few rays per frame converge to the error of many. The
@@ -435,7 +434,7 @@ impl Default for HybridAmbientOcclusion {
             start_offset: 1.0,
             near_field: false,
             near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel::Medium,
-            denoise_radius: 2,
+            denoise_radius: 1,
             accumulation_frames: 16,
             ignore_back_hits: true,
         }

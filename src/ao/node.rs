@@ -12,12 +12,12 @@ use bevy::render::render_resource::*;
 use bevy::render::renderer::{RenderContext, ViewQuery};
 use bevy::render::view::ViewUniformOffset;
 
-fn groups(size: UVec2) -> (u32, u32) {
+/// Workgroups covering `size` invocations.
+fn groups_for(size: UVec2) -> (u32, u32) {
     (size.x.div_ceil(SCREEN_WORKGROUP), size.y.div_ceil(SCREEN_WORKGROUP))
 }
 
-/// Trace, bound the history (neighborhood, when accumulating), accumulate, denoise (and with the near field,
-/// apply).
+/// Trace, filter and bound (neighborhood), accumulate (and with the near field, apply).
 pub fn hao(
     view: ViewQuery<(&HaoViewResources, &HaoBindGroups, &ViewUniformOffset, &PreviousViewUniformOffset)>,
     pipelines: Res<HaoPipelines>,
@@ -28,7 +28,7 @@ pub fn hao(
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
     let back_hits = res.traces_back_hits(&voxel_grid.grid);
-    let Some([trace, neighborhood, temporal, denoise, denoise_near_field, apply]) =
+    let Some([trace, neighborhood, temporal, temporal_near_field, apply]) =
         pipelines.view_pipelines(&cache, res.samples, back_hits)
     else {
         return;
@@ -37,63 +37,47 @@ pub fn hao(
     let diagnostics = diagnostics.as_deref();
     let encoder = ctx.command_encoder();
     encoder.push_debug_group("hao");
-    {
+    // One compute pass: its label, GPU span, pipeline, bind groups (with their dynamic offsets) and size in
+    // pixels (one invocation each).
+    let mut pass = |label: &'static str, span: &'static str, pipeline, groups: &[(u32, &BindGroup, &[u32])], size| {
         let mut pass =
-            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_trace"), timestamp_writes: None });
-        let span = diagnostics.pass_span(&mut pass, "hao/trace");
-        pass.set_pipeline(trace);
-        pass.set_bind_group(0, &bind_groups.trace, &[]);
-        pass.set_bind_group(1, &bind_groups.view, &[view_offset.offset]);
-        pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
-        let (x, y) = groups(res.trace_size);
+            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        let span = diagnostics.pass_span(&mut pass, span);
+        pass.set_pipeline(pipeline);
+        for &(index, group, offsets) in groups {
+            pass.set_bind_group(index, group, offsets);
+        }
+        let (x, y) = groups_for(size);
         pass.dispatch_workgroups(x, y, 1);
         span.end(&mut pass);
-    }
-    // Without accumulation the temporal pass keeps no history and reads no window.
-    if res.accumulates {
-        let mut pass = encoder
-            .begin_compute_pass(&ComputePassDescriptor { label: Some("hao_neighborhood"), timestamp_writes: None });
-        let span = diagnostics.pass_span(&mut pass, "hao/neighborhood");
-        pass.set_pipeline(neighborhood);
-        pass.set_bind_group(0, &bind_groups.neighborhood, &[]);
-        let (x, y) = groups(res.trace_size);
-        pass.dispatch_workgroups(x, y, 1);
-        span.end(&mut pass);
-    }
-    {
-        let mut pass =
-            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_temporal"), timestamp_writes: None });
-        let span = diagnostics.pass_span(&mut pass, "hao/temporal");
-        pass.set_pipeline(temporal);
-        pass.set_bind_group(0, &bind_groups.temporal, &[]);
-        pass.set_bind_group(1, &bind_groups.temporal_view, &[view_offset.offset, previous_view_offset.offset]);
-        pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
-        let (x, y) = groups(res.view_size);
-        pass.dispatch_workgroups(x, y, 1);
-        span.end(&mut pass);
-    }
-    // The denoiser writes into the texture PBR reads; with the near field, into the result texture with
+    };
+    pass(
+        "hao_trace",
+        "hao/trace",
+        trace,
+        &[
+            (0, &bind_groups.trace, &[]),
+            (1, &bind_groups.view, &[view_offset.offset]),
+            (VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]),
+        ],
+        res.trace_size,
+    );
+    pass("hao_neighborhood", "hao/neighborhood", neighborhood, &[(0, &bind_groups.neighborhood, &[])], res.trace_size);
+    // The temporal pass writes into the texture PBR reads; with the near field, into the result texture with
     // the minimum of Bevy's SSAO, which apply then copies there.
-    let denoise_pipeline = if bind_groups.apply.is_some() { denoise_near_field } else { denoise };
-    {
-        let mut pass =
-            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_denoise"), timestamp_writes: None });
-        let span = diagnostics.pass_span(&mut pass, "hao/denoise");
-        pass.set_pipeline(denoise_pipeline);
-        pass.set_bind_group(0, &bind_groups.denoise, &[]);
-        let (x, y) = groups(res.view_size);
-        pass.dispatch_workgroups(x, y, 1);
-        span.end(&mut pass);
-    }
+    pass(
+        "hao_temporal",
+        "hao/temporal",
+        if bind_groups.apply.is_some() { temporal_near_field } else { temporal },
+        &[
+            (0, &bind_groups.temporal, &[]),
+            (1, &bind_groups.temporal_view, &[view_offset.offset, previous_view_offset.offset]),
+            (VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]),
+        ],
+        res.view_size,
+    );
     if let Some(apply_group) = &bind_groups.apply {
-        let mut pass =
-            encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_apply"), timestamp_writes: None });
-        let span = diagnostics.pass_span(&mut pass, "hao/apply");
-        pass.set_pipeline(apply);
-        pass.set_bind_group(0, apply_group, &[]);
-        let (x, y) = groups(res.view_size);
-        pass.dispatch_workgroups(x, y, 1);
-        span.end(&mut pass);
+        pass("hao_apply", "hao/apply", apply, &[(0, apply_group, &[])], res.view_size);
     }
     encoder.pop_debug_group();
 }

@@ -1,8 +1,8 @@
 //! How HAO's result reaches Bevy's PBR shading. Bevy 0.19's PBR reads ambient occlusion from one texture
 //! only: the one Bevy's SSAO makes for a view (`ScreenSpaceAmbientOcclusionResources`), bound with the
 //! view and read at each fragment's position in the render target. So a HAO camera carries Bevy's
-//! `ScreenSpaceAmbientOcclusion`, and HAO's denoiser (with the near field, its apply pass) writes into that
-//! texture. Two kinds of view need more than Bevy's SSAO gives them:
+//! `ScreenSpaceAmbientOcclusion`, and HAO's temporal pass (with the near field, its apply pass) writes into
+//! that texture. Two kinds of view need more than Bevy's SSAO gives them:
 //!
 //! * **MSAA.** Bevy's SSAO refuses cameras with MSAA (it reads single-sampled prepasses), so the main-world
 //!   camera does not carry it; [`extract_multisampled_views`] puts it on the render-world view instead,

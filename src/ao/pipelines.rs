@@ -18,33 +18,38 @@ use bevy::shader::ShaderDefVal;
 /// Bytes of a pixel of the temporal history: two `u32`, packed by `pack_history` in hao_common.wgsl (the view
 /// depth and AO in one word, the packed normal and frames of weight in the other; CPU twin
 /// `cpu::denoise::HistoryTexel::stored`), which the temporal pass writes at full resolution every frame. The
-/// history is a storage buffer of the view's pixels row by row rather than a texture: the temporal pass and
-/// the denoiser read nine of its texels a pixel, and a software rasterizer such as lavapipe loads from a
-/// buffer for less than it fetches a texel.
+/// history is a storage buffer of the view's pixels row by row rather than a texture: the temporal pass
+/// reads four of its texels a pixel, and a software rasterizer such as lavapipe loads from a buffer for less
+/// than it fetches a texel.
 pub(crate) const HISTORY_TEXEL_BYTES: u64 = 8;
+
+/// Bytes of what the neighborhood pass makes of a texel of the trace (the window that bounds the history,
+/// lower and upper bound, and the filtered AO, in a `vec4<f32>`), which the temporal pass reads, in a buffer
+/// laid out as the trace's.
+pub(crate) const WINDOW_TEXEL_BYTES: u64 = 16;
 
 /// Bytes of a texel of the trace (ao, view depth, packed normal, packed as a texel of the history with no
 /// frames: `pack_history` in hao_common.wgsl), in a storage buffer of its texels row by row, as the history.
 pub(crate) const TRACE_TEXEL_BYTES: u64 = 8;
-
-/// Bytes of the window of a texel of the trace that bounds the history (lower and upper bound, two floats),
-/// which the neighborhood pass writes and the temporal pass reads, in a buffer laid out as the trace's.
-pub(crate) const WINDOW_TEXEL_BYTES: u64 = 8;
 
 /// The passes that read the depth and normal prepasses (trace, temporal), for one kind of prepass
 /// texture: single-sampled, or multisampled on a camera with MSAA (they read sample 0).
 pub struct PrepassReaders {
     /// Group 0 of trace.
     pub trace_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the temporal pass.
+    /// Group 0 of the temporal pass, which writes into the texture PBR reads.
     pub temporal_layout: BindGroupLayoutDescriptor,
+    /// Group 0 of the temporal pass with the near field, which writes the result texture apply copies.
+    pub temporal_near_field_layout: BindGroupLayoutDescriptor,
     /// Rays through the voxels, stopping at the first occupied one.
     pub trace: CachedComputePipelineId,
     /// Rays that pass through the backs of surfaces (`ignore_back_hits`, with multi-valued voxels): the
     /// trace with the `BACK_HITS` loop, queued when a view first needs it.
     pub trace_back_hits: Option<CachedComputePipelineId>,
-    /// Temporal accumulation.
+    /// Temporal accumulation and the filter, into the texture PBR reads.
     pub temporal: CachedComputePipelineId,
+    /// The same and the near field, into the result texture.
+    pub temporal_near_field: CachedComputePipelineId,
     multisampled: bool,
 }
 
@@ -57,22 +62,14 @@ pub struct HaoPipelines {
     pub temporal_view_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the neighborhood pass.
     pub neighborhood_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the denoiser, which writes into the texture PBR reads.
-    pub denoise_layout: BindGroupLayoutDescriptor,
-    /// Group 0 of the denoiser with the near field, which writes the result texture apply copies.
-    pub denoise_near_field_layout: BindGroupLayoutDescriptor,
     /// Group 0 of apply.
     pub apply_layout: BindGroupLayoutDescriptor,
     /// The passes reading single-sampled prepasses.
     pub single: PrepassReaders,
     /// The passes reading multisampled prepasses, queued when the first view with MSAA needs them.
     pub multisampled: Option<PrepassReaders>,
-    /// The window of each texel of the trace.
+    /// The window and the filtered AO of each texel of the trace.
     pub neighborhood: CachedComputePipelineId,
-    /// The bilateral filter, into the texture PBR reads.
-    pub denoise: CachedComputePipelineId,
-    /// The bilateral filter and the near field, into the result texture.
-    pub denoise_near_field: CachedComputePipelineId,
     /// With the near field: the result texture into the texture PBR reads.
     pub apply: CachedComputePipelineId,
     /// The format of Bevy's SSAO texture, which PBR reads (and of the plugin's own in its place).
@@ -91,8 +88,14 @@ impl HaoPipelines {
     /// `samples` > 1, and the trace through the backs of surfaces where `back_hits`.
     pub fn queue_view(&mut self, cache: &PipelineCache, samples: u32, back_hits: bool) {
         if samples > 1 && self.multisampled.is_none() {
-            self.multisampled =
-                Some(prepass_readers(cache, &self.shaders, &self.view_layout, &self.temporal_view_layout, true));
+            self.multisampled = Some(prepass_readers(
+                cache,
+                &self.shaders,
+                &self.view_layout,
+                &self.temporal_view_layout,
+                self.ao_format,
+                true,
+            ));
         }
         let readers = if samples > 1 { self.multisampled.as_mut() } else { Some(&mut self.single) };
         if let Some(r) = readers.filter(|r| back_hits && r.trace_back_hits.is_none()) {
@@ -103,19 +106,19 @@ impl HaoPipelines {
     }
 
     /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, neighborhood,
-    /// temporal, denoise, and with the near field denoise_near_field and apply instead of denoise), once all
-    /// are compiled. The
-    /// trace passes through the backs of surfaces where `back_hits` and that variant is compiled (until then,
-    /// or if it failed to compile, which the pipeline cache logs, its rays stop there).
+    /// temporal, and with the near field temporal_near_field and apply instead of temporal), once all are
+    /// compiled. The trace
+    /// passes through the backs of surfaces where `back_hits` and that variant is compiled (until then, or if
+    /// it failed to compile, which the pipeline cache logs, its rays stop there).
     pub fn view_pipelines<'a>(
         &self,
         cache: &'a PipelineCache,
         samples: u32,
         back_hits: bool,
-    ) -> Option<[&'a ComputePipeline; 6]> {
+    ) -> Option<[&'a ComputePipeline; 5]> {
         let r = self.readers(samples)?;
         let back_hit_trace = r.trace_back_hits.filter(|_| back_hits).and_then(|id| cache.get_compute_pipeline(id));
-        let ids = [r.trace, self.neighborhood, r.temporal, self.denoise, self.denoise_near_field, self.apply];
+        let ids = [r.trace, self.neighborhood, r.temporal, r.temporal_near_field, self.apply];
         let mut pipelines = ids.map(|id| cache.get_compute_pipeline(id));
         if back_hit_trace.is_some() {
             pipelines[0] = back_hit_trace;
@@ -157,12 +160,14 @@ fn queue_trace(
     )
 }
 
-/// The layouts and pipelines of the passes that read the prepasses, `multisampled` or not.
+/// The layouts and pipelines of the passes that read the prepasses, `multisampled` or not; the temporal
+/// pass writes `ao_format`, the format of the texture PBR reads.
 fn prepass_readers(
     cache: &PipelineCache,
     [trace_shader, temporal_shader]: &[Handle<Shader>; 2],
     view_layout: &BindGroupLayoutDescriptor,
     temporal_view_layout: &BindGroupLayoutDescriptor,
+    ao_format: TextureFormat,
     multisampled: bool,
 ) -> PrepassReaders {
     let unfilterable = TextureSampleType::Float { filterable: false };
@@ -180,31 +185,70 @@ fn prepass_readers(
             (depth, normal, uniform_buffer::<GpuHaoSettings>(false), storage_buffer_sized(false, None)),
         ),
     );
-    let temporal_layout = BindGroupLayoutDescriptor::new(
-        label("hao_temporal_layout", "hao_temporal_multisampled_layout"),
-        &BindGroupLayoutEntries::sequential(
-            ShaderStages::COMPUTE,
-            (
-                storage_buffer_read_only_sized(false, None),
-                storage_buffer_read_only_sized(false, None),
-                storage_buffer_read_only_sized(false, None),
-                depth,
-                normal,
-                uniform_buffer::<GpuHaoSettings>(false),
-                storage_buffer_sized(false, None),
-            ),
+    // The trace, its windows, the history read and written, the prepasses and the settings; then the texture
+    // PBR reads, or with the near field Bevy's SSAO and the result texture.
+    let common = BindGroupLayoutEntries::sequential(
+        ShaderStages::COMPUTE,
+        (
+            storage_buffer_read_only_sized(false, None),
+            storage_buffer_read_only_sized(false, None),
+            storage_buffer_read_only_sized(false, None),
+            depth,
+            normal,
+            uniform_buffer::<GpuHaoSettings>(false),
+            storage_buffer_sized(false, None),
         ),
     );
+    let with = |outputs: &[BindGroupLayoutEntryBuilder]| {
+        let mut entries = common.to_vec();
+        let first = entries.len() as u32;
+        entries.extend((first..).zip(outputs).map(|(binding, o)| o.build(binding, ShaderStages::COMPUTE)));
+        entries
+    };
+    let temporal_layout = BindGroupLayoutDescriptor::new(
+        label("hao_temporal_layout", "hao_temporal_multisampled_layout"),
+        &with(&[texture_storage_2d(ao_format, StorageTextureAccess::WriteOnly)]),
+    );
+    let temporal_near_field_layout = BindGroupLayoutDescriptor::new(
+        label("hao_temporal_near_field_layout", "hao_temporal_multisampled_near_field_layout"),
+        &with(&[
+            texture_2d(unfilterable),
+            texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
+        ]),
+    );
+    let mut temporal_defs = defs.clone();
+    if ao_format == TextureFormat::R16Float {
+        temporal_defs.push("USE_R16FLOAT".into());
+    }
     let temporal = queue_compute(
         cache,
         label("hao_temporal", "hao_temporal_multisampled"),
         vec![temporal_layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()],
         temporal_shader.clone(),
         "temporal",
-        defs.clone(),
+        temporal_defs,
+    );
+    let mut near_field_defs = defs.clone();
+    near_field_defs.push("NEAR_FIELD".into());
+    let temporal_near_field = queue_compute(
+        cache,
+        label("hao_temporal_near_field", "hao_temporal_multisampled_near_field"),
+        vec![temporal_near_field_layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()],
+        temporal_shader.clone(),
+        "temporal",
+        near_field_defs,
     );
     let trace = queue_trace(cache, trace_shader, &trace_layout, view_layout, multisampled, false);
-    PrepassReaders { trace_layout, temporal_layout, trace, trace_back_hits: None, temporal, multisampled }
+    PrepassReaders {
+        trace_layout,
+        temporal_layout,
+        temporal_near_field_layout,
+        trace,
+        trace_back_hits: None,
+        temporal,
+        temporal_near_field,
+        multisampled,
+    }
 }
 
 impl FromWorld for HaoPipelines {
@@ -243,29 +287,6 @@ impl FromWorld for HaoPipelines {
                 ),
             ),
         );
-        let denoise_layout = BindGroupLayoutDescriptor::new(
-            "hao_denoise_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    storage_buffer_read_only_sized(false, None),
-                    uniform_buffer::<GpuHaoSettings>(false),
-                    texture_storage_2d(ao_format, StorageTextureAccess::WriteOnly),
-                ),
-            ),
-        );
-        let denoise_near_field_layout = BindGroupLayoutDescriptor::new(
-            "hao_denoise_near_field_layout",
-            &BindGroupLayoutEntries::sequential(
-                ShaderStages::COMPUTE,
-                (
-                    storage_buffer_read_only_sized(false, None),
-                    uniform_buffer::<GpuHaoSettings>(false),
-                    texture_2d(unfilterable),
-                    texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
-                ),
-            ),
-        );
         let apply_layout = BindGroupLayoutDescriptor::new(
             "hao_apply_layout",
             &BindGroupLayoutEntries::sequential(
@@ -279,10 +300,9 @@ impl FromWorld for HaoPipelines {
         );
         let shaders = [load_embedded_asset!(world, "hao_trace.wgsl"), load_embedded_asset!(world, "hao_temporal.wgsl")];
         let neighborhood_shader = load_embedded_asset!(world, "hao_neighborhood.wgsl");
-        let denoise_shader = load_embedded_asset!(world, "hao_denoise.wgsl");
         let apply_shader = load_embedded_asset!(world, "hao_apply.wgsl");
         let cache = world.resource::<PipelineCache>();
-        let single = prepass_readers(cache, &shaders, &view_layout, &temporal_view_layout, false);
+        let single = prepass_readers(cache, &shaders, &view_layout, &temporal_view_layout, ao_format, false);
         let ao_format_defs: Vec<ShaderDefVal> =
             if ao_format == TextureFormat::R16Float { vec!["USE_R16FLOAT".into()] } else { vec![] };
         let neighborhood = queue_compute(
@@ -293,36 +313,16 @@ impl FromWorld for HaoPipelines {
             "neighborhood",
             vec![],
         );
-        let denoise = queue_compute(
-            cache,
-            "hao_denoise",
-            vec![denoise_layout.clone()],
-            denoise_shader.clone(),
-            "denoise",
-            ao_format_defs.clone(),
-        );
-        let denoise_near_field = queue_compute(
-            cache,
-            "hao_denoise_near_field",
-            vec![denoise_near_field_layout.clone()],
-            denoise_shader,
-            "denoise",
-            vec!["NEAR_FIELD".into()],
-        );
         let apply =
             queue_compute(cache, "hao_apply", vec![apply_layout.clone()], apply_shader, "apply", ao_format_defs);
         Self {
             view_layout,
             temporal_view_layout,
             neighborhood_layout,
-            denoise_layout,
-            denoise_near_field_layout,
             apply_layout,
             single,
             multisampled: None,
             neighborhood,
-            denoise,
-            denoise_near_field,
             apply,
             ao_format,
             shaders,

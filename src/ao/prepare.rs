@@ -40,7 +40,7 @@ pub struct GpuHaoSettings {
     pub near_field: u32,
     /// 1 to trace at half resolution.
     pub half_resolution: u32,
-    /// Bilateral filter radius.
+    /// The filter's width, trace texels.
     pub denoise_radius: u32,
     /// Most frames of temporal history (1: none).
     pub accumulation_frames: u32,
@@ -95,16 +95,16 @@ pub struct HaoViewResources {
     /// The traced AO with the traced pixel's view depth and normal (half or full resolution), its texels row by
     /// row.
     pub noisy: Buffer,
-    /// The window of each texel of the trace that bounds the history (the neighborhood pass's output), laid
-    /// out as `noisy`.
+    /// What the neighborhood pass makes of each texel of the trace, laid out as `noisy`: the window that
+    /// bounds the history, and the filtered AO.
     pub window: Buffer,
     /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames,
     /// 64 bits a pixel, the view's pixels row by row.
     pub history: Buffer,
-    /// The temporal history this frame writes, same layout; the denoiser reads it.
+    /// The temporal history this frame writes, same layout.
     pub history_out: Buffer,
-    /// With the near field: the denoised AO combined with Bevy's SSAO, which apply copies into the texture
-    /// PBR reads (without, the denoiser writes there itself).
+    /// With the near field: the AO combined with Bevy's SSAO, which apply copies into the texture PBR reads
+    /// (without, the temporal pass writes there itself).
     pub result: Option<CachedTexture>,
     /// The settings uniform.
     pub settings: Buffer,
@@ -120,9 +120,6 @@ pub struct HaoViewResources {
     /// Whether the minimum with Bevy's SSAO is taken: the near field asked for, on a view Bevy's SSAO can run
     /// on (no MSAA, a viewport at the target's corner).
     pub near_field: bool,
-    /// Whether the view accumulates frames (`accumulation_frames` above 1): only then does the temporal pass
-    /// bound the history by the neighborhood pass's windows, so only then does that pass run.
-    pub accumulates: bool,
     /// The texture PBR reads AO from in place of Bevy's SSAO texture, the target's size, where the viewport
     /// does not start at the target's corner (PBR reads it at target coordinates; Bevy's is the viewport's
     /// size). See `pbr_texture`.
@@ -148,10 +145,9 @@ pub struct HaoBindGroups {
     pub neighborhood: BindGroup,
     /// The view and the previous view, for the temporal pass.
     pub temporal_view: BindGroup,
-    /// Temporal accumulation.
+    /// Temporal accumulation and the filter: into the texture PBR reads, or with the near field into the
+    /// result texture.
     pub temporal: BindGroup,
-    /// The denoiser: into the texture PBR reads, or with the near field into the result texture.
-    pub denoise: BindGroup,
     /// With the near field: apply, the result texture into the texture PBR reads.
     pub apply: Option<BindGroup>,
 }
@@ -268,7 +264,6 @@ pub fn prepare_hao_textures(
             samples,
             ignore_back_hits: hao.ignore_back_hits,
             near_field,
-            accumulates: hao.accumulation_frames > 1,
             pbr_texture,
         });
     }
@@ -363,39 +358,38 @@ pub fn prepare_hao_bind_groups(
             &cache.get_bind_group_layout(&pipelines.temporal_view_layout),
             &BindGroupEntries::sequential((view_binding.clone(), previous_view_binding.clone())),
         );
-        let temporal = device.create_bind_group(
-            "hao_temporal_bind_group",
-            &cache.get_bind_group_layout(&readers.temporal_layout),
-            &BindGroupEntries::sequential((
-                res.noisy.as_entire_binding(),
-                res.window.as_entire_binding(),
-                res.history.as_entire_binding(),
-                depth,
-                normal,
-                res.settings.as_entire_binding(),
-                res.history_out.as_entire_binding(),
-            )),
-        );
-        let (denoise, apply) = match &res.result {
+        // The temporal pass writes the AO into the texture PBR reads; with the near field, with the minimum of
+        // Bevy's SSAO (read from that texture) into the result texture, which apply copies there.
+        let (temporal, apply) = match &res.result {
             None => {
-                let denoise = device.create_bind_group(
-                    "hao_denoise_bind_group",
-                    &cache.get_bind_group_layout(&pipelines.denoise_layout),
+                let temporal = device.create_bind_group(
+                    "hao_temporal_bind_group",
+                    &cache.get_bind_group_layout(&readers.temporal_layout),
                     &BindGroupEntries::sequential((
-                        res.history_out.as_entire_binding(),
+                        res.noisy.as_entire_binding(),
+                        res.window.as_entire_binding(),
+                        res.history.as_entire_binding(),
+                        depth,
+                        normal,
                         res.settings.as_entire_binding(),
+                        res.history_out.as_entire_binding(),
                         ssao_view,
                     )),
                 );
-                (denoise, None)
+                (temporal, None)
             }
             Some(result) => {
-                let denoise = device.create_bind_group(
-                    "hao_denoise_near_field_bind_group",
-                    &cache.get_bind_group_layout(&pipelines.denoise_near_field_layout),
+                let temporal = device.create_bind_group(
+                    "hao_temporal_near_field_bind_group",
+                    &cache.get_bind_group_layout(&readers.temporal_near_field_layout),
                     &BindGroupEntries::sequential((
-                        res.history_out.as_entire_binding(),
+                        res.noisy.as_entire_binding(),
+                        res.window.as_entire_binding(),
+                        res.history.as_entire_binding(),
+                        depth,
+                        normal,
                         res.settings.as_entire_binding(),
+                        res.history_out.as_entire_binding(),
                         ssao_view,
                         &result.default_view,
                     )),
@@ -405,18 +399,10 @@ pub fn prepare_hao_bind_groups(
                     &cache.get_bind_group_layout(&pipelines.apply_layout),
                     &BindGroupEntries::sequential((&result.default_view, res.settings.as_entire_binding(), ssao_view)),
                 );
-                (denoise, Some(apply))
+                (temporal, Some(apply))
             }
         };
-        commands.entity(entity).insert(HaoBindGroups {
-            view,
-            trace,
-            neighborhood,
-            temporal_view,
-            temporal,
-            denoise,
-            apply,
-        });
+        commands.entity(entity).insert(HaoBindGroups { view, trace, neighborhood, temporal_view, temporal, apply });
     }
 }
 

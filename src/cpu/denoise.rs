@@ -1,8 +1,9 @@
-//! The CPU twin of HAO's denoiser (`src/ao/hao_denoise.wgsl`, its functions in `hao_common.wgsl`): one
-//! pass of a bilateral filter over a cross, the center and the texels up to [`denoise_radius`] away along
-//! its row and column, over the temporal history.
+//! The CPU twin of HAO's denoiser: the bilateral weight with which the neighborhood pass filters each
+//! frame's trace before the temporal pass accumulates it (`src/ao/hao_neighborhood.wgsl`, the weight in
+//! `hao_common.wgsl`; the filter itself is [`super::temporal::prefilter`]), and the history's texel as the
+//! temporal pass stores it.
 
-use glam::{IVec2, UVec2, Vec2, Vec3};
+use glam::Vec3;
 
 /// A texel of the temporal history as the denoiser reads it (WGSL: ao, view depth, packed normal, frames).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,50 +32,6 @@ impl HistoryTexel {
             frames: (self.frames.clamp(0.0, 127.0) * 8.0).round() / 8.0,
         }
     }
-}
-
-/// The denoiser's reach for a pixel whose history holds `frames` frames of weight (WGSL: `denoise_radius`):
-/// `radius` up to 4 frames, narrowing as the history grows (half of it at 16).
-pub fn denoise_radius(radius: u32, frames: f32) -> i32 {
-    (radius as f32 * (2.0 / frames.max(1.0).sqrt()).min(1.0)).ceil() as i32
-}
-
-/// One tap of the filter at `p`, clamped to the image, `offset` texels from `center` (WGSL:
-/// `bilateral_tap`): (weight x AO, weight); nothing from the background.
-pub fn bilateral_tap(
-    history: &[HistoryTexel],
-    size: UVec2,
-    p: IVec2,
-    offset: f32,
-    radius: f32,
-    center: &HistoryTexel,
-) -> Vec2 {
-    let q = p.clamp(IVec2::ZERO, size.as_ivec2() - 1);
-    let tap = &history[(q.y as u32 * size.x + q.x as u32) as usize];
-    if tap.depth <= 0.0 {
-        return Vec2::ZERO;
-    }
-    let w = bilateral_weight(offset, radius, center.depth, tap.depth, center.normal, tap.normal);
-    Vec2::new(w * tap.ao, w)
-}
-
-/// The denoised AO of `pixel` of `history` (`size` texels, row by row) with the filter's `radius`
-/// (`HybridAmbientOcclusion::denoise_radius`; WGSL: `bilateral_cross`). The background keeps its value.
-pub fn bilateral_cross(history: &[HistoryTexel], size: UVec2, pixel: UVec2, radius: u32) -> f32 {
-    let center = &history[(pixel.y * size.x + pixel.x) as usize];
-    if center.depth <= 0.0 {
-        return center.ao;
-    }
-    let r = denoise_radius(radius, center.frames);
-    let c = pixel.as_ivec2();
-    let mut sum = Vec2::new(center.ao, 1.0);
-    for d in 1..=r {
-        let o = d as f32;
-        for step in [IVec2::new(d, 0), IVec2::new(-d, 0), IVec2::new(0, d), IVec2::new(0, -d)] {
-            sum += bilateral_tap(history, size, c + step, o, r as f32, center);
-        }
-    }
-    sum.x / sum.y
 }
 
 /// The weight of a tap `offset` texels away with view depth `depth` and normal along `direction` (any
@@ -132,46 +89,5 @@ mod tests {
         assert_eq!((b.ao, b.depth, b.frames), (1.0, 0.0, 127.0));
         // Storing twice changes nothing.
         assert_eq!(t.stored(), t);
-    }
-
-    fn texel(ao: f32, depth: f32, frames: f32) -> HistoryTexel {
-        HistoryTexel { ao, depth, normal: Vec3::Z, frames }
-    }
-
-    #[test]
-    fn the_radius_narrows_as_the_history_grows() {
-        assert_eq!(denoise_radius(2, 0.0), 2);
-        assert_eq!(denoise_radius(2, 4.0), 2);
-        assert_eq!(denoise_radius(2, 16.0), 1);
-        assert_eq!(denoise_radius(4, 16.0), 2);
-        assert_eq!(denoise_radius(0, 1.0), 0);
-    }
-
-    #[test]
-    fn the_cross_averages_its_surface_only() {
-        let size = UVec2::new(5, 5);
-        // A checkerboard of 0 and 1 on one surface: the center (1) meets four 0s at distance 1.
-        let mut history: Vec<HistoryTexel> =
-            (0..25).map(|i| texel(((i % 5 + i / 5) % 2 == 0) as u32 as f32, 10.0, 16.0)).collect();
-        let w1 = (-1.0f32 / 2.0).exp();
-        let expected = 1.0 / (1.0 + 4.0 * w1);
-        let got = bilateral_cross(&history, size, UVec2::new(2, 2), 2);
-        assert!((got - expected).abs() < 1e-6, "{got} {expected}");
-        // Diagonals are not read: only the row and the column.
-        history[6].ao = 100.0;
-        assert_eq!(bilateral_cross(&history, size, UVec2::new(2, 2), 2), got);
-        // Another surface (far behind) and the background weigh nothing.
-        for i in [7, 11, 13, 17] {
-            history[i] = texel(0.0, 50.0, 16.0);
-        }
-        assert_eq!(bilateral_cross(&history, size, UVec2::new(2, 2), 2), 1.0);
-        history[7].depth = 0.0;
-        assert_eq!(bilateral_cross(&history, size, UVec2::new(2, 2), 2), 1.0);
-        // The background keeps its value; radius 0 is no filter.
-        history[12].depth = 0.0;
-        assert_eq!(bilateral_cross(&history, size, UVec2::new(2, 2), 2), 1.0);
-        history[12].depth = 10.0;
-        history[7] = texel(0.0, 10.0, 16.0);
-        assert_eq!(bilateral_cross(&history, size, UVec2::new(2, 2), 0), 1.0);
     }
 }

@@ -14,8 +14,8 @@
 //! * [`skinning`]: morph targets and linear blend skinning as Bevy renders them, applied before voxelizing.
 //! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
-//!   through the voxel grid with empty-space skipping); [`temporal`]: of its temporal accumulation;
-//!   [`denoise`]: of its denoiser.
+//!   through the voxel grid with empty-space skipping); [`temporal`]: of its temporal accumulation and
+//!   filter; [`denoise`]: the filter's weights and the history's texel.
 //!
 //! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function
 //! names; the render tests hold the GPU against these. What the voxelizer is measured against (the exact

@@ -11,16 +11,20 @@
 //!    disocclusion, or a surface that moved (its old place holds something else), keeps no texel and starts
 //!    over.
 //! 2. **Rectification.** The history is clamped to the current frame's 3x3 neighbourhood, its mean plus or
-//!    minus two standard deviations and [`CLAMP_MARGIN`] ([`neighborhood_window`]), computed once per texel
-//!    of the trace ([`trace_window`]). Where an occluder has
-//!    gone, every ray of the neighbourhood now escapes, the window closes around 1 and the shadow it left is
+//!    minus two standard deviations and [`CLAMP_MARGIN`] ([`neighborhood_window`]): the window of the
+//!    trace's 3x3 texels around the pixel's ([`trace_window`]). Where an occluder has gone, every ray of the neighbourhood now escapes, the window closes around 1 and the shadow it left is
 //!    clamped away in one frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
 //!    two rays. The voxel grid knows where it may have changed: the boxes of the dynamic occluders, this
 //!    frame and last (`VoxelGrid::changed`). A pixel within `max_distance` of one keeps at most
 //!    [`CHANGED_COUNT`] frames of history, so a moving character's shadow follows it within a few frames
 //!    while the still scene around it converges.
-//! 4. **Blend** ([`temporal_blend`]): with `c` frames of history, capped at
+//! 4. **Filter** ([`prefilter`]): the pixel's own trace is averaged with the trace's 3x3 texels around it
+//!    that show its surface, weighed by a bilateral weight (a Gaussian in distance over
+//!    `HybridAmbientOcclusion::denoise_radius` texels of the trace, and the depth and normal against the
+//!    traced pixel's: [`bilateral_weight`](super::denoise::bilateral_weight)). The blended history is then
+//!    the AO PBR reads: there is no filter after accumulation.
+//! 5. **Blend** ([`temporal_blend`]): with `c` frames of history, capped at
 //!    `HybridAmbientOcclusion::accumulation_frames`, the new AO is `history + (current - history) / c`: the
 //!    running mean of the last frames, an exponential average once the cap is reached.
 //!
@@ -37,7 +41,7 @@
 pub const CLAMP_MARGIN: f32 = 0.1;
 
 use super::denoise::HistoryTexel;
-use glam::{IVec2, UVec2, Vec3};
+use glam::{IVec2, UVec2, Vec2, Vec3};
 
 /// The most frames of weight a history keeps after it was clamped.
 pub const CLAMPED_COUNT: f32 = 2.0;
@@ -117,26 +121,27 @@ impl TracedTexel {
     }
 }
 
-/// The trace's 3x3 texels around `texel` that exist, in the order the passes read them (rows, then columns),
-/// with `None` where the traced pixel shows no geometry.
+/// The trace's 3x3 texels around `texel` that exist and show geometry, with their offsets from it, in the
+/// order the passes read them (rows, then columns).
 fn neighbourhood(
     trace: &[Option<TracedTexel>],
     trace_size: UVec2,
     texel: UVec2,
-) -> impl Iterator<Item = Option<TracedTexel>> + '_ {
+) -> impl Iterator<Item = (IVec2, TracedTexel)> + '_ {
     (0..9).filter_map(move |k| {
-        let t = texel.as_ivec2() + IVec2::new(k % 3 - 1, k / 3 - 1);
+        let d = IVec2::new(k % 3 - 1, k / 3 - 1);
+        let t = texel.as_ivec2() + d;
         let inside = t.cmpge(IVec2::ZERO).all() && t.cmplt(trace_size.as_ivec2()).all();
-        inside.then(|| trace[(t.y as u32 * trace_size.x + t.x as u32) as usize])
+        inside.then(|| trace[(t.y as u32 * trace_size.x + t.x as u32) as usize].map(|v| (d, v))).flatten()
     })
 }
 
-/// The window that bounds the history of the pixels that read trace texel `texel` (WGSL:
-/// `hao_neighborhood.wgsl`, once per texel of the trace): [`neighborhood_window`] over its 3x3 texels that
-/// show geometry; `(-1, 2)`, none, where none does.
+/// The window that bounds the history of the pixels of trace texel `texel` (WGSL: `hao_neighborhood.wgsl`,
+/// once per texel of the trace): [`neighborhood_window`] over its 3x3 texels that show geometry; `(-1, 2)`,
+/// none, where none does.
 pub fn trace_window(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2) -> (f32, f32) {
     let (mut sum, mut squares, mut n) = (0.0f32, 0.0f32, 0.0f32);
-    for v in neighbourhood(trace, trace_size, texel).flatten() {
+    for (_, v) in neighbourhood(trace, trace_size, texel) {
         sum += v.ao;
         squares += v.ao * v.ao;
         n += 1.0;
@@ -145,11 +150,12 @@ pub fn trace_window(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVe
 }
 
 /// What stands in for a pixel's own trace where its block traced another pixel (WGSL: `stand_in` in
-/// `hao_temporal.wgsl`): the mean of the trace's 3x3 texels around `texel` that show its surface (its view
-/// depth `depth` and normal `normal`, [`history_accepts`]), else of all that show geometry, else 1.
+/// `hao_temporal.wgsl`): the mean of the trace's 3x3 texels around `texel` that show its
+/// surface (its view depth `depth` and normal `normal`, [`history_accepts`]), else of all that show
+/// geometry, else 1.
 pub fn stand_in(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, depth: f32, normal: Vec3) -> f32 {
     let (mut sum, mut n, mut same_sum, mut same_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    for v in neighbourhood(trace, trace_size, texel).flatten() {
+    for (_, v) in neighbourhood(trace, trace_size, texel) {
         sum += v.ao;
         n += 1.0;
         if history_accepts(depth, v.depth, normal, v.normal) {
@@ -164,6 +170,28 @@ pub fn stand_in(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, 
     } else {
         1.0
     }
+}
+
+/// Trace texel `texel`'s AO filtered over its 3x3 texels (WGSL: `hao_neighborhood.wgsl`, once per texel of
+/// the trace), which the pixel it traced blends into its history: the texels that show geometry, each weighed
+/// by [`bilateral_weight`](super::denoise::bilateral_weight) (its distance in texels over `radius`,
+/// `HybridAmbientOcclusion::denoise_radius`, and its depth and normal against the traced pixel's). Radius 0,
+/// or a texel that shows no geometry: its AO as traced (1 for the background).
+pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, radius: u32) -> f32 {
+    let Some(center) = trace[(texel.y * trace_size.x + texel.x) as usize] else { return 1.0 };
+    let mut sum = Vec2::ZERO;
+    for (d, v) in neighbourhood(trace, trace_size, texel) {
+        let w = super::denoise::bilateral_weight(
+            d.as_vec2().length(),
+            radius as f32,
+            center.depth,
+            v.depth,
+            center.normal,
+            v.normal,
+        );
+        sum += Vec2::new(w * v.ao, w);
+    }
+    if radius > 0 && sum.y > 0.0 { sum.x / sum.y } else { center.ao }
 }
 
 /// One pixel's new history and frames of weight (WGSL: the end of `temporal`), from its reprojected history
@@ -201,13 +229,15 @@ pub struct TraceFrame {
 /// The accumulation over a still camera (reprojection is the identity), frame by frame: the twin that the
 /// GPU test holds the temporal pass to. `pixels` are the view's (`view_size`), each with its view depth and
 /// normal (`None`: background); `frames` the trace of each frame, at half resolution or not. The result is
-/// each pixel's AO after the last frame (NaN for the background).
+/// each pixel's AO after the last frame (NaN for the background). Each pixel's own trace is filtered
+/// ([`prefilter`]) with the filter's `radius` (`HybridAmbientOcclusion::denoise_radius`).
 pub fn accumulate_still(
     frames: &[TraceFrame],
     pixels: &[Option<(f32, Vec3)>],
     view_size: UVec2,
     half_resolution: bool,
     max_count: f32,
+    radius: u32,
 ) -> Vec<f32> {
     let trace_size = if half_resolution { (view_size + UVec2::ONE) / 2 } else { view_size };
     let mut ao = vec![f32::NAN; pixels.len()];
@@ -217,9 +247,9 @@ pub fn accumulate_still(
             let Some((depth, normal)) = *pixel else { continue };
             let p = UVec2::new(i as u32 % view_size.x, i as u32 / view_size.x);
             let texel = if half_resolution { p / 2 } else { p };
-            let own = (super::ao::traced_pixel(texel, frame.number, view_size, half_resolution) == p)
-                .then(|| frame.texels[(texel.y * trace_size.x + texel.x) as usize].map(|t| t.ao))
-                .flatten();
+            let own = (super::ao::traced_pixel(texel, frame.number, view_size, half_resolution) == p
+                && frame.texels[(texel.y * trace_size.x + texel.x) as usize].is_some())
+            .then(|| prefilter(&frame.texels, trace_size, texel, radius));
             let window = trace_window(&frame.texels, trace_size, texel);
             // (The GPU reads the stand-in only where `temporal_update` uses it.)
             let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal);
@@ -309,10 +339,10 @@ mod tests {
             })
             .collect();
         let size = UVec2::new(w, h);
-        let ao = accumulate_still(&frames, &flat(w, h), size, false, 32.0);
+        let ao = accumulate_still(&frames, &flat(w, h), size, false, 32.0, 0);
         assert!(ao.iter().all(|a| (a - 0.75).abs() < 0.02), "{ao:?}");
         // After one frame, the frame's AO as the history stores it (to 1/8191).
-        let one = accumulate_still(&frames[..1], &flat(w, h), size, false, 32.0);
+        let one = accumulate_still(&frames[..1], &flat(w, h), size, false, 32.0, 0);
         assert!(one.iter().zip(&frames[0].texels).all(|(a, t)| (a - t.unwrap().ao).abs() <= 0.5 / 8191.0), "{one:?}");
     }
 
@@ -330,14 +360,14 @@ mod tests {
                     .collect(),
             })
             .collect();
-        let ao = accumulate_still(&frames, &flat(4, 4), size, true, 4.0);
+        let ao = accumulate_still(&frames, &flat(4, 4), size, true, 4.0, 0);
         for (i, a) in ao.iter().enumerate() {
             let p = UVec2::new(i as u32 % 4, i as u32 / 4);
             // 16 traces of its own: the stand-in of the first frame (the block's traced pixel) weighs under 1 %.
             assert!((a - truth(p)).abs() < 0.02, "pixel {p}: {a}, not {}", truth(p));
         }
         // After the first frame alone the untraced pixels hold their neighbourhood's traces.
-        let first = accumulate_still(&frames[..1], &flat(4, 4), size, true, 4.0);
+        let first = accumulate_still(&frames[..1], &flat(4, 4), size, true, 4.0, 0);
         // (As the history stores them, to 1/8191.)
         assert!((first[0] - 0.2).abs() <= 0.5 / 8191.0, "traced: {}", first[0]);
         assert!((first[1] - 0.2).abs() <= 0.5 / 8191.0, "its block's traced pixel stands in: {}", first[1]);
@@ -354,6 +384,37 @@ mod tests {
         assert!((ao - 0.6).abs() < 1e-6 && c == 3.0, "{ao} {c}");
         // No accumulation: the stand-in is the frame's AO.
         assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, false), (0.9, 1.0));
+    }
+
+    #[test]
+    fn the_filter_averages_the_texels_surface_only() {
+        // A 3x3 trace on one surface: the center reads 1, its four side neighbours 0, the corners 0.5.
+        let size = UVec2::new(3, 3);
+        let ao = |i: usize| match i {
+            4 => 1.0,
+            _ if i % 2 == 1 => 0.0,
+            _ => 0.5,
+        };
+        let mut trace: Vec<Option<TracedTexel>> = (0..9).map(|i| texel(ao(i))).collect();
+        let (side, corner) = ((-1.0f32 / 2.0).exp(), (-1.0f32).exp());
+        let expected = (1.0 + 4.0 * corner * 0.5) / (1.0 + 4.0 * side + 4.0 * corner);
+        let got = prefilter(&trace, size, UVec2::ONE, 1);
+        assert!((got - expected).abs() < 1e-6, "{got} {expected}");
+        // Wider, the neighbours weigh more.
+        assert!(prefilter(&trace, size, UVec2::ONE, 2) < got);
+        // Radius 0 is no filter: the texel as traced.
+        assert_eq!(prefilter(&trace, size, UVec2::ONE, 0), 1.0);
+        // Another surface (far behind), a crease and the background weigh nothing.
+        for i in [0, 1, 2, 3] {
+            trace[i] = Some(TracedTexel { ao: 0.0, depth: 50.0, normal: Vec3::Z });
+        }
+        for i in [5, 6, 7] {
+            trace[i] = Some(TracedTexel { ao: 0.0, depth: 10.0, normal: Vec3::X });
+        }
+        trace[8] = None;
+        assert_eq!(prefilter(&trace, size, UVec2::ONE, 2), 1.0);
+        // The background is open.
+        assert_eq!(prefilter(&trace, size, UVec2::new(2, 2), 1), 1.0);
     }
 
     #[test]

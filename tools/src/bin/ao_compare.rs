@@ -7,8 +7,8 @@
 //! HAO accumulates its AO over frames (`--accumulation`, `HybridAmbientOcclusion::accumulation_frames`, 16
 //! by default; 1 for none): the images are read after the scene has settled and then four times that many
 //! frames more, when the history has converged (the frames are printed). `--hao-rays`, `--hao-steps` and
-//! `--hao-resolution` trace that many rays and steps a frame, at that resolution, instead of the quality's; `--denoise` sets
-//! the denoiser's radius (`HybridAmbientOcclusion::denoise_radius`).
+//! `--hao-resolution` trace that many rays and steps a frame, at that resolution, instead of the quality's;
+//! `--denoise` sets the denoiser's width (`HybridAmbientOcclusion::denoise_radius`; 0: off).
 //!
 //! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 192^3 following the
 //! camera) or `fit` (one grid fitted to the static scene, `--res` cells on its longest axis). `--world`
@@ -102,7 +102,7 @@ struct Args {
     /// Trace at this resolution instead of the quality's.
     #[arg(long, value_enum)]
     hao_resolution: Option<Resolution>,
-    /// The denoiser's radius (HybridAmbientOcclusion::denoise_radius).
+    /// The denoiser's width, texels of the trace (HybridAmbientOcclusion::denoise_radius; 0: off).
     #[arg(long)]
     denoise: Option<u32>,
     /// Multi-valued voxels (VoxelVolume::attributes): the voxels keep their average albedo and normal.

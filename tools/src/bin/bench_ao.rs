@@ -9,21 +9,23 @@
 //! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
 //! warm-up, `--rounds` times in turn, each right after a phase without ambient occlusion:
 //!
-//! 1. Bevy's SSAO alone, at its default quality (High), on a camera without HAO: the `ssao` span;
+//! 1. Bevy's SSAO alone at each of its qualities (Low, Medium, High, Ultra), on a camera without HAO: the
+//!    `ssao` span;
 //! 2. for each HAO quality preset, the camera with `HybridAmbientOcclusion` at its defaults (near field
 //!    off, 16 frames accumulated), then without accumulation (`accumulation_frames: 1`, the presets' rays
-//!    before it): the spans `hao/trace`, `hao/neighborhood` (only when accumulating), `hao/temporal`,
-//!    `hao/denoise`, `hao/apply`, and `ssao` if Bevy's SSAO passes ran (the plugin skips them when HAO
-//!    overwrites their result; "not run" then).
+//!    before it): the spans `hao/trace`, `hao/neighborhood` (the windows and the denoiser),
+//!    `hao/temporal` (which writes the AO PBR reads), `hao/apply` (with the near field only), and `ssao` if Bevy's SSAO passes ran (the plugin skips them
+//!    when HAO overwrites their result; "not run" then).
 //!
 //! It prints their medians, the whole AO cost of a HAO frame (the HAO passes plus any SSAO pass that ran),
-//! and its ratio to Bevy's SSAO alone. Voxelization is not counted there (see `bench_voxelize`).
+//! and its ratio to Bevy's SSAO alone at its default quality, High. Voxelization is not counted there (see
+//! `bench_voxelize`).
 //!
 //! A second table times whole frames on the wall clock, the device waited for after each: a preset's whole
 //! AO cost is its frame less the frame without AO measured just before it, and its ratio is taken to Bevy's
-//! SSAO High measured the same way. This is the measure on lavapipe, whose timestamps are taken when its rasterizer runs a scene
-//! and can miss compute passes between render passes (the `hao/neighborhood` and `hao/denoise` spans read
-//! about 0.05 ms there however long the passes run); on a GPU the spans are the measure. On a software
+//! SSAO High measured the same way. This is the measure on lavapipe, whose timestamps are taken when its
+//! rasterizer runs a scene and can miss compute passes between render passes (compute-only passes have read
+//! about 0.05 ms there however long they ran); on a GPU the spans are the measure. On a software
 //! rasterizer such as lavapipe the times are CPU times of the emulated GPU: compare ratios within one run,
 //! not absolute figures.
 //!
@@ -38,6 +40,7 @@
 
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel};
 use bevy::prelude::*;
 use bevy_hao::prelude::*;
 use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene};
@@ -165,7 +168,7 @@ fn main() {
         (samples, walls)
     };
     let cam = app.world_mut().query_filtered::<Entity, With<BenchCamera>>().single(app.world()).unwrap();
-    let spans = ["hao/trace", "hao/neighborhood", "hao/temporal", "hao/denoise", "hao/apply", "ssao"];
+    let spans = ["hao/trace", "hao/neighborhood", "hao/temporal", "hao/apply", "ssao"];
     let presets: Vec<HybridAmbientOcclusion> = [HybridAmbientOcclusion::default().accumulation_frames, 1]
         .into_iter()
         .flat_map(|accumulation_frames| {
@@ -177,24 +180,35 @@ fn main() {
     // Each round: Bevy's SSAO alone, then each preset with and without accumulation, each phase right after a
     // phase without AO (its baseline: a phase's cost is its frame less the frame just before it without AO,
     // which leaves out the drift of a long run); the samples of every round are pooled.
-    let bar = bevy_hao_tools::harness::progress_bar((rounds * 2 * (1 + presets.len())) as u64, "bench_ao");
+    let bar = bevy_hao_tools::harness::progress_bar((rounds * 2 * (4 + presets.len())) as u64, "bench_ao");
     let without_ao = |app: &mut App| {
         // The plugin takes the SSAO it added away with HAO (in the next frame).
-        app.world_mut().entity_mut(cam).remove::<(HybridAmbientOcclusion, bevy::pbr::ScreenSpaceAmbientOcclusion)>();
+        app.world_mut().entity_mut(cam).remove::<(HybridAmbientOcclusion, ScreenSpaceAmbientOcclusion)>();
         app.update();
         measure(app, &[]).1
     };
-    let mut ssao = (Vec::new(), Vec::new(), Vec::new());
+    // Bevy's SSAO at each quality: its span's samples, its frames, and the frames without AO before them.
+    let ssao_qualities = [
+        ScreenSpaceAmbientOcclusionQualityLevel::Low,
+        ScreenSpaceAmbientOcclusionQualityLevel::Medium,
+        ScreenSpaceAmbientOcclusionQualityLevel::High,
+        ScreenSpaceAmbientOcclusionQualityLevel::Ultra,
+    ];
+    let mut ssao_samples = vec![(Vec::new(), Vec::new(), Vec::new()); ssao_qualities.len()];
     let mut preset_samples = vec![(vec![Vec::new(); spans.len()], Vec::new(), Vec::new()); presets.len()];
     for _ in 0..rounds {
-        ssao.2.extend(without_ao(&mut app));
-        bar.inc(1);
-        // Bevy's SSAO alone, at its default quality (High).
-        app.world_mut().entity_mut(cam).insert(bevy::pbr::ScreenSpaceAmbientOcclusion::default());
-        let (s, w) = measure(&mut app, &["ssao"]);
-        ssao.0.extend(s.into_iter().flatten());
-        ssao.1.extend(w);
-        bar.inc(1);
+        for (quality_level, (samples, walls, baseline)) in ssao_qualities.iter().zip(ssao_samples.iter_mut()) {
+            baseline.extend(without_ao(&mut app));
+            bar.inc(1);
+            // Bevy's SSAO alone, at this quality.
+            app.world_mut()
+                .entity_mut(cam)
+                .insert(ScreenSpaceAmbientOcclusion { quality_level: *quality_level, ..default() });
+            let (s, w) = measure(&mut app, &["ssao"]);
+            samples.extend(s.into_iter().flatten());
+            walls.extend(w);
+            bar.inc(1);
+        }
         for (settings, (samples, walls, baseline)) in presets.iter().zip(preset_samples.iter_mut()) {
             baseline.extend(without_ao(&mut app));
             bar.inc(1);
@@ -210,8 +224,13 @@ fn main() {
     }
     let median = bevy_hao_tools::harness::median;
     let wall = |walls: Vec<f64>| median(walls).unwrap_or(f64::NAN);
-    let ssao_alone = median(ssao.0);
-    let (ssao_wall, ssao_no_ao) = (wall(ssao.1), wall(ssao.2));
+    // Per SSAO quality: the span's median, and the wall clock's frame and the frame without AO before it.
+    let ssao_rows: Vec<(Option<f64>, f64, f64)> = ssao_samples
+        .into_iter()
+        .map(|(samples, walls, baseline)| (median(samples), wall(walls), wall(baseline)))
+        .collect();
+    // HAO is compared with Bevy's default quality, High.
+    let (ssao_alone, ssao_wall, ssao_no_ao) = ssao_rows[2];
     // Per preset: the spans' medians, and the wall clock's frame and the frame without AO before it.
     let rows: Vec<(HybridAmbientOcclusion, (Vec<Option<f64>>, f64, f64))> = presets
         .into_iter()
@@ -246,6 +265,7 @@ fn main() {
         eprintln!("error: wgpu errors: {errors:?}");
         std::process::exit(1);
     }
+    let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     let grid = bevy_hao_tools::harness::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
     println!(
         "GPU: {adapter}; {scene} at {}x{}, voxel grid {}x{}x{}; medians of {} frames ({frames} in each of {rounds} \
@@ -258,40 +278,49 @@ fn main() {
         frames * rounds
     );
     println!(
+        "Bevy's SSAO alone, at each of its qualities (its `ssao` span, and on the wall clock its frame less the frame without AO just before it):\n"
+    );
+    println!("| Bevy SSAO quality | ssao ms | wall-clock cost ms | / SSAO High (span) |");
+    println!("|---|---:|---:|---:|");
+    for (quality_level, (span, wall, no_ao)) in ssao_qualities.iter().zip(&ssao_rows) {
+        let ratio = match (span, ssao_alone) {
+            (Some(t), Some(s)) if s > 0.0 => format!("{:.2}", t / s),
+            _ => "-".into(),
+        };
+        println!("| {quality_level:?} | {} | {:.3} | {ratio} |", f(*span), wall - no_ao);
+    }
+    println!("\nEach HAO preset beside Bevy's SSAO High:\n");
+    println!(
         "| HAO quality | frames accumulated | rays x steps a frame | trace ms | neighborhood ms | temporal ms \
-         | denoise ms | apply ms | HAO passes ms | Bevy SSAO passes in the HAO frame ms | whole AO ms \
+         | apply ms | HAO passes ms | Bevy SSAO passes in the HAO frame ms | whole AO ms \
          | Bevy SSAO (High) alone ms | whole / SSAO |"
     );
-    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
+    println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (settings, (m, _, _)) in &rows {
         let (rays, steps, half) = settings.trace_parameters();
-        // No `hao/apply` span: without the near field the denoiser writes the AO PBR reads itself. No
-        // `hao/neighborhood` span: the view does not accumulate frames, and the pass does not run.
-        let neighborhood = if settings.accumulation_frames > 1 { m[1] } else { Some(0.0) };
-        let passes = match (m[0], neighborhood, m[2], m[3]) {
-            (Some(a), Some(b), Some(c), Some(d)) => Some(a + b + c + d + m[4].unwrap_or(0.0)),
+        // No `hao/apply` span: without the near field the temporal pass writes the AO PBR reads itself.
+        let passes = match (m[0], m[1], m[2]) {
+            (Some(a), Some(b), Some(c)) => Some(a + b + c + m[3].unwrap_or(0.0)),
             _ => None,
         };
         // No `ssao` span: the plugin skipped Bevy's SSAO passes (near field off), and they cost nothing.
-        let kept = m[5].unwrap_or(0.0);
+        let kept = m[4].unwrap_or(0.0);
         let whole = passes.map(|p| p + kept);
         let ratio = match (whole, ssao_alone) {
             (Some(t), Some(s)) if s > 0.0 => format!("{:.2}", t / s),
             _ => "-".into(),
         };
         println!(
-            "| {:?} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
+            "| {:?} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
             settings.quality,
             settings.accumulation_frames,
             if half { ", half res" } else { "" },
             f(m[0]),
-            if settings.accumulation_frames > 1 { f(m[1]) } else { "not run".to_string() },
+            f(m[1]),
             f(m[2]),
-            f(m[3]),
-            m[4].map_or("not run".to_string(), |v| format!("{v:.3}")),
+            m[3].map_or("not run".to_string(), |v| format!("{v:.3}")),
             f(passes),
-            m[5].map_or("not run".to_string(), |v| format!("{v:.3}")),
+            m[4].map_or("not run".to_string(), |v| format!("{v:.3}")),
             f(whole),
             f(ssao_alone)
         );
@@ -377,15 +406,39 @@ fn trace_work(
     use bevy_hao::cpu::ao::{TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
     let half = settings.trace_parameters().2;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
-    let mut work = TraceWork::default();
-    let mut pixels = 0u64;
-    for y in (0..h).step_by(STRIDE as usize) {
-        for x in (0..w).step_by(STRIDE as usize) {
-            let Some((world, normal)) = samples[(y * w + x) as usize] else { continue };
-            pixels += 1;
-            let rotation = ray_rotation(Vec2::new(x as f32, y as f32), 0);
-            voxel_ambient_occlusion_counted(levels, world, normal, rotation, &trace, &mut work);
-        }
+    // The sampled rows, shared out between threads (at 4K the twin traces half a million pixels).
+    let rows: Vec<u32> = (0..h).step_by(STRIDE as usize).collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let parts: Vec<(TraceWork, u64)> = std::thread::scope(|s| {
+        let handles: Vec<_> = rows
+            .chunks(rows.len().div_ceil(threads).max(1))
+            .map(|rows| {
+                let trace = &trace;
+                s.spawn(move || {
+                    let mut work = TraceWork::default();
+                    let mut pixels = 0u64;
+                    for &y in rows {
+                        for x in (0..w).step_by(STRIDE as usize) {
+                            let Some((world, normal)) = samples[(y * w + x) as usize] else { continue };
+                            pixels += 1;
+                            let rotation = ray_rotation(Vec2::new(x as f32, y as f32), 0);
+                            voxel_ambient_occlusion_counted(levels, world, normal, rotation, trace, &mut work);
+                        }
+                    }
+                    (work, pixels)
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().expect("work thread")).collect()
+    });
+    let (mut work, mut pixels) = (TraceWork::default(), 0u64);
+    for (part, n) in parts {
+        work.rays += part.rays;
+        work.texel_visits += part.texel_visits;
+        work.normal_loads += part.normal_loads;
+        work.hits += part.hits;
+        work.out_of_steps += part.out_of_steps;
+        pixels += n;
     }
     // At half resolution a traced sample serves a 2x2 block.
     let per_pixel = if half { 0.25 } else { 1.0 } / pixels.max(1) as f64;
