@@ -11,11 +11,12 @@
     HaoSettings, bilateral_weight, neighborhood_window, trace_index, unpack_direction, unpack_history, unpack_normal,
 }
 
-// The trace's texels, and what this pass makes of them (lower and upper bound, filtered AO, 0), row by row
-// (`trace_index`).
+// The trace's texels, and what this pass makes of them: the window (lower and upper bound) and the filtered
+// AO, row by row (`trace_index`).
 @group(0) @binding(0) var<storage, read> noisy: array<vec2<u32>>;
 @group(0) @binding(1) var<uniform> settings: HaoSettings;
-@group(0) @binding(2) var<storage, read_write> window_out: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> window_out: array<vec2<f32>>;
+@group(0) @binding(3) var<storage, read_write> filtered_out: array<f32>;
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -53,5 +54,6 @@ fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     // Radius 0, or a texel that shows no geometry (no pixel blends it): the texel as traced.
     let ao = select(center.x, filtered.x / filtered.y, settings.denoise_radius > 0u && center.y > 0.0 && filtered.y > 0.0);
-    window_out[trace_index(settings, gid.xy)] = vec4<f32>(window, ao, 0.0);
+    window_out[trace_index(settings, gid.xy)] = window;
+    filtered_out[trace_index(settings, gid.xy)] = ao;
 }

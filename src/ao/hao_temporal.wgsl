@@ -1,14 +1,15 @@
-// Hybrid ambient occlusion, pass 3: temporal accumulation, at full resolution; it writes the AO PBR reads. Each pixel's surface is reprojected into the previous frame with the camera's previous
-// matrices, the history is read there (bilinear, each texel kept only if it saw the same surface), clamped to
-// the window of this frame's trace around the pixel's block, and blended with its own trace filtered over
-// the block's 3x3 texels (both from the neighborhood pass). At half resolution a pixel is traced every fourth frame; in the other
-// frames its history stays as it is, and where it has none its traced neighbours on its surface stand in.
-// Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`; a
+// Hybrid ambient occlusion, pass 3: temporal accumulation, at full resolution; it writes the AO PBR reads.
+// Each pixel's surface is reprojected into the previous frame with the camera's previous matrices, the
+// history is read there (bilinear, each texel kept only if it saw the same surface), clamped to the window of
+// this frame's trace around the pixel's block, and blended with its own trace filtered over the block's 3x3
+// texels (both from the neighborhood pass). At half resolution a pixel is traced every fourth frame; in the
+// other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
+// in. Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`; a
 // buffer of the view's pixels row by row), which the next frame reprojects, and its AO into the texture PBR
-// reads (at target_pixel(p): the texture is the target's size); with the near field, into the plugin's
-// result texture with the minimum of Bevy's screen-space AO, which the apply pass then copies (Bevy's SSAO
-// texture cannot be read and written in one pass). Near voxels that may have changed (moving occluders) the
-// history is kept short.
+// reads (at target_pixel(p): the texture is the target's size); with the near field, into the plugin's result
+// texture with the minimum of Bevy's screen-space AO, which the apply pass then copies (Bevy's SSAO texture
+// cannot be read and written in one pass). Near voxels that may have changed (moving occluders) the history
+// is kept short.
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
@@ -27,28 +28,29 @@ struct PreviousViewData {
 }
 
 // The trace's texels (ao, view depth, packed normal: `unpack_history`) and the neighborhood pass's output for
-// each (the window's lower and upper bound, the filtered AO), row by row (`trace_index`).
+// each (the window's lower and upper bound; the filtered AO), row by row (`trace_index`).
 @group(0) @binding(0) var<storage, read> noisy: array<vec2<u32>>;
-@group(0) @binding(1) var<storage, read> trace_window: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> trace_window: array<vec2<f32>>;
+@group(0) @binding(2) var<storage, read> filtered: array<f32>;
 // Last frame's history (`history_index`; zero where there is none).
-@group(0) @binding(2) var<storage, read> history: array<vec2<u32>>;
+@group(0) @binding(3) var<storage, read> history: array<vec2<u32>>;
 // The prepasses, the target's size (the view's pixel p is at target_pixel(p)); with MSAA, sample 0.
 #ifdef MULTISAMPLED
-@group(0) @binding(3) var depth_texture: texture_depth_multisampled_2d;
-@group(0) @binding(4) var normal_texture: texture_multisampled_2d<f32>;
+@group(0) @binding(4) var depth_texture: texture_depth_multisampled_2d;
+@group(0) @binding(5) var normal_texture: texture_multisampled_2d<f32>;
 #else
-@group(0) @binding(3) var depth_texture: texture_depth_2d;
-@group(0) @binding(4) var normal_texture: texture_2d<f32>;
+@group(0) @binding(4) var depth_texture: texture_depth_2d;
+@group(0) @binding(5) var normal_texture: texture_2d<f32>;
 #endif
-@group(0) @binding(5) var<uniform> settings: HaoSettings;
-@group(0) @binding(6) var<storage, read_write> history_out: array<vec2<u32>>;
+@group(0) @binding(6) var<uniform> settings: HaoSettings;
+@group(0) @binding(7) var<storage, read_write> history_out: array<vec2<u32>>;
 #ifdef NEAR_FIELD
-@group(0) @binding(7) var screen_space_ao: texture_2d<f32>;
-@group(0) @binding(8) var ao_out: texture_storage_2d<r32float, write>;
+@group(0) @binding(8) var screen_space_ao: texture_2d<f32>;
+@group(0) @binding(9) var ao_out: texture_storage_2d<r32float, write>;
 #else ifdef USE_R16FLOAT
-@group(0) @binding(7) var ao_out: texture_storage_2d<r16float, write>;
+@group(0) @binding(8) var ao_out: texture_storage_2d<r16float, write>;
 #else
-@group(0) @binding(7) var ao_out: texture_storage_2d<r32float, write>;
+@group(0) @binding(8) var ao_out: texture_storage_2d<r32float, write>;
 #endif
 
 @group(1) @binding(0) var<uniform> view: View;
@@ -122,9 +124,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let half = settings.half_resolution != 0u;
     let block = pixel / select(1u, 2u, half);
     let traced = all(traced_pixel(block, settings.frame, vec2<u32>(view.viewport.zw), half) == pixel);
-    // The window of the trace around its block bounds the history; its filtered trace is the pixel's where
-    // the block traced it.
-    let around = trace_window[trace_index(settings, block)];
+    // The window of the trace around its block bounds the history.
+    let window = trace_window[trace_index(settings, block)];
 
     // Where this surface was: its world position in the previous view, as that frame was rendered (with its
     // own TAA jitter, as this frame's world_from_clip has this frame's).
@@ -170,9 +171,9 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let stand_in_used = !traced && (history_count <= 0.0 || near_change || settings.accumulation_frames <= 1u);
     var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
     if traced {
-        current = around.z;
+        current = filtered[trace_index(settings, block)];
     }
-    let blended = temporal_update(history_ao, history_count, around.xy, traced, current, f32(settings.accumulation_frames), near_change);
+    let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
     history_out[history_index(settings, pixel)] =
         pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
     store_ao(pixel, blended.x);

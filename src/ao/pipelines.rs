@@ -23,10 +23,12 @@ use bevy::shader::ShaderDefVal;
 /// than it fetches a texel.
 pub(crate) const HISTORY_TEXEL_BYTES: u64 = 8;
 
-/// Bytes of what the neighborhood pass makes of a texel of the trace (the window that bounds the history,
-/// lower and upper bound, and the filtered AO, in a `vec4<f32>`), which the temporal pass reads, in a buffer
-/// laid out as the trace's.
-pub(crate) const WINDOW_TEXEL_BYTES: u64 = 16;
+/// Bytes of the window of a texel of the trace that bounds the history (lower and upper bound, two floats),
+/// which the neighborhood pass writes and the temporal pass reads, in a buffer laid out as the trace's.
+pub(crate) const WINDOW_TEXEL_BYTES: u64 = 8;
+
+/// Bytes of a texel of the trace filtered by the neighborhood pass (a float), laid out as the trace's.
+pub(crate) const FILTERED_TEXEL_BYTES: u64 = 4;
 
 /// Bytes of a texel of the trace (ao, view depth, packed normal, packed as a texel of the history with no
 /// frames: `pack_history` in hao_common.wgsl), in a storage buffer of its texels row by row, as the history.
@@ -185,11 +187,12 @@ fn prepass_readers(
             (depth, normal, uniform_buffer::<GpuHaoSettings>(false), storage_buffer_sized(false, None)),
         ),
     );
-    // The trace, its windows, the history read and written, the prepasses and the settings; then the texture
-    // PBR reads, or with the near field Bevy's SSAO and the result texture.
+    // The trace, its windows and filtered AO, the history read and written, the prepasses and the settings;
+    // then the texture PBR reads, or with the near field Bevy's SSAO and the result texture.
     let common = BindGroupLayoutEntries::sequential(
         ShaderStages::COMPUTE,
         (
+            storage_buffer_read_only_sized(false, None),
             storage_buffer_read_only_sized(false, None),
             storage_buffer_read_only_sized(false, None),
             storage_buffer_read_only_sized(false, None),
@@ -216,27 +219,22 @@ fn prepass_readers(
             texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
         ]),
     );
-    let mut temporal_defs = defs.clone();
-    if ao_format == TextureFormat::R16Float {
-        temporal_defs.push("USE_R16FLOAT".into());
-    }
-    let temporal = queue_compute(
-        cache,
+    // The temporal pass writing the texture PBR reads (in its format), or with the near field the result.
+    let queue_temporal = |name, layout: &BindGroupLayoutDescriptor, def: Option<&str>| {
+        let mut defs = defs.clone();
+        defs.extend(def.map(Into::into));
+        let layouts = vec![layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()];
+        queue_compute(cache, name, layouts, temporal_shader.clone(), "temporal", defs)
+    };
+    let temporal = queue_temporal(
         label("hao_temporal", "hao_temporal_multisampled"),
-        vec![temporal_layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()],
-        temporal_shader.clone(),
-        "temporal",
-        temporal_defs,
+        &temporal_layout,
+        (ao_format == TextureFormat::R16Float).then_some("USE_R16FLOAT"),
     );
-    let mut near_field_defs = defs.clone();
-    near_field_defs.push("NEAR_FIELD".into());
-    let temporal_near_field = queue_compute(
-        cache,
+    let temporal_near_field = queue_temporal(
         label("hao_temporal_near_field", "hao_temporal_multisampled_near_field"),
-        vec![temporal_near_field_layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()],
-        temporal_shader.clone(),
-        "temporal",
-        near_field_defs,
+        &temporal_near_field_layout,
+        Some("NEAR_FIELD"),
     );
     let trace = queue_trace(cache, trace_shader, &trace_layout, view_layout, multisampled, false);
     PrepassReaders {
@@ -283,6 +281,7 @@ impl FromWorld for HaoPipelines {
                 (
                     storage_buffer_read_only_sized(false, None),
                     uniform_buffer::<GpuHaoSettings>(false),
+                    storage_buffer_sized(false, None),
                     storage_buffer_sized(false, None),
                 ),
             ),

@@ -2,7 +2,9 @@
 
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
-use super::pipelines::{HISTORY_TEXEL_BYTES, HaoPipelines, TRACE_TEXEL_BYTES, WINDOW_TEXEL_BYTES};
+use super::pipelines::{
+    FILTERED_TEXEL_BYTES, HISTORY_TEXEL_BYTES, HaoPipelines, TRACE_TEXEL_BYTES, WINDOW_TEXEL_BYTES,
+};
 use crate::voxel::bindings::GpuVoxelGrid;
 use crate::voxel::extract::ExtractedVoxelGrid;
 use bevy::core_pipeline::prepass::{PreviousViewData, PreviousViewUniforms, ViewPrepassTextures};
@@ -95,9 +97,11 @@ pub struct HaoViewResources {
     /// The traced AO with the traced pixel's view depth and normal (half or full resolution), its texels row by
     /// row.
     pub noisy: Buffer,
-    /// What the neighborhood pass makes of each texel of the trace, laid out as `noisy`: the window that
-    /// bounds the history, and the filtered AO.
+    /// The window of each texel of the trace that bounds the history (the neighborhood pass's output), laid
+    /// out as `noisy`.
     pub window: Buffer,
+    /// Each texel of the trace filtered by the neighborhood pass (the denoiser), laid out as `noisy`.
+    pub filtered: Buffer,
     /// The temporal history this frame reads (last frame's output): ao, view depth, packed normal, frames,
     /// 64 bits a pixel, the view's pixels row by row.
     pub history: Buffer,
@@ -201,8 +205,8 @@ pub fn prepare_hao_textures(
             )
         };
         // Last frame's record of the view and its buffers, kept while it is prepared every frame at one size:
-        // the trace, its windows, and two histories read and written in turn (new ones are zeroed, which
-        // reads as no history).
+        // the trace, its windows and filtered AO, and two histories read and written in turn (new ones are
+        // zeroed, which reads as no history).
         let (last, buffers) = match histories.remove(&entity) {
             Some((last, buffers)) if (last.view_size, last.trace_size) == (view_size, trace_size) => {
                 (Some(last), buffers)
@@ -211,7 +215,7 @@ pub fn prepare_hao_textures(
         };
         let [a, b] = buffers.history.clone();
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
-        let (noisy, window) = (buffers.noisy.clone(), buffers.window.clone());
+        let (noisy, window, filtered) = (buffers.noisy.clone(), buffers.window.clone(), buffers.filtered.clone());
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
         let near_field = hao.near_field && super::near_field_can_run(samples, origin);
@@ -255,6 +259,7 @@ pub fn prepare_hao_textures(
         commands.entity(entity).insert(HaoViewResources {
             noisy,
             window,
+            filtered,
             history,
             history_out,
             result,
@@ -273,7 +278,8 @@ pub fn prepare_hao_textures(
 }
 
 /// The bytes of one of a view's temporal histories (a storage buffer, bound whole; a view whose history
-/// exceeds the device's binding limit gets no AO: `skip_unsupported_views`).
+/// exceeds the device's binding limit gets no AO: `skip_unsupported_views`). The history is the largest of a
+/// view's buffers: the others hold at most as many bytes a texel, for at most as many texels (the trace's).
 pub(crate) fn history_bytes(view_size: UVec2) -> u64 {
     buffer_bytes(view_size, HISTORY_TEXEL_BYTES)
 }
@@ -284,10 +290,18 @@ fn buffer_bytes(size: UVec2, texel_bytes: u64) -> u64 {
     u64::from(size.x.max(1)).saturating_mul(u64::from(size.y.max(1))).saturating_mul(texel_bytes)
 }
 
+// The binding-limit check on the history covers every buffer of a view (see `history_bytes`).
+const _: () = assert!(
+    TRACE_TEXEL_BYTES <= HISTORY_TEXEL_BYTES
+        && WINDOW_TEXEL_BYTES <= HISTORY_TEXEL_BYTES
+        && FILTERED_TEXEL_BYTES <= HISTORY_TEXEL_BYTES
+);
+
 /// A view's buffers (see `HaoViewResources`), for the view size and trace size of its `ViewHistory`.
 pub struct ViewBuffers {
     noisy: Buffer,
     window: Buffer,
+    filtered: Buffer,
     history: [Buffer; 2],
 }
 
@@ -304,6 +318,7 @@ impl ViewBuffers {
         Self {
             noisy: buffer("hao_noisy_buffer", trace_size, TRACE_TEXEL_BYTES),
             window: buffer("hao_window_buffer", trace_size, WINDOW_TEXEL_BYTES),
+            filtered: buffer("hao_filtered_buffer", trace_size, FILTERED_TEXEL_BYTES),
             history: [
                 buffer("hao_history_a_buffer", view_size, HISTORY_TEXEL_BYTES),
                 buffer("hao_history_b_buffer", view_size, HISTORY_TEXEL_BYTES),
@@ -351,6 +366,7 @@ pub fn prepare_hao_bind_groups(
                 res.noisy.as_entire_binding(),
                 res.settings.as_entire_binding(),
                 res.window.as_entire_binding(),
+                res.filtered.as_entire_binding(),
             )),
         );
         let temporal_view = device.create_bind_group(
@@ -368,6 +384,7 @@ pub fn prepare_hao_bind_groups(
                     &BindGroupEntries::sequential((
                         res.noisy.as_entire_binding(),
                         res.window.as_entire_binding(),
+                        res.filtered.as_entire_binding(),
                         res.history.as_entire_binding(),
                         depth,
                         normal,
@@ -385,6 +402,7 @@ pub fn prepare_hao_bind_groups(
                     &BindGroupEntries::sequential((
                         res.noisy.as_entire_binding(),
                         res.window.as_entire_binding(),
+                        res.filtered.as_entire_binding(),
                         res.history.as_entire_binding(),
                         depth,
                         normal,

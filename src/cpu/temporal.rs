@@ -12,8 +12,9 @@
 //!    over.
 //! 2. **Rectification.** The history is clamped to the current frame's 3x3 neighbourhood, its mean plus or
 //!    minus two standard deviations and [`CLAMP_MARGIN`] ([`neighborhood_window`]): the window of the
-//!    trace's 3x3 texels around the pixel's ([`trace_window`]). Where an occluder has gone, every ray of the neighbourhood now escapes, the window closes around 1 and the shadow it left is
-//!    clamped away in one frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
+//!    trace's 3x3 texels around the pixel's ([`trace_window`]). Where an occluder has gone, every ray of the
+//!    neighbourhood now escapes, the window closes around 1 and the shadow it left is clamped away in one
+//!    frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
 //!    two rays. The voxel grid knows where it may have changed: the boxes of the dynamic occluders, this
 //!    frame and last (`VoxelGrid::changed`). A pixel within `max_distance` of one keeps at most
@@ -150,9 +151,8 @@ pub fn trace_window(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVe
 }
 
 /// What stands in for a pixel's own trace where its block traced another pixel (WGSL: `stand_in` in
-/// `hao_temporal.wgsl`): the mean of the trace's 3x3 texels around `texel` that show its
-/// surface (its view depth `depth` and normal `normal`, [`history_accepts`]), else of all that show
-/// geometry, else 1.
+/// `hao_temporal.wgsl`): the mean of the trace's 3x3 texels around `texel` that show its surface (its view
+/// depth `depth` and normal `normal`, [`history_accepts`]), else of all that show geometry, else 1.
 pub fn stand_in(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, depth: f32, normal: Vec3) -> f32 {
     let (mut sum, mut n, mut same_sum, mut same_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
     for (_, v) in neighbourhood(trace, trace_size, texel) {

@@ -13,9 +13,9 @@
 //!    `ssao` span;
 //! 2. for each HAO quality preset, the camera with `HybridAmbientOcclusion` at its defaults (near field
 //!    off, 16 frames accumulated), then without accumulation (`accumulation_frames: 1`, the presets' rays
-//!    before it): the spans `hao/trace`, `hao/neighborhood` (the windows and the denoiser),
-//!    `hao/temporal` (which writes the AO PBR reads), `hao/apply` (with the near field only), and `ssao` if Bevy's SSAO passes ran (the plugin skips them
-//!    when HAO overwrites their result; "not run" then).
+//!    before it): the spans `hao/trace`, `hao/neighborhood` (the windows and the denoiser), `hao/temporal`
+//!    (which writes the AO PBR reads), `hao/apply` (with the near field only), and `ssao` if Bevy's SSAO
+//!    passes ran (the plugin skips them when HAO overwrites their result; "not run" then).
 //!
 //! It prints their medians, the whole AO cost of a HAO frame (the HAO passes plus any SSAO pass that ran),
 //! and its ratio to Bevy's SSAO alone at its default quality, High. Voxelization is not counted there (see
