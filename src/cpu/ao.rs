@@ -180,6 +180,10 @@ impl VoxelMips {
     /// The distance along `dir` (grid units, from `origin`) to the first occupied cell within
     /// `[t_start, t_end]`, if any, and how many texel visits were left: start at mip `start_level`, step over
     /// empty texels whole, descend into occupied ones, visiting at most `steps` texels (WGSL: `march_level`).
+    /// After a step it goes up a mip only where the step entered another texel of the mip above: within the
+    /// same one, that texel is the one it descended from (occupied) or has just read, and reading it again
+    /// would be a wasted visit. With [`MARCH_START_MIP`], this costs 17-21 % fewer visits a ray than going up
+    /// after every step from mip 2 on the cathedral, Sibenik and Sponza (`bench_ao`'s work table).
     pub fn march_level(
         &self,
         origin: Vec3,
@@ -196,25 +200,34 @@ impl VoxelMips {
         let top = self.levels.len() - 1;
         let mut level = start_level.min(top);
         let mut left = steps;
+        // The texel last stepped over (unclamped), if the last visit was such a step.
+        let mut last: Option<IVec3> = None;
         while left > 0 {
             if t > t_max {
                 return MarchResult { hit: None, steps_left: left };
             }
             left -= 1;
             let p = origin + dir * t;
+            let mut texel = (p * (1.0 / (1u32 << level) as f32)).floor().as_ivec3();
+            // After a step that entered another texel of the mip above, that one.
+            if last.is_some_and(|last| level < top && texel >> 1 != last >> 1) {
+                level += 1;
+                texel >>= 1;
+            }
             let scale = (1u32 << level) as f32;
             let size = self.levels[level].0.as_ivec3();
-            let texel = (p * (1.0 / scale)).floor().as_ivec3().clamp(IVec3::ZERO, size - IVec3::ONE);
-            if self.load(texel, level) {
+            let clamped = texel.clamp(IVec3::ZERO, size - IVec3::ONE);
+            if self.load(clamped, level) {
                 if level == 0 {
                     return MarchResult { hit: Some(t), steps_left: left };
                 }
                 level -= 1;
+                last = None;
             } else {
-                let lo = texel.as_vec3() * scale;
+                let lo = clamped.as_vec3() * scale;
                 let exit = ray_box(origin, inv, lo, lo + Vec3::splat(scale)).y;
                 t = exit.max(t) + 1.0e-3;
-                level = (level + 1).min(top);
+                last = Some(texel);
             }
         }
         MarchResult { hit: None, steps_left: 0 }
@@ -279,6 +292,10 @@ pub fn ray_start_level(levels: &[TraceLevel], world: Vec3, i: u32, rotation: Vec
     last
 }
 
+/// The mip a march starts at in each level (WGSL: `MARCH_START_MIP`). A ray starts about a cell from the
+/// surface, whose coarse texels are occupied: starting at mip 1 spares most of the descent to mip 0.
+pub const MARCH_START_MIP: usize = 1;
+
 /// The world-space distance along `dir` from `origin` to the first occupied voxel within `t_end` (world
 /// units), and the level it is in, starting in level `start` at `t_start` of its cells, or `None` (WGSL:
 /// `march_cascades`). A ray that leaves a level's window goes on in the next coarser level from where it
@@ -315,7 +332,7 @@ fn march_cascades_counted(
         let lv = &levels[level];
         let o = lv.level_position(origin);
         let t1 = t_end / lv.cell_size;
-        let r = lv.mips.march_level(o, dir, t0, t1, 2, left);
+        let r = lv.mips.march_level(o, dir, t0, t1, MARCH_START_MIP, left);
         work.texel_visits += u64::from(left - r.steps_left);
         if let Some(t) = r.hit {
             return Some((t * lv.cell_size, level));
@@ -592,6 +609,25 @@ mod tests {
         assert!(
             voxel_ray_occluder(&level, Vec3::new(24.5, 10.5, 10.5), -Vec3::X, -Vec3::X, 0, &s, &mut work).is_none()
         );
+    }
+
+    #[test]
+    fn a_march_along_a_surface_does_not_read_a_texel_it_has_just_left_again() {
+        // A floor (z = 0) and a ray along it one cell above (z in [1, 2]): every mip-1 texel it crosses holds
+        // floor. Going up after every step would read each mip-1 texel again after each of its two cells (2
+        // visits a cell, 56 over 28 cells); going up only into a new mip-1 texel, 1.5 a cell.
+        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::new(32, 32, 32)).unwrap();
+        let occ = VoxelOccupancy::new(grid, false);
+        for x in 0..32 {
+            for y in 0..32 {
+                occ.set(UVec3::new(x, y, 0));
+            }
+        }
+        let mips = VoxelMips::new(&occ, 4);
+        let r = mips.march_level(Vec3::new(0.5, 10.5, 1.5), Vec3::X, 0.0, 28.0, MARCH_START_MIP, 1000);
+        assert_eq!(r.hit, None);
+        let visits = 1000 - r.steps_left;
+        assert!((40..=44).contains(&visits), "{visits}");
     }
 
     #[test]

@@ -134,7 +134,9 @@ struct MarchResult {
 
 // cpu/ao.rs: VoxelMips::march_level. The distance along `dir` (the level's cells, from `origin` in its
 // window) to the first occupied cell within [t_start, t_end]: start at mip `start_mip`, step over empty
-// texels whole, descend into occupied ones; at most `steps` texel visits.
+// texels whole, descend into occupied ones, and go up a mip after a step only where it entered another
+// texel of the mip above (within the same one, that texel is the one just descended from or read, and
+// reading it again would be a wasted visit); at most `steps` texel visits.
 fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32, start_mip: u32, steps: u32) -> MarchResult {
     // The level's record, read once.
     let l = voxel_grid.levels[level];
@@ -148,6 +150,9 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
     // The faces a ray leaves a texel through: the upper one on each axis it goes up (or along), else the
     // lower (`ray_box`'s exit, without its entry).
     let exit_side = select(vec3<f32>(0.0), vec3<f32>(1.0), dir >= vec3<f32>(0.0));
+    // The texel last stepped over (unclamped), and whether the last visit was such a step.
+    var last = vec3<i32>(0);
+    var stepped = false;
     // One visit a step, without branches but its two ends (devices that run both sides of a branch, such as
     // lavapipe, pay for both anyway): an occupied texel descends a mip, an empty one is stepped over.
     while left > 0u {
@@ -156,10 +161,15 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
         }
         left -= 1u;
         let p = origin + dir * t;
-        // 2^mip and 2^-mip, exact.
+        // The point's texel at this mip (2^-mip, exact); after a step that entered another texel of the mip
+        // above, that one (its parent, by a shift: exact).
+        let here = vec3<i32>(floor(p * bitcast<f32>((127u - mip) << 23u)));
+        let up = stepped && mip < top && any((here >> vec3<u32>(1u)) != (last >> vec3<u32>(1u)));
+        let texel = select(here, here >> vec3<u32>(1u), up);
+        mip = select(mip, mip + 1u, up);
+        // 2^mip, exact.
         let scale = bitcast<f32>((127u + mip) << 23u);
         let size = l.size >> vec3<u32>(mip);
-        let texel = vec3<i32>(floor(p * bitcast<f32>((127u - mip) << 23u)));
         let occupied = level_occupied(l, texel, mip, size);
         if occupied && mip == 0u {
             return MarchResult(t, left);
@@ -167,7 +177,9 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
         let lo = vec3<f32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1))) * scale;
         let exit = (lo + exit_side * scale - origin) * inv;
         t = select(max(min(min(exit.x, exit.y), exit.z), t) + 1.0e-3, t, occupied);
-        mip = select(min(mip + 1u, top), mip - 1u, occupied);
+        mip = select(mip, mip - 1u, occupied);
+        last = texel;
+        stepped = !occupied;
     }
     return MarchResult(-1.0, 0u);
 }
@@ -206,6 +218,9 @@ fn finest_level_containing(world: vec3<f32>) -> u32 {
     return last;
 }
 
+// cpu/ao.rs: MARCH_START_MIP
+const MARCH_START_MIP: u32 = 1u;
+
 // cpu/ao.rs: march_cascades. The world distance along `dir` from `origin` to the first occupied voxel
 // within `t_end` (world), starting in level `start` at `t_start` of its cells, and the level hit: (t, level),
 // t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it left.
@@ -218,7 +233,7 @@ fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t
         let cell = voxel_grid.levels[level].cell_size;
         let o = level_position(level, origin);
         let t1 = t_end / cell;
-        let r = march_level(level, o, dir, t0, t1, 2u, left);
+        let r = march_level(level, o, dir, t0, t1, MARCH_START_MIP, left);
         if r.t >= 0.0 {
             return vec2<f32>(r.t * cell, f32(level));
         }
