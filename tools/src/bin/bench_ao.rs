@@ -31,8 +31,10 @@
 //!
 //! A last table counts the trace's work on its CPU twin (`bevy_hao::cpu::ao::voxel_ambient_occlusion_counted`),
 //! over the view the GPU traced (its depth and normal, read back) and the GPU's voxels, for each row above:
-//! rays per pixel a frame, texel visits per ray, voxel texels fetched per pixel a frame, the share of rays
-//! that hit and of marches stopped by the step budget. Unlike the times, these do not depend on the device.
+//! rays per pixel a frame, texel visits per ray (the mean, and as a SIMD device pays them: each ray of a
+//! warp of 8x4 texels of the trace at its slowest lane's visits), voxel texels fetched per pixel a frame, the
+//! share of rays that hit and of marches stopped by the step budget. Unlike the times, these do not depend
+//! on the device.
 //!
 //! With `--attributes` (and `--res`: the default cascades' attribute sums exceed some devices' binding limit)
 //! the volume keeps multi-valued voxels, and a last table times the `Medium` trace with rays stopping at the
@@ -348,20 +350,24 @@ fn main() {
     }
     println!(
         "\nThe trace's work, counted by its CPU twin over the same view and voxels (every {STRIDE}th pixel of \
-         each row and column; per pixel that shows a surface, per frame):\n"
+         each row and column; per pixel that shows a surface, per frame; a warp's visits from every \
+         {WARP_STRIDE}th warp of {}x{} texels of the trace along each axis):\n",
+        WARP.0, WARP.1
     );
     println!(
-        "| HAO quality | frames accumulated | rays per pixel | mean texel visits per ray | voxel texels fetched per pixel \
-         | rays that hit | marches out of steps |"
+        "| HAO quality | frames accumulated | rays per pixel | mean texel visits per ray | visits per ray, a warp's \
+         slowest lane (lanes busy) | voxel texels fetched per pixel | rays that hit | marches out of steps |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
     for (settings, w) in &work {
         println!(
-            "| {:?} | {} | {:.2} | {:.1} | {:.1} | {:.0} % | {:.1} % |",
+            "| {:?} | {} | {:.2} | {:.1} | {:.1} ({:.0} %) | {:.1} | {:.0} % | {:.1} % |",
             settings.quality,
             settings.accumulation_frames,
             w.rays_per_pixel,
             w.visits_per_ray,
+            w.warp_visits_per_ray,
+            100.0 * w.warp_lanes_busy,
             w.texels_per_pixel,
             100.0 * w.hit_share,
             100.0 * w.out_of_steps_share
@@ -389,6 +395,10 @@ const STRIDE: u32 = 4;
 struct Work {
     rays_per_pixel: f64,
     visits_per_ray: f64,
+    /// Visits a ray as a warp pays them (its slowest lane's).
+    warp_visits_per_ray: f64,
+    /// Share of a warp's lanes' visits spent on their own rays.
+    warp_lanes_busy: f64,
     texels_per_pixel: f64,
     hit_share: f64,
     out_of_steps_share: f64,
@@ -408,28 +418,18 @@ fn trace_work(
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     // The sampled rows, shared out between threads (at 4K the twin traces half a million pixels).
     let rows: Vec<u32> = (0..h).step_by(STRIDE as usize).collect();
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let parts: Vec<(TraceWork, u64)> = std::thread::scope(|s| {
-        let handles: Vec<_> = rows
-            .chunks(rows.len().div_ceil(threads).max(1))
-            .map(|rows| {
-                let trace = &trace;
-                s.spawn(move || {
-                    let mut work = TraceWork::default();
-                    let mut pixels = 0u64;
-                    for &y in rows {
-                        for x in (0..w).step_by(STRIDE as usize) {
-                            let Some((world, normal)) = samples[(y * w + x) as usize] else { continue };
-                            pixels += 1;
-                            let rotation = ray_rotation(Vec2::new(x as f32, y as f32), 0);
-                            voxel_ambient_occlusion_counted(levels, world, normal, rotation, trace, &mut work);
-                        }
-                    }
-                    (work, pixels)
-                })
-            })
-            .collect();
-        handles.into_iter().map(|h| h.join().expect("work thread")).collect()
+    let parts = on_every_core(&rows, |rows| {
+        let mut work = TraceWork::default();
+        let mut pixels = 0u64;
+        for &y in rows {
+            for x in (0..w).step_by(STRIDE as usize) {
+                let Some((world, normal)) = samples[(y * w + x) as usize] else { continue };
+                pixels += 1;
+                let rotation = ray_rotation(Vec2::new(x as f32, y as f32), 0);
+                voxel_ambient_occlusion_counted(levels, world, normal, rotation, &trace, &mut work);
+            }
+        }
+        (work, pixels)
     });
     let (mut work, mut pixels) = (TraceWork::default(), 0u64);
     for (part, n) in parts {
@@ -443,11 +443,88 @@ fn trace_work(
     // At half resolution a traced sample serves a 2x2 block.
     let per_pixel = if half { 0.25 } else { 1.0 } / pixels.max(1) as f64;
     let rays = work.rays.max(1) as f64;
+    let (warp_visits, warp_lanes) = warp_work(samples, w, h, levels, settings);
     Work {
         rays_per_pixel: work.rays as f64 * per_pixel,
         visits_per_ray: work.texel_visits as f64 / rays,
+        warp_visits_per_ray: warp_visits,
+        warp_lanes_busy: warp_lanes,
         texels_per_pixel: (work.texel_visits + work.normal_loads) as f64 * per_pixel,
         hit_share: work.hits as f64 / rays,
         out_of_steps_share: work.out_of_steps as f64 / rays,
     }
+}
+
+/// The trace's texels one warp runs: 8 x 4, the first or second half of an 8 x 8 workgroup as NVIDIA's
+/// 32-lane warps take it (the invocation index runs along x first).
+const WARP: (u32, u32) = (8, 4);
+/// Warps sampled along each row and column of warps for [`warp_work`].
+const WARP_STRIDE: u32 = 4;
+
+/// The march visits a ray as a SIMD device pays them: every `WARP_STRIDE`th warp of the trace's texels along
+/// each axis is traced by the CPU twin with the rays and steps `settings` trace a frame, and each of a warp's
+/// rays costs the visits of its slowest lane (lanes that finish wait for it; lanes on the background trace
+/// nothing). Returns those visits per ray, and the share of them that a lane spends on its own ray (the
+/// lanes busy).
+fn warp_work(
+    samples: &[Option<(Vec3, Vec3)>],
+    w: u32,
+    h: u32,
+    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    settings: &HybridAmbientOcclusion,
+) -> (f64, f64) {
+    use bevy_hao::cpu::ao::{
+        TraceWork, hemisphere_direction, orthonormal_basis, ray_rotation, ray_start_level, traced_pixel,
+        voxel_ray_occluder,
+    };
+    let half = settings.trace_parameters().2;
+    let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
+    let (tw, th) = if half { (w.div_ceil(2), h.div_ceil(2)) } else { (w, h) };
+    let warp_rows: Vec<u32> = (0..th.div_ceil(WARP.1)).step_by(WARP_STRIDE as usize).collect();
+    // Per part: the slowest lanes' visits summed over rays, the busy lanes' own visits, and the lanes' rays.
+    let parts = on_every_core(&warp_rows, |warp_rows| {
+        let (mut slowest, mut own, mut lane_rays) = (0u64, 0u64, 0u64);
+        for &wy in warp_rows {
+            for wx in (0..tw.div_ceil(WARP.0)).step_by(WARP_STRIDE as usize) {
+                // Each busy lane's visits, ray by ray.
+                let mut lanes: Vec<Vec<u64>> = Vec::new();
+                for ty in wy * WARP.1..((wy + 1) * WARP.1).min(th) {
+                    for tx in wx * WARP.0..((wx + 1) * WARP.0).min(tw) {
+                        let p = traced_pixel(UVec2::new(tx, ty), 0, UVec2::new(w, h), half);
+                        let Some((world, normal)) = samples[(p.y * w + p.x) as usize] else { continue };
+                        let rotation = ray_rotation(p.as_vec2(), 0);
+                        let basis = orthonormal_basis(normal);
+                        let visits = (0..trace.rays)
+                            .map(|i| {
+                                let dir = hemisphere_direction(basis, i, trace.rays, rotation);
+                                let start = ray_start_level(levels, world, i, rotation);
+                                let mut work = TraceWork::default();
+                                voxel_ray_occluder(levels, world, normal, dir, start, &trace, &mut work);
+                                work.texel_visits
+                            })
+                            .collect();
+                        lanes.push(visits);
+                    }
+                }
+                for i in 0..trace.rays as usize {
+                    slowest += lanes.iter().map(|l| l[i]).max().unwrap_or(0) * lanes.len() as u64;
+                    own += lanes.iter().map(|l| l[i]).sum::<u64>();
+                }
+                lane_rays += lanes.len() as u64 * u64::from(trace.rays);
+            }
+        }
+        (slowest, own, lane_rays)
+    });
+    let (slowest, own, rays) = parts.iter().fold((0, 0, 0), |a, p| (a.0 + p.0, a.1 + p.1, a.2 + p.2));
+    (slowest as f64 / rays.max(1) as f64, own as f64 / slowest.max(1) as f64)
+}
+
+/// `work` over `items` shared out in one chunk per core, the chunks' results in order.
+fn on_every_core<T: Send>(items: &[u32], work: impl Fn(&[u32]) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::thread::scope(|s| {
+        let handles: Vec<_> =
+            items.chunks(items.len().div_ceil(threads).max(1)).map(|chunk| s.spawn(|| work(chunk))).collect();
+        handles.into_iter().map(|h| h.join().expect("work thread")).collect()
+    })
 }
