@@ -615,7 +615,7 @@ mod tests {
     fn a_march_along_a_surface_does_not_read_a_texel_it_has_just_left_again() {
         // A floor (z = 0) and a ray along it one cell above (z in [1, 2]): every mip-1 texel it crosses holds
         // floor. Going up after every step would read each mip-1 texel again after each of its two cells (2
-        // visits a cell, 56 over 28 cells); going up only into a new mip-1 texel, 1.5 a cell.
+        // visits a cell: 58 here); going up only into a new mip-1 texel, 1.5 a cell (44).
         let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::new(32, 32, 32)).unwrap();
         let occ = VoxelOccupancy::new(grid, false);
         for x in 0..32 {
@@ -627,7 +627,7 @@ mod tests {
         let r = mips.march_level(Vec3::new(0.5, 10.5, 1.5), Vec3::X, 0.0, 28.0, MARCH_START_MIP, 1000);
         assert_eq!(r.hit, None);
         let visits = 1000 - r.steps_left;
-        assert!((40..=44).contains(&visits), "{visits}");
+        assert!((40..=46).contains(&visits), "{visits}");
     }
 
     #[test]
