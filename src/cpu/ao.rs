@@ -181,9 +181,11 @@ impl VoxelMips {
     /// `[t_start, t_end]`, if any, and how many texel visits were left: start at mip `start_level`, step over
     /// empty texels whole, descend into occupied ones, visiting at most `steps` texels (WGSL: `march_level`).
     /// After a step it goes up a mip only where the step entered another texel of the mip above: within the
-    /// same one, that texel is the one it descended from (occupied) or has just read, and reading it again
-    /// would be a wasted visit. With [`MARCH_START_MIP`], this costs 17-21 % fewer visits a ray than going up
-    /// after every step from mip 2 on the cathedral, Sibenik and Sponza (`bench_ao`'s work table).
+    /// same one, that texel is the one it descended from (occupied: reading it again would be a wasted visit)
+    /// or one it has not read, which near a surface, where rays start, is most often occupied too (going up
+    /// into those as well measured more visits). With [`MARCH_START_MIP`], this costs 17-21 % fewer visits a
+    /// ray than going up after every step from mip 2 on the cathedral, Sibenik and Sponza (`bench_ao`'s work
+    /// table; docs/figures.md).
     pub fn march_level(
         &self,
         origin: Vec3,

@@ -135,8 +135,8 @@ struct MarchResult {
 // cpu/ao.rs: VoxelMips::march_level. The distance along `dir` (the level's cells, from `origin` in its
 // window) to the first occupied cell within [t_start, t_end]: start at mip `start_mip`, step over empty
 // texels whole, descend into occupied ones, and go up a mip after a step only where it entered another
-// texel of the mip above (within the same one, that texel is the one just descended from or read, and
-// reading it again would be a wasted visit); at most `steps` texel visits.
+// texel of the mip above (within the same one, that texel is the one just descended from, or one not read,
+// which near a surface is most often occupied too); at most `steps` texel visits.
 fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32, start_mip: u32, steps: u32) -> MarchResult {
     // The level's record, read once.
     let l = voxel_grid.levels[level];
