@@ -109,9 +109,8 @@ impl HaoPipelines {
 
     /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, neighborhood,
     /// temporal, and with the near field temporal_near_field and apply instead of temporal), once all are
-    /// compiled. The trace
-    /// passes through the backs of surfaces where `back_hits` and that variant is compiled (until then, or if
-    /// it failed to compile, which the pipeline cache logs, its rays stop there).
+    /// compiled. The trace passes through the backs of surfaces where `back_hits` and that variant is compiled
+    /// (until then, or if it failed to compile, which the pipeline cache logs, its rays stop there).
     pub fn view_pipelines<'a>(
         &self,
         cache: &'a PipelineCache,

@@ -375,42 +375,38 @@ pub fn prepare_hao_bind_groups(
             &BindGroupEntries::sequential((view_binding.clone(), previous_view_binding.clone())),
         );
         // The temporal pass writes the AO into the texture PBR reads; with the near field, with the minimum of
-        // Bevy's SSAO (read from that texture) into the result texture, which apply copies there.
+        // Bevy's SSAO (read from that texture) into the result texture, which apply copies there. The two
+        // layouts share their first entries (`prepass_readers`), and so do the bind groups.
+        let common = BindGroupEntries::sequential((
+            res.noisy.as_entire_binding(),
+            res.window.as_entire_binding(),
+            res.filtered.as_entire_binding(),
+            res.history.as_entire_binding(),
+            depth,
+            normal,
+            res.settings.as_entire_binding(),
+            res.history_out.as_entire_binding(),
+            ssao_view,
+        ));
         let (temporal, apply) = match &res.result {
             None => {
                 let temporal = device.create_bind_group(
                     "hao_temporal_bind_group",
                     &cache.get_bind_group_layout(&readers.temporal_layout),
-                    &BindGroupEntries::sequential((
-                        res.noisy.as_entire_binding(),
-                        res.window.as_entire_binding(),
-                        res.filtered.as_entire_binding(),
-                        res.history.as_entire_binding(),
-                        depth,
-                        normal,
-                        res.settings.as_entire_binding(),
-                        res.history_out.as_entire_binding(),
-                        ssao_view,
-                    )),
+                    &common,
                 );
                 (temporal, None)
             }
             Some(result) => {
+                let mut entries = common.to_vec();
+                entries.push(BindGroupEntry {
+                    binding: entries.len() as u32,
+                    resource: BindingResource::TextureView(&result.default_view),
+                });
                 let temporal = device.create_bind_group(
                     "hao_temporal_near_field_bind_group",
                     &cache.get_bind_group_layout(&readers.temporal_near_field_layout),
-                    &BindGroupEntries::sequential((
-                        res.noisy.as_entire_binding(),
-                        res.window.as_entire_binding(),
-                        res.filtered.as_entire_binding(),
-                        res.history.as_entire_binding(),
-                        depth,
-                        normal,
-                        res.settings.as_entire_binding(),
-                        res.history_out.as_entire_binding(),
-                        ssao_view,
-                        &result.default_view,
-                    )),
+                    &entries,
                 );
                 let apply = device.create_bind_group(
                     "hao_apply_bind_group",
