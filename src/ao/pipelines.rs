@@ -43,7 +43,7 @@ pub struct PrepassReaders {
     pub temporal_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the temporal pass with the near field, which writes the result texture apply copies.
     pub temporal_near_field_layout: BindGroupLayoutDescriptor,
-    /// Rays through the voxels, stopping at the first occupied one.
+    /// Rays through the voxels, stopping in the first run of occupied ones they go far enough through.
     pub trace: CachedComputePipelineId,
     /// Rays that pass through the backs of surfaces (`ignore_back_hits`, with multi-valued voxels): the
     /// trace with the `BACK_HITS` loop, queued when a view first needs it.

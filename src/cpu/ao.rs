@@ -177,9 +177,10 @@ impl VoxelMips {
         self.dims
     }
 
-    /// The distance along `dir` (grid units, from `origin`) to the first occupied cell within
-    /// `[t_start, t_end]`, if any, and how many texel visits were left: start at mip `start_level`, step over
-    /// empty texels whole, descend into occupied ones, visiting at most `steps` texels (WGSL: `march_level`).
+    /// The distance along `dir` (grid units, from `origin`) to the entry of the first run of occupied cells
+    /// within `[t_start, t_end]` that the ray goes [`MIN_OCCLUDING_CHORD`] through, if any, and how many texel
+    /// visits were left: start at mip `start_level`, step over empty texels whole, descend into occupied ones,
+    /// visiting at most `steps` texels (WGSL: `march_level`).
     /// After a step it goes up a mip only where the step entered another texel of the mip above: within the
     /// same one, that texel is the one it descended from (occupied: reading it again would be a wasted visit)
     /// or one it has not read, which near a surface, where rays start, is most often occupied too (going up
@@ -204,6 +205,9 @@ impl VoxelMips {
         let mut left = steps;
         // The texel last stepped over (unclamped), if the last visit was such a step.
         let mut last: Option<IVec3> = None;
+        // The run of occupied cells the ray is in: where it entered it, and how far it has gone through it.
+        let mut run_start = 0.0f32;
+        let mut run_length = 0.0f32;
         while left > 0 {
             if t > t_max {
                 return MarchResult { hit: None, steps_left: left };
@@ -219,15 +223,26 @@ impl VoxelMips {
             let scale = (1u32 << level) as f32;
             let size = self.levels[level].0.as_ivec3();
             let clamped = texel.clamp(IVec3::ZERO, size - IVec3::ONE);
-            if self.load(clamped, level) {
-                if level == 0 {
-                    return MarchResult { hit: Some(t), steps_left: left };
+            let lo = clamped.as_vec3() * scale;
+            let exit = ray_box(origin, inv, lo, lo + Vec3::splat(scale)).y;
+            let occupied = self.load(clamped, level);
+            // A run of occupied cells stops the ray once it has gone MIN_OCCLUDING_CHORD through it; a cell it
+            // only clips is passed, as an empty one.
+            if occupied && level == 0 {
+                if run_length == 0.0 {
+                    run_start = t;
                 }
+                run_length += exit - t;
+                if run_length >= MIN_OCCLUDING_CHORD {
+                    return MarchResult { hit: Some(run_start), steps_left: left };
+                }
+            } else if !occupied {
+                run_length = 0.0;
+            }
+            if occupied && level > 0 {
                 level -= 1;
                 last = None;
             } else {
-                let lo = clamped.as_vec3() * scale;
-                let exit = ray_box(origin, inv, lo, lo + Vec3::splat(scale)).y;
                 t = exit.max(t) + 1.0e-3;
                 last = Some(texel);
             }
@@ -239,7 +254,7 @@ impl VoxelMips {
 /// What a march through one level found (WGSL: `MarchResult`, with `t < 0` for no hit).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MarchResult {
-    /// The distance to the first occupied cell, in the level's cells.
+    /// The distance to the entry of the run of occupied cells that stopped the ray, in the level's cells.
     pub hit: Option<f32>,
     /// Texel visits left.
     pub steps_left: u32,
@@ -294,13 +309,21 @@ pub fn ray_start_level(levels: &[TraceLevel], world: Vec3, i: u32, rotation: Vec
     last
 }
 
+/// How far a ray must go through a run of occupied cells (consecutive along it, in the level's cells) before
+/// they stop it, at the run's entry (WGSL: `MIN_OCCLUDING_CHORD`): `1 / sqrt(3)`, half a cell's diagonal. A
+/// cell holds some surface, not a solid cube, and a ray that only clips a corner or an edge of a lone cell most
+/// often passes that surface by: stopping at every cell a ray touches made occluders up to a cell thicker and
+/// darkened every scene measured (docs/figures.md). Through a wall or a floor one cell thick the run is at
+/// least a cell long at any angle, so it is not passed through. 0.5 measured about the same.
+pub const MIN_OCCLUDING_CHORD: f32 = 0.577_350_3;
+
 /// The mip a march starts at in each level (WGSL: `MARCH_START_MIP`). A ray starts about a cell from the
 /// surface, whose coarse texels are occupied: starting at mip 1 spares most of the descent to mip 0.
 pub const MARCH_START_MIP: usize = 1;
 
-/// The world-space distance along `dir` from `origin` to the first occupied voxel within `t_end` (world
-/// units), and the level it is in, starting in level `start` at `t_start` of its cells, or `None` (WGSL:
-/// `march_cascades`). A ray that leaves a level's window goes on in the next coarser level from where it
+/// The world-space distance along `dir` from `origin` to the first run of occupied voxels that stops it
+/// ([`MIN_OCCLUDING_CHORD`]) within `t_end` (world units), and the level it is in, starting in level `start`
+/// at `t_start` of its cells, or `None` (WGSL: `march_cascades`). A ray that leaves a level's window goes on in the next coarser level from where it
 /// left (so an occluder just across the border occludes).
 pub fn march_cascades(
     levels: &[TraceLevel],
@@ -611,6 +634,48 @@ mod tests {
         assert!(
             voxel_ray_occluder(&level, Vec3::new(24.5, 10.5, 10.5), -Vec3::X, -Vec3::X, 0, &s, &mut work).is_none()
         );
+    }
+
+    #[test]
+    fn a_ray_that_clips_a_cell_passes_it_and_a_ray_through_a_wall_of_cells_does_not() {
+        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(32)).unwrap();
+        let lone = VoxelOccupancy::new(grid, false);
+        lone.set(UVec3::splat(16));
+        let mips = VoxelMips::new(&lone, 4);
+        // Through the middle of the lone cell (a chord of 1): stopped at its entry.
+        let through = mips.march_level(Vec3::new(2.5, 16.5, 16.5), Vec3::X, 0.0, 30.0, MARCH_START_MIP, 64);
+        assert!(through.hit.is_some_and(|t| (t - 13.5).abs() < 0.01), "{through:?}");
+        // Across its corner, a chord of about 0.28: passed.
+        let d = Vec3::new(1.0, 1.0, 0.0).normalize();
+        let corner = mips.march_level(Vec3::new(2.3, 2.3 + 14.0 - 0.2, 16.5), d, 0.0, 40.0, MARCH_START_MIP, 64);
+        assert_eq!(corner.hit, None, "{corner:?}");
+        // A wall one cell thick (x = 16) stops every ray that crosses it, at any angle, though each of the cells
+        // it goes through may hold only a short piece of it.
+        let wall = VoxelOccupancy::new(grid, false);
+        for y in 0..32 {
+            for z in 0..32 {
+                wall.set(UVec3::new(16, y, z));
+            }
+        }
+        let mips = VoxelMips::new(&wall, 4);
+        let basis = orthonormal_basis(Vec3::X);
+        let mut crossed = 0;
+        for i in 0..256 {
+            let d = hemisphere_direction(basis, i, 256, Vec2::new(0.37, 0.61));
+            let origin = Vec3::new(12.3, 16.1, 15.7);
+            // Only rays that cross the whole wall inside the grid (the others leave it through the wall's edge).
+            let inside = |x: f32| {
+                let p = origin + d * ((x - origin.x) / d.x);
+                p.y >= 0.0 && p.y <= 32.0 && p.z >= 0.0 && p.z <= 32.0
+            };
+            if !(inside(16.0) && inside(17.0)) {
+                continue;
+            }
+            let t = mips.march_level(origin, d, 0.0, 60.0, MARCH_START_MIP, 256).hit;
+            assert!(t.is_some_and(|t| ((origin + d * t).x - 16.0).abs() < 0.01), "{d} {t:?}");
+            crossed += 1;
+        }
+        assert!(crossed > 200, "{crossed}");
     }
 
     #[test]

@@ -126,6 +126,9 @@ fn voxel_normal_at(level: u32, texel: vec3<i32>) -> vec3<f32> {
     return textureLoad(voxel_normal, voxel_texel(level, texel), 0).xyz;
 }
 
+// cpu/ao.rs: MIN_OCCLUDING_CHORD
+const MIN_OCCLUDING_CHORD: f32 = 0.5773503;
+
 // cpu/ao.rs: MarchResult (t < 0: no hit).
 struct MarchResult {
     t: f32,
@@ -133,10 +136,11 @@ struct MarchResult {
 }
 
 // cpu/ao.rs: VoxelMips::march_level. The distance along `dir` (the level's cells, from `origin` in its
-// window) to the first occupied cell within [t_start, t_end]: start at mip `start_mip`, step over empty
-// texels whole, descend into occupied ones, and go up a mip after a step only where it entered another
-// texel of the mip above (within the same one, that texel is the one just descended from, or one not read,
-// which near a surface is most often occupied too); at most `steps` texel visits.
+// window) to the entry of the first run of occupied cells within [t_start, t_end] that the ray goes
+// MIN_OCCLUDING_CHORD through: start at mip `start_mip`, step over empty texels whole, descend into occupied
+// ones, and go up a mip after a step only where it entered another texel of the mip above (within the same
+// one, that texel is the one just descended from, or one not read, which near a surface is most often
+// occupied too); at most `steps` texel visits.
 fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32, start_mip: u32, steps: u32) -> MarchResult {
     // The level's record, read once.
     let l = voxel_grid.levels[level];
@@ -153,6 +157,9 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
     // The texel last stepped over (unclamped), and whether the last visit was such a step.
     var last = vec3<i32>(0);
     var stepped = false;
+    // The run of occupied cells the ray is in: where it entered it, and how far it has gone through it.
+    var run_start = 0.0;
+    var run_length = 0.0;
     // One visit a step, without branches but its two ends (devices that run both sides of a branch, such as
     // lavapipe, pay for both anyway): an occupied texel descends a mip, an empty one is stepped over.
     while left > 0u {
@@ -171,15 +178,22 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
         let scale = bitcast<f32>((127u + mip) << 23u);
         let size = l.size >> vec3<u32>(mip);
         let occupied = level_occupied(l, texel, mip, size);
-        if occupied && mip == 0u {
-            return MarchResult(t, left);
-        }
         let lo = vec3<f32>(clamp(texel, vec3<i32>(0), vec3<i32>(size) - vec3<i32>(1))) * scale;
-        let exit = (lo + exit_side * scale - origin) * inv;
-        t = select(max(min(min(exit.x, exit.y), exit.z), t) + 1.0e-3, t, occupied);
-        mip = select(mip, mip - 1u, occupied);
+        let exit_faces = (lo + exit_side * scale - origin) * inv;
+        let exit = min(min(exit_faces.x, exit_faces.y), exit_faces.z);
+        // A run of occupied cells stops the ray once it has gone MIN_OCCLUDING_CHORD through it, at the run's
+        // entry: a cell it only clips is passed, as an empty one.
+        let cell = occupied && mip == 0u;
+        run_start = select(run_start, t, cell && run_length == 0.0);
+        run_length = select(select(run_length, 0.0, !occupied), run_length + exit - t, cell);
+        if cell && run_length >= MIN_OCCLUDING_CHORD {
+            return MarchResult(run_start, left);
+        }
+        let descend = occupied && mip > 0u;
+        t = select(max(exit, t) + 1.0e-3, t, descend);
+        mip = select(mip, mip - 1u, descend);
         last = texel;
-        stepped = !occupied;
+        stepped = !descend;
     }
     return MarchResult(-1.0, 0u);
 }
@@ -221,9 +235,9 @@ fn finest_level_containing(world: vec3<f32>) -> u32 {
 // cpu/ao.rs: MARCH_START_MIP
 const MARCH_START_MIP: u32 = 1u;
 
-// cpu/ao.rs: march_cascades. The world distance along `dir` from `origin` to the first occupied voxel
-// within `t_end` (world), starting in level `start` at `t_start` of its cells, and the level hit: (t, level),
-// t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it left.
+// cpu/ao.rs: march_cascades. The world distance along `dir` from `origin` to the first run of occupied voxels
+// that stops it within `t_end` (world), starting in level `start` at `t_start` of its cells, and the level
+// hit: (t, level), t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it left.
 fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t_end: f32, steps: u32) -> vec2<f32> {
     let inv = safe_inverse(dir);
     var level = start;
