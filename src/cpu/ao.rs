@@ -323,8 +323,8 @@ pub const MARCH_START_MIP: usize = 1;
 
 /// The world-space distance along `dir` from `origin` to the first run of occupied voxels that stops it
 /// ([`MIN_OCCLUDING_CHORD`]) within `t_end` (world units), and the level it is in, starting in level `start`
-/// at `t_start` of its cells, or `None` (WGSL: `march_cascades`). A ray that leaves a level's window goes on in the next coarser level from where it
-/// left (so an occluder just across the border occludes).
+/// at `t_start` of its cells, or `None` (WGSL: `march_cascades`). A ray that leaves a level's window goes on
+/// in the next coarser level from where it left (so an occluder just across the border occludes).
 pub fn march_cascades(
     levels: &[TraceLevel],
     origin: Vec3,

@@ -237,7 +237,8 @@ const MARCH_START_MIP: u32 = 1u;
 
 // cpu/ao.rs: march_cascades. The world distance along `dir` from `origin` to the first run of occupied voxels
 // that stops it within `t_end` (world), starting in level `start` at `t_start` of its cells, and the level
-// hit: (t, level), t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it left.
+// hit: (t, level), t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it
+// left.
 fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t_end: f32, steps: u32) -> vec2<f32> {
     let inv = safe_inverse(dir);
     var level = start;
