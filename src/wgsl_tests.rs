@@ -203,7 +203,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 view_height,
                 trace_width,
                 trace_height,
-                padding,
+                depth_contacts,
             ]
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),

@@ -413,17 +413,33 @@ fn view_samples(app: &mut App) -> (u32, u32, Vec<Option<(Vec3, Vec3)>>) {
     bevy_hao_tools::harness::view_samples(app, camera, &targets.debug)
 }
 
-/// The CPU twin's noisy AO of every pixel with the noise of `frame` (NaN for the background), and the level
-/// each pixel's first ray starts in.
+/// The AO image with the surfaces the view shows (`view_samples`), pixel by pixel.
+fn ao_and_samples(app: &mut App) -> (Vec<f32>, Vec<Option<(Vec3, Vec3)>>) {
+    let targets = app.world().resource::<Targets>().clone();
+    let (_, _, ao) = read_image_f32(app, targets.debug.ao.clone(), 2);
+    (ao, view_samples(app).2)
+}
+
+/// The view's depth prepass as the trace reads it, for the twin's depth contacts.
+fn view_depth(app: &mut App) -> bevy_hao::cpu::contacts::ViewDepth {
+    let targets = app.world().resource::<Targets>().clone();
+    let camera = app.world_mut().query_filtered::<Entity, With<TheCamera>>().single(app.world()).unwrap();
+    bevy_hao_tools::harness::view_depth(app, camera, &targets.debug)
+}
+
+/// The CPU twin's noisy AO of every pixel with the noise of `frame` (NaN for the background), with the
+/// depth contacts in `view`'s depth, and the level each pixel's first ray starts in.
 fn cpu_trace(
     samples: &[Option<(Vec3, Vec3)>],
-    w: u32,
+    view: &bevy_hao::cpu::contacts::ViewDepth,
     settings: &HybridAmbientOcclusion,
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
 ) -> (Vec<f32>, Vec<usize>) {
-    use bevy_hao::cpu::ao::{ray_rotation, ray_start_level, voxel_ambient_occlusion};
+    use bevy_hao::cpu::ao::{TraceWork, ray_rotation, ray_start_level, voxel_ambient_occlusion_counted};
+    use bevy_hao::cpu::contacts::contact_jitter;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
+    let w = view.size.x;
     let mut ao = vec![f32::NAN; samples.len()];
     let mut start = vec![0; samples.len()];
     for (i, s) in samples.iter().enumerate() {
@@ -431,7 +447,16 @@ fn cpu_trace(
         let pf = Vec2::new((i as u32 % w) as f32, (i as u32 / w) as f32);
         let rotation = ray_rotation(pf, frame);
         start[i] = ray_start_level(levels, world, 0, rotation);
-        ao[i] = voxel_ambient_occlusion(levels, world, normal, rotation, &trace);
+        let contacts = Some((view, contact_jitter(pf, frame)));
+        ao[i] = voxel_ambient_occlusion_counted(
+            levels,
+            contacts,
+            world,
+            normal,
+            rotation,
+            &trace,
+            &mut TraceWork::default(),
+        );
     }
     (ao, start)
 }
@@ -445,8 +470,8 @@ fn assert_trace_matches_cpu(
 ) -> std::collections::BTreeMap<usize, usize> {
     let targets = app.world().resource::<Targets>().clone();
     let (_, _, gpu_ao) = read_image_f32(app, targets.debug.ao.clone(), 2);
-    let (w, _, samples) = view_samples(app);
-    let (cpu_ao, start) = cpu_trace(&samples, w, settings, levels, 0);
+    let (_, _, samples) = view_samples(app);
+    let (cpu_ao, start) = cpu_trace(&samples, &view_depth(app), settings, levels, 0);
     let (mut sum, mut count, mut far) = (0.0, 0, 0);
     let mut used = std::collections::BTreeMap::new();
     for i in 0..samples.len() {
@@ -489,8 +514,7 @@ fn walls_app_and_voxels(
 /// (`noise_frame`), stored as the GPU stores it (`TracedTexel::stored`).
 fn cpu_trace_frame(
     samples: &[Option<(Vec3, Vec3)>],
-    (w, h): (u32, u32),
-    view_from_world: Mat4,
+    view: &bevy_hao::cpu::contacts::ViewDepth,
     settings: &HybridAmbientOcclusion,
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
@@ -498,7 +522,7 @@ fn cpu_trace_frame(
 ) -> bevy_hao::cpu::temporal::TraceFrame {
     use bevy_hao::cpu::ao::{noise_frame, traced_pixel};
     use bevy_hao::cpu::temporal::{TraceFrame, TracedTexel};
-    let size = UVec2::new(w, h);
+    let (size, w, view_from_world) = (view.size, view.size.x, view.view_from_world);
     let trace_size = if half_resolution { (size + UVec2::ONE) / 2 } else { size };
     let traced: Vec<usize> = (0..trace_size.x * trace_size.y)
         .map(|t| {
@@ -511,7 +535,7 @@ fn cpu_trace_frame(
     for &pixel in &traced {
         sparse[pixel] = samples[pixel];
     }
-    let (ao, _) = cpu_trace(&sparse, w, settings, levels, noise_frame(frame, half_resolution));
+    let (ao, _) = cpu_trace(&sparse, view, settings, levels, noise_frame(frame, half_resolution));
     let texels = traced
         .iter()
         .map(|&pixel| {
@@ -545,8 +569,9 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
     // may have read back.
     let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
     let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
+    let view = view_depth(&mut app);
     let frames: Vec<_> = (0..rendered + 2)
-        .map(|f| cpu_trace_frame(&samples, (w, h), view_from_world, &settings, &levels, f as u32, half_resolution))
+        .map(|f| cpu_trace_frame(&samples, &view, &settings, &levels, f as u32, half_resolution))
         .collect();
     let pixels: Vec<Option<(f32, Vec3)>> =
         samples.iter().map(|s| s.map(|(p, n)| (-view_from_world.transform_point3(p).z, n))).collect();
@@ -598,11 +623,79 @@ fn half_resolution_accumulation_matches_its_cpu_twin() {
 fn the_gpu_trace_matches_its_cpu_twin() {
     use bevy_hao::cpu::ao::TraceLevel;
     let _gpu = gpu_lock();
-    let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, ..hao_settings() };
-    let (mut app, mips, grid) = walls_app_and_voxels(&settings, 8);
-    let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
-    assert_trace_matches_cpu(&mut app, &settings, &levels);
-    assert!(take_render_errors().is_empty());
+    let mut mean_ao = Vec::new();
+    for depth_contacts in [false, true] {
+        let settings =
+            HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, depth_contacts, ..hao_settings() };
+        let (mut app, mips, grid) = walls_app_and_voxels(&settings, 8);
+        let levels =
+            [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
+        assert_trace_matches_cpu(&mut app, &settings, &levels);
+        let (ao, samples) = ao_and_samples(&mut app);
+        let open: Vec<f32> = samples.iter().zip(&ao).filter(|(s, _)| s.is_some()).map(|(_, a)| *a).collect();
+        mean_ao.push(open.iter().sum::<f32>() / open.len() as f32);
+        assert!(take_render_errors().is_empty());
+    }
+    // The walls' feet and corners hold contacts closer than the voxels see: the depth contacts darken them.
+    println!("mean AO without depth contacts {:.4}, with {:.4}", mean_ao[0], mean_ao[1]);
+    assert!(mean_ao[1] < mean_ao[0] - 0.002, "{mean_ao:?}");
+}
+
+/// Small things lying on the floor, each thinner than a voxel (0.25 m): slabs 4 and 8 cm thick, a
+/// 12 cm cube, a rod, a step: their contacts with the floor are closer than the voxels can tell.
+fn clutter(commands: &mut Commands, meshes: &mut Assets<Mesh>, material: Handle<StandardMaterial>) {
+    for (size, at) in [
+        (Vec3::new(0.6, 0.04, 0.5), Vec3::new(-0.6, 0.02, 0.0)),
+        (Vec3::new(0.5, 0.08, 0.7), Vec3::new(0.3, 0.04, -0.4)),
+        (Vec3::splat(0.12), Vec3::new(0.5, 0.06, 0.5)),
+        (Vec3::new(1.2, 0.06, 0.06), Vec3::new(-0.2, 0.03, 0.8)),
+        (Vec3::new(0.8, 0.15, 0.4), Vec3::new(-0.4, 0.075, -0.9)),
+    ] {
+        commands.spawn((
+            box_at(meshes, size),
+            MeshMaterial3d(material.clone()),
+            Transform::from_translation(at),
+            StaticOccluder,
+        ));
+    }
+}
+
+/// The depth contacts on the GPU as on the CPU twin (`bevy_hao::cpu::contacts`), on a view close enough
+/// that a voxel spans several pixels and full of contacts: the trace matches the twin's pixel by pixel, and
+/// the contacts darken the floor around the things lying on it.
+#[test]
+fn the_gpu_depth_contacts_match_their_cpu_twin() {
+    use bevy_hao::cpu::ao::TraceLevel;
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(0.0, 1.6, 1.8).looking_at(Vec3::new(0.0, 0.0, -0.1), Vec3::Y);
+    let mut mean_ao = Vec::new();
+    for depth_contacts in [false, true] {
+        let settings =
+            HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, depth_contacts, ..hao_settings() };
+        let mut app = scene_app(camera, Ao::Hao(settings.clone()), clutter);
+        run(&mut app, 8);
+        let occupancy = read_occupancy(&mut app);
+        let assets = grid_assets(&app).unwrap();
+        let mips = bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels);
+        let grid = assets.grid;
+        let levels =
+            [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
+        let (gpu, samples) = ao_and_samples(&mut app);
+        let (cpu, _) = cpu_trace(&samples, &view_depth(&mut app), &settings, &levels, 0);
+        let (mut difference, mut ao, mut n) = (0.0, 0.0, 0);
+        for (g, c) in gpu.iter().zip(&cpu).filter(|(_, c)| !c.is_nan()) {
+            difference += (g - c).abs();
+            ao += g;
+            n += 1;
+        }
+        let (difference, ao) = (difference / n as f32, ao / n as f32);
+        println!("depth contacts {depth_contacts}: {n} pixels, mean |CPU - GPU| {difference:.4}, mean AO {ao:.4}");
+        assert!(n > 5000);
+        assert!(difference < 0.002, "{difference}");
+        mean_ao.push(ao);
+        assert!(take_render_errors().is_empty());
+    }
+    assert!(mean_ao[1] < mean_ao[0] - 0.01, "{mean_ao:?}");
 }
 
 /// The denoiser on the GPU as on its CPU twin (`bevy_hao::cpu::temporal::prefilter`): without accumulation
@@ -621,7 +714,7 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
     let (w, h, samples) = view_samples(&mut app);
     let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
     let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
-    let (noisy, _) = cpu_trace(&samples, w, &settings, &levels, 0);
+    let (noisy, _) = cpu_trace(&samples, &view_depth(&mut app), &settings, &levels, 0);
     // The trace as the GPU stores it: AO, view depth, normal, in its 64 bits (`TracedTexel::stored`).
     let trace: Vec<Option<TracedTexel>> = samples
         .iter()
@@ -684,9 +777,7 @@ fn rays_pass_through_the_backs_of_surfaces_on_the_gpu_as_on_its_cpu_twin() {
             [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
         assert_trace_matches_cpu(&mut app, &settings, &levels);
         // The floor under the plane, away from its edges.
-        let targets = app.world().resource::<Targets>().clone();
-        let (_, _, ao) = read_image_f32(&mut app, targets.debug.ao.clone(), 2);
-        let (_, _, samples) = view_samples(&mut app);
+        let (ao, samples) = ao_and_samples(&mut app);
         let values: Vec<f32> = samples
             .iter()
             .zip(&ao)
@@ -971,11 +1062,12 @@ fn mean_difference(a: &[f32], b: &[f32]) -> f32 {
 }
 
 /// The AO of `camera`'s view of the walls after `frames` frames, with `rays` rays a frame.
-fn walls_ao(camera: Transform, rays: u32, accumulation_frames: u32, frames: usize) -> Vec<f32> {
+fn walls_ao(camera: Transform, rays: u32, accumulation_frames: u32, frames: usize, depth_contacts: bool) -> Vec<f32> {
     let settings = HybridAmbientOcclusion {
         quality: HaoQuality::Custom { rays, steps: 48, half_resolution: false },
         denoise_radius: 0,
         accumulation_frames,
+        depth_contacts,
         ..hao_settings()
     };
     let mut app = scene_app(camera, Ao::Hao(settings), walls);
@@ -989,9 +1081,9 @@ fn walls_ao(camera: Transform, rays: u32, accumulation_frames: u32, frames: usiz
 fn two_rays_a_frame_accumulated_converge_towards_many_rays() {
     let _gpu = gpu_lock();
     let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
-    let reference = walls_ao(camera, 64, 1, 10);
-    let single = walls_ao(camera, 2, 1, 10);
-    let accumulated = walls_ao(camera, 2, 16, 40);
+    let reference = walls_ao(camera, 64, 1, 10, true);
+    let single = walls_ao(camera, 2, 1, 10, true);
+    let accumulated = walls_ao(camera, 2, 16, 40, true);
     let (e1, e16) = (mean_difference(&single, &reference), mean_difference(&accumulated, &reference));
     println!("two rays against 64: one frame {e1:.4}, accumulated over 16 frames {e16:.4}");
     // 16 frames of 2 rays are 32 rays: the noise falls by about sqrt(16) = 4.
@@ -1038,13 +1130,24 @@ fn an_occluder_that_leaves_leaves_no_trail() {
 #[test]
 fn a_moving_camera_keeps_its_history_without_trails() {
     let _gpu = gpu_lock();
-    // The camera slides 5 cm a frame for 30 frames; its last view is compared with 64 rays traced there.
+    // Without the depth contacts (the voxels alone), and with them: their contacts change from pixel to pixel
+    // along the walls' feet (at 96x64 a pixel is wider than a voxel), where the history's reprojection
+    // blurs them; measured 99th percentiles 0.133 and 0.154.
+    for (depth_contacts, p99_bound) in [(false, 0.15), (true, 0.18)] {
+        moving_camera_against_many_rays(depth_contacts, p99_bound);
+    }
+}
+
+/// The camera slides 5 cm a frame for 30 frames; its last view is compared with 64 rays traced there: the
+/// accumulated AO is much closer to it than one frame's, and its 99th percentile error is under `p99_bound`.
+fn moving_camera_against_many_rays(depth_contacts: bool, p99_bound: f32) {
     let start = Transform::from_xyz(0.0, 9.0, 5.5).looking_at(Vec3::new(-0.5, 0.0, 0.5), Vec3::Y);
     let end = Transform { translation: start.translation + Vec3::new(1.5, 0.0, 0.0), ..start };
     let settings = HybridAmbientOcclusion {
         quality: HaoQuality::Custom { rays: 2, steps: 48, half_resolution: false },
         denoise_radius: 0,
         accumulation_frames: 16,
+        depth_contacts,
         ..hao_settings()
     };
     let mut app = scene_app(start, Ao::Hao(settings), walls);
@@ -1056,25 +1159,38 @@ fn a_moving_camera_keeps_its_history_without_trails() {
     }
     let moving = ao_image(&mut app).2;
     assert!(take_render_errors().is_empty());
-    let reference = walls_ao(end, 64, 1, 10);
-    let single = walls_ao(end, 2, 1, 10);
+    let reference = walls_ao(end, 64, 1, 10, depth_contacts);
+    let single = walls_ao(end, 2, 1, 10, depth_contacts);
     let (e1, em) = (mean_difference(&single, &reference), mean_difference(&moving, &reference));
     let mut errors: Vec<f32> = moving.iter().zip(&reference).map(|(a, b)| (a - b).abs()).collect();
     errors.sort_by(|a, b| a.partial_cmp(b).unwrap());
     let p99 = errors[errors.len() * 99 / 100];
     println!(
-        "two rays against 64 after 30 moving frames: one frame {e1:.4}, accumulated {em:.4} (99th percentile {p99:.3})"
+        "depth contacts {depth_contacts}: two rays against 64 after 30 moving frames: one frame {e1:.4}, accumulated \
+         {em:.4} (99th percentile {p99:.3})"
     );
     assert!(em < 0.6 * e1, "{em} against {e1}");
-    assert!(p99 < 0.15, "{p99}");
+    assert!(p99 < p99_bound, "{p99}");
 }
 
 #[test]
 fn under_taa_the_converged_ao_equals_the_ao_without_taa() {
     let _gpu = gpu_lock();
+    // Without the depth contacts (the voxels alone), and with them (the default): under TAA their points
+    // project to pixels moved by up to half a pixel, and at 96x64 a pixel is wider than a voxel, so the
+    // contacts along the walls' feet differ more between the two views; measured 0.0078 and 0.0093.
+    for (depth_contacts, bound) in [(false, 0.0085), (true, 0.011)] {
+        taa_against_still(depth_contacts, bound);
+    }
+}
+
+/// The converged AO under TAA differs from the still view's by less than `bound` on average, and their mean
+/// occlusion by less than 0.01.
+fn taa_against_still(depth_contacts: bool, bound: f32) {
     let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
     let converged = |taa: bool| {
-        let mut app = scene_app(camera, Ao::Hao(HybridAmbientOcclusion::default()), walls);
+        let hao = HybridAmbientOcclusion { depth_contacts, ..default() };
+        let mut app = scene_app(camera, Ao::Hao(hao), walls);
         run(&mut app, 1);
         if taa {
             let mut q = app.world_mut().query_filtered::<Entity, With<TheCamera>>();
@@ -1095,11 +1211,13 @@ fn under_taa_the_converged_ao_equals_the_ao_without_taa() {
     let difference = mean_difference(&jittered, &still);
     let darkness = |ao: &[f32]| ao.iter().map(|v| 1.0 - v).sum::<f32>() / ao.len() as f32;
     println!(
-        "converged AO, TAA against none: mean difference {difference:.4}; mean occlusion {:.4} with TAA, {:.4} without",
+        "depth contacts {depth_contacts}: converged AO, TAA against none: mean difference {difference:.4}; mean \
+         occlusion {:.4} with TAA, {:.4} without",
         darkness(&jittered),
         darkness(&still)
     );
-    // Measured 0.0071 (lavapipe, 96x64); reading the history without the previous frame's jitter gave 0.0093.
-    assert!(difference < 0.0085, "TAA's converged AO is {difference} from the still view's");
+    // Without the contacts: measured 0.0071-0.0078 (lavapipe, 96x64); reading the history without the
+    // previous frame's jitter gave 0.0093.
+    assert!(difference < bound, "TAA's converged AO is {difference} from the still view's");
     assert!((darkness(&jittered) - darkness(&still)).abs() < 0.01, "TAA changes the mean occlusion");
 }

@@ -34,7 +34,8 @@ struct HaoSettings {
     // The trace's size: the view's, or half of it rounded up (`trace_index`).
     trace_width: u32,
     trace_height: u32,
-    padding: u32,
+    // 1: each ray's first cells are traced in the depth prepass (`depth_contacts`).
+    depth_contacts: u32,
 }
 
 // Where the temporal history holds pixel `p` of the view: its buffers are the view's pixels row by row.

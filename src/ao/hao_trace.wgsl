@@ -1,13 +1,16 @@
 // Hybrid ambient occlusion, pass 1: per pixel (or, at half resolution, per 2x2 block from its pixel whose
 // turn it is: `traced_pixel`), cosine-weighted rays from the surface (position from the depth prepass,
 // normal from the normal prepass) through the voxel texture, with empty-space skipping on its max-reduced
-// mips. Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral
-// normal, which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`,
-// with no frames).
-// CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion`. The voxel levels are bound at group 2.
+// mips; each ray's first cells, which the voxels skip, are traced in the depth prepass (`depth_contact`).
+// Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral normal,
+// which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`, with no
+// frames).
+// CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion_counted` (the contacts: `bevy_hao::cpu::contacts`).
+// The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff,
+    HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff, interleaved_gradient_noise,
+    GOLDEN,
     octahedral_encode, traced_pixel, noise_frame, target_pixel, trace_index, pack_history, pack_normal,
 }
 #import bevy_hao::voxel_grid::{
@@ -45,6 +48,60 @@ fn back_hit_exit(origin: vec3<f32>, dir: vec3<f32>, hit: vec2<f32>) -> f32 {
     return ray_box(o, safe_inverse(dir), cell, cell + vec3<f32>(1.0)).y + 1.0e-3;
 }
 
+// cpu/contacts.rs: CONTACT_SAMPLES, CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT, CONTACT_DEPTH_EPSILON
+const CONTACT_SAMPLES: u32 = 4u;
+const CONTACT_LENGTH: f32 = 2.0;
+const CONTACT_THICKNESS: f32 = 1.0;
+const CONTACT_LIFT: f32 = 0.125;
+const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
+
+// cpu/contacts.rs: ViewDepth::behind_clip. Whether the point at `clip` (clip space) and view depth `depth`
+// lies behind the surface the view shows at the pixel it projects to, by more than CONTACT_DEPTH_EPSILON of
+// its depth and less than `thickness`.
+fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32) -> bool {
+    if clip.w <= 0.0 {
+        return false;
+    }
+    let ndc = clip.xyz / clip.w;
+    if abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0 || ndc.z <= 0.0 || ndc.z > 1.0 {
+        return false;
+    }
+    let size = view.viewport.zw;
+    let pixel = min(vec2<u32>(vec2<f32>(ndc.x + 1.0, 1.0 - ndc.y) * 0.5 * size), vec2<u32>(size) - 1u);
+    let d = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
+    if d <= 0.0 {
+        return false;
+    }
+    // The surface's view depth: the z and w rows of view_from_clip times (0, 0, d, 1).
+    let m = view.view_from_clip;
+    let surface = -(m[2].z * d + m[3].z) / (m[2].w * d + m[3].w);
+    return depth > surface * (1.0 + CONTACT_DEPTH_EPSILON) && depth < surface + thickness;
+}
+
+// cpu/contacts.rs: contact_jitter.
+fn contact_jitter(pixel: vec2<f32>, frame: u32) -> f32 {
+    return interleaved_gradient_noise(pixel.yx + vec2<f32>(43.0, 11.0), frame);
+}
+
+// cpu/contacts.rs: depth_contact. The distance along ray `dir` from the surface point to its first contact
+// in the depth prepass within `reach`, or -1: CONTACT_SAMPLES points, lifted CONTACT_LIFT cells along the
+// normal, the first behind the view's surface by less than CONTACT_THICKNESS cells.
+fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32) -> f32 {
+    let base = vec4<f32>(world + normal * (CONTACT_LIFT * cell), 1.0);
+    // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
+    let clip = view.clip_from_world * base;
+    let clip_dir = view.clip_from_world * vec4<f32>(dir, 0.0);
+    let depth = -(view.view_from_world * base).z;
+    let depth_dir = -(view.view_from_world * vec4<f32>(dir, 0.0)).z;
+    for (var k = 0u; k < CONTACT_SAMPLES; k++) {
+        let t = reach * (f32(k) + jitter) / f32(CONTACT_SAMPLES);
+        if behind_depth(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell) {
+            return t;
+        }
+    }
+    return -1.0;
+}
+
 fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
     let uv = (vec2<f32>(pixel) + 0.5) / view.viewport.zw;
     let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
@@ -79,13 +136,24 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pf = vec2<f32>(pixel);
     // The noise turns with each of the pixel's own traces (every frame, or every fourth at half resolution).
     let rotation = ray_rotation(pf, noise_frame(settings.frame, half));
+    let jitter = contact_jitter(pf, noise_frame(settings.frame, half));
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {
         let dir = hemisphere_direction(basis, i, settings.rays, rotation);
         // The finest level that holds the surface (blended across its border), then coarser ones.
         let start = ray_start_level(world, i, rotation);
-        let origin = world + normal * (settings.start_offset * voxel_grid.levels[start].cell_size);
+        let cell = voxel_grid.levels[start].cell_size;
+        // The ray's first cells in the depth prepass: a contact there stops it, and the march is not run.
+        if settings.depth_contacts != 0u {
+            let reach = CONTACT_LENGTH * settings.start_offset * cell;
+            let t = depth_contact(world, normal, dir, cell, reach, fract(jitter + f32(i) * GOLDEN));
+            if t >= 0.0 {
+                occlusion += ao_falloff(t, settings.max_distance, settings.falloff);
+                continue;
+            }
+        }
+        let origin = world + normal * (settings.start_offset * cell);
         var hit = march_cascades(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
 #ifdef BACK_HITS
         // Through the backs of surfaces, a few times at most (a variant of its own: without attributes or
@@ -102,8 +170,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
 #endif
         if hit.x >= 0.0 {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
-            let cell = voxel_grid.levels[u32(hit.y)].cell_size;
-            let d = length(origin + dir * (hit.x + 0.5 * cell) - world);
+            let hit_cell = voxel_grid.levels[u32(hit.y)].cell_size;
+            let d = length(origin + dir * (hit.x + 0.5 * hit_cell) - world);
             occlusion += ao_falloff(d, settings.max_distance, settings.falloff);
         }
     }

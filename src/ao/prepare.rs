@@ -62,8 +62,8 @@ pub struct GpuHaoSettings {
     pub trace_width: u32,
     /// The trace's height in texels.
     pub trace_height: u32,
-    /// Padding to the WGSL struct's 16-byte multiple.
-    pub padding: u32,
+    /// 1 to trace each ray's first cells in the depth prepass.
+    pub depth_contacts: u32,
 }
 
 /// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, and when.
@@ -253,7 +253,7 @@ pub fn prepare_hao_textures(
             view_height: view_size.y,
             trace_width: trace_size.x,
             trace_height: trace_size.y,
-            padding: 0,
+            depth_contacts: hao.depth_contacts as u32,
         };
         let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
         commands.entity(entity).insert(HaoViewResources {

@@ -3,11 +3,13 @@
 //! and operations as the WGSL. The ray-traced reference that HAO is measured against (rays against the real
 //! triangles) shares [`hemisphere_direction`] and [`ao_falloff`] with it.
 
+use super::contacts::{CONTACT_LENGTH, ViewDepth, depth_contact, ray_jitter};
 use super::grid::VoxelOccupancy;
 use glam::{IVec3, Mat3, UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
 
-const GOLDEN: f32 = 0.618_034;
+/// The golden ratio's fractional part (WGSL: `GOLDEN`).
+pub(crate) const GOLDEN: f32 = 0.618_034;
 
 /// Interleaved gradient noise (Jimenez 2014) at a pixel, varied per frame, in `[0, 1)`.
 pub fn interleaved_gradient_noise(pixel: Vec2, frame: u32) -> f32 {
@@ -390,8 +392,12 @@ pub struct TraceWork {
     pub texel_visits: u64,
     /// Average normals loaded to tell the backs of surfaces ([`TraceSettings::ignore_back_hits`]).
     pub normal_loads: u64,
-    /// Rays that hit an occupied voxel.
+    /// Depth prepass samples the rays' first cells read ([`TraceSettings::depth_contacts`]).
+    pub depth_loads: u64,
+    /// Rays that hit an occupied voxel or a contact in the depth prepass.
     pub hits: u64,
+    /// Rays stopped by a contact in the depth prepass (their march is not run).
+    pub contacts: u64,
     /// Marches stopped by the step budget before reaching `max_distance` or leaving the volume.
     pub out_of_steps: u64,
 }
@@ -437,10 +443,13 @@ pub struct TraceSettings {
     pub start_offset: f32,
     /// Rays pass through the backs of surfaces ([`back_hit_exit`]), where the voxels have attributes.
     pub ignore_back_hits: bool,
+    /// Each ray's first cells are traced in the depth prepass ([`super::contacts`]), where a view's depth is
+    /// given.
+    pub depth_contacts: bool,
 }
 
-/// Voxel ambient occlusion at one world-space surface point (WGSL: the body of `trace`), through the levels
-/// of the volume (one for a single grid). 1 = open, 0 = occluded.
+/// Voxel ambient occlusion at one world-space surface point through the levels of the volume (one for a
+/// single grid), without depth contacts. 1 = open, 0 = occluded.
 pub fn voxel_ambient_occlusion(
     levels: &[TraceLevel],
     world: Vec3,
@@ -448,12 +457,19 @@ pub fn voxel_ambient_occlusion(
     rotation: Vec2,
     s: &TraceSettings,
 ) -> f32 {
-    voxel_ambient_occlusion_counted(levels, world, normal, rotation, s, &mut TraceWork::default())
+    voxel_ambient_occlusion_counted(levels, None, world, normal, rotation, s, &mut TraceWork::default())
 }
 
-/// [`voxel_ambient_occlusion`], adding the work it did to `work`.
+/// The view's depth prepass and a pixel's contact jitter ([`super::contacts::contact_jitter`]), for
+/// [`voxel_ambient_occlusion_counted`]'s depth contacts.
+pub type DepthContacts<'a> = (&'a ViewDepth, f32);
+
+/// Ambient occlusion at one world-space surface point (WGSL: the body of `trace`), through the levels of
+/// the volume and, with `contacts` and [`TraceSettings::depth_contacts`], the depth prepass for each ray's
+/// first cells, adding the work it did to `work`. 1 = open, 0 = occluded.
 pub fn voxel_ambient_occlusion_counted(
     levels: &[TraceLevel],
+    contacts: Option<DepthContacts>,
     world: Vec3,
     normal: Vec3,
     rotation: Vec2,
@@ -466,12 +482,40 @@ pub fn voxel_ambient_occlusion_counted(
     for i in 0..s.rays {
         let dir = hemisphere_direction(basis, i, s.rays, rotation);
         let start = ray_start_level(levels, world, i, rotation);
-        if let Some(hit) = voxel_ray_occluder(levels, world, normal, dir, start, s, work) {
+        let contact = contacts.map(|(view, jitter)| (view, ray_jitter(jitter, i)));
+        if let Some(d) = ray_occluder(levels, contact, world, normal, dir, start, s, work) {
             work.hits += 1;
-            occlusion += ao_falloff(hit.distance, s.max_distance, s.falloff);
+            occlusion += ao_falloff(d, s.max_distance, s.falloff);
         }
     }
     (1.0 - s.intensity * occlusion / s.rays as f32).clamp(0.0, 1.0)
+}
+
+/// The distance from the surface point `world` (normal `normal`) to the occluder that ray `dir`, starting in
+/// level `start`, finds within `s.max_distance`, or `None` (WGSL: the body of the ray loop in `trace`): with
+/// `contact` (the view's depth and this ray's jitter) and [`TraceSettings::depth_contacts`], first a contact
+/// in the depth prepass along its first [`CONTACT_LENGTH`] cells per cell of start offset, which stops it;
+/// then the voxels ([`voxel_ray_occluder`]).
+#[allow(clippy::too_many_arguments)]
+pub fn ray_occluder(
+    levels: &[TraceLevel],
+    contact: Option<(&ViewDepth, f32)>,
+    world: Vec3,
+    normal: Vec3,
+    dir: Vec3,
+    start: usize,
+    s: &TraceSettings,
+    work: &mut TraceWork,
+) -> Option<f32> {
+    if let Some((view, jitter)) = contact.filter(|_| s.depth_contacts) {
+        let cell = levels[start].cell_size;
+        let length = CONTACT_LENGTH * s.start_offset * cell;
+        if let Some(t) = depth_contact(view, world, normal, dir, cell, length, jitter, &mut work.depth_loads) {
+            work.contacts += 1;
+            return Some(t);
+        }
+    }
+    voxel_ray_occluder(levels, world, normal, dir, start, s, work).map(|o| o.distance)
 }
 
 /// The occluder one ray of [`voxel_ambient_occlusion`] finds.
@@ -526,6 +570,7 @@ mod tests {
             intensity: 1.0,
             start_offset: 1.0,
             ignore_back_hits,
+            depth_contacts: false,
         }
     }
 
@@ -570,14 +615,14 @@ mod tests {
         let s = trace_settings(1.0, false);
         let p = Vec3::new(16.2, 16.3, 4.5);
         let mut down = TraceWork::default();
-        let ao = voxel_ambient_occlusion_counted(&level, p, Vec3::NEG_Z, Vec2::new(0.3, 0.7), &s, &mut down);
+        let ao = voxel_ambient_occlusion_counted(&level, None, p, Vec3::NEG_Z, Vec2::new(0.3, 0.7), &s, &mut down);
         assert_eq!(ao, voxel_ambient_occlusion(&level, p, Vec3::NEG_Z, Vec2::new(0.3, 0.7), &s));
         assert_eq!((down.rays, down.out_of_steps, down.normal_loads), (64, 0, 0));
         assert!(down.hits >= 48, "{down:?}");
         // Each ray's visits: at least the descent to the hit, at most the budget.
         assert!(down.texel_visits >= 64 * 3 && down.texel_visits <= 64 * 64, "{down:?}");
         let mut up = TraceWork::default();
-        voxel_ambient_occlusion_counted(&level, p, Vec3::Z, Vec2::new(0.3, 0.7), &s, &mut up);
+        voxel_ambient_occlusion_counted(&level, None, p, Vec3::Z, Vec2::new(0.3, 0.7), &s, &mut up);
         assert_eq!((up.rays, up.hits), (64, 0));
         // Empty space is stepped over on the mips: fewer visits than the 8 cells each ray crosses.
         assert!(up.texel_visits < 64 * 8, "{up:?}");
@@ -585,6 +630,7 @@ mod tests {
         let mut starved = TraceWork::default();
         voxel_ambient_occlusion_counted(
             &level,
+            None,
             p,
             Vec3::NEG_Z,
             Vec2::ZERO,

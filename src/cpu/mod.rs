@@ -14,7 +14,8 @@
 //! * [`skinning`]: morph targets and linear blend skinning as Bevy renders them, applied before voxelizing.
 //! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
-//!   through the voxel grid with empty-space skipping); [`temporal`]: of its temporal accumulation and
+//!   through the voxel grid with empty-space skipping); [`contacts`]: of the rays' first cells, traced in
+//!   the depth prepass; [`temporal`]: of its temporal accumulation and
 //!   filter; [`denoise`]: the filter's weights and the history's texel.
 //!
 //! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function
@@ -37,6 +38,7 @@ pub mod ao;
 pub mod attributes;
 pub mod bias_model;
 pub mod cascade;
+pub mod contacts;
 pub mod denoise;
 pub mod grid;
 pub mod mesh;

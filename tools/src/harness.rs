@@ -304,6 +304,7 @@ pub fn cpu_trace_settings(settings: &bevy_hao::HybridAmbientOcclusion) -> bevy_h
         intensity: settings.intensity,
         start_offset: settings.start_offset,
         ignore_back_hits: settings.ignore_back_hits,
+        depth_contacts: settings.depth_contacts,
     }
 }
 
@@ -337,6 +338,28 @@ pub fn view_samples(
         }
     }
     (w, h, samples)
+}
+
+/// The depth prepass of `camera` as the trace reads it (from the depth its [`bevy_hao::HaoDebugImages`]
+/// copied, and the camera's matrices, without TAA jitter), for the CPU twin's depth contacts.
+pub fn view_depth(
+    app: &mut App,
+    camera: Entity,
+    debug: &bevy_hao::HaoDebugImages,
+) -> bevy_hao::cpu::contacts::ViewDepth {
+    let (w, h, depth) = read_image_f32(app, debug.depth.clone(), 0);
+    let world = app.world();
+    let (cam, transform) =
+        (world.get::<Camera>(camera).expect("a camera"), world.get::<GlobalTransform>(camera).expect("a transform"));
+    let clip_from_view = cam.clip_from_view();
+    let view_from_world = transform.to_matrix().inverse();
+    bevy_hao::cpu::contacts::ViewDepth {
+        size: UVec2::new(w, h),
+        depth,
+        clip_from_world: clip_from_view * view_from_world,
+        view_from_world,
+        view_from_clip: clip_from_view.inverse(),
+    }
 }
 
 /// How a test mesh stores its data.

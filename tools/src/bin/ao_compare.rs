@@ -27,8 +27,8 @@
 //! there (the PNG's reference shows each block's sampled pixel), so that 1920x1080 stays affordable.
 //!
 //! `--bias` also prints where the trace's occlusion departs from the reference's, ray by ray: from each
-//! pixel measured, 64 rays traced both by the CPU twin of the trace (`bevy_hao::cpu::ao::voxel_ray_occluder`,
-//! on the frame's voxels read back) and against the triangles, their falloff weights compared by the
+//! pixel measured, 64 rays traced both by the CPU twin of the trace (`bevy_hao::cpu::ao::ray_occluder`, on
+//! the frame's voxels read back and its depth) and against the triangles, their falloff weights compared by the
 //! reference's occluder distance (in cells of the level the ray starts in) and by that level. Each row's
 //! share of the mean AO difference sums to the twin's whole difference: the trace's bias, before the
 //! accumulation and the denoiser, which move the mean little (on the three interiors the twin's difference
@@ -112,6 +112,9 @@ struct Args {
     /// default and acts only with --attributes).
     #[arg(long, requires = "attributes")]
     stop_at_back_hits: bool,
+    /// HAO without its depth contacts (HybridAmbientOcclusion::depth_contacts off): the voxels alone.
+    #[arg(long)]
+    no_depth_contacts: bool,
     /// Trace the reference (and measure the errors) at every Nth pixel of each row and column only: a
     /// sparse set that keeps the reference affordable at 1920x1080 and above.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
@@ -207,6 +210,7 @@ fn main() {
         accumulation_frames: args.accumulation,
         denoise_radius: args.denoise.unwrap_or(HybridAmbientOcclusion::default().denoise_radius),
         ignore_back_hits: !args.stop_at_back_hits,
+        depth_contacts: !args.no_depth_contacts,
         ..default()
     };
     let attributes = args.attributes;
@@ -332,6 +336,7 @@ fn main() {
     let world_from_clip = cam_transform.to_matrix() * clip_from_view.inverse();
     let clip_from_world = world_from_clip.inverse();
     let view_from_clip = clip_from_view.inverse();
+    let view_from_world = cam_transform.to_matrix().inverse();
     let linear = |ndc_z: f32| -view_from_clip.project_point3(Vec3::new(0.0, 0.0, ndc_z)).z;
 
     // The reference.
@@ -459,7 +464,15 @@ fn main() {
                 (i as u32, world_from_clip.project_point3(ndc), normals[i])
             })
             .collect();
-        print_bias(&scene, &levels, &surfaces, &bevy_hao_tools::harness::cpu_trace_settings(&sanitized), epsilon);
+        let view = bevy_hao::cpu::contacts::ViewDepth {
+            size: UVec2::new(w, h),
+            depth: depth.clone(),
+            clip_from_world,
+            view_from_world,
+            view_from_clip,
+        };
+        let trace = bevy_hao_tools::harness::cpu_trace_settings(&sanitized);
+        print_bias(&scene, &levels, &view, &surfaces, &trace, epsilon);
     }
 
     // The PNG: HAO | HAO + near field | SSAO | reference.
@@ -496,12 +509,13 @@ const BIAS_RAYS: u32 = 64;
 fn print_bias(
     scene: &ReferenceScene,
     levels: &[bevy_hao::cpu::ao::TraceLevel],
+    view: &bevy_hao::cpu::contacts::ViewDepth,
     surfaces: &[(u32, Vec3, Vec3)],
     s: &bevy_hao::cpu::ao::TraceSettings,
     epsilon: f32,
 ) {
     use bevy_hao::cpu::ao::{
-        TraceWork, ao_falloff, hemisphere_direction, orthonormal_basis, ray_start_level, voxel_ray_occluder,
+        TraceWork, ao_falloff, hemisphere_direction, orthonormal_basis, ray_occluder, ray_start_level,
     };
     const BINS: [&str; 8] =
         ["no occluder", "0-1/4 cell", "1/4-1 cell", "1-2 cells", "2-4 cells", "4-8 cells", "8-16 cells", "16+ cells"];
@@ -529,6 +543,7 @@ fn print_bias(
     let mut pixel_error = 0.0f64;
     for &(i, world, normal) in surfaces {
         let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
+        let jitter = hash(i * 2 + 3);
         let basis = orthonormal_basis(normal);
         let mut pixel_difference = 0.0f64;
         for r in 0..BIAS_RAYS {
@@ -539,9 +554,10 @@ fn print_bias(
             // An occluder on a surface within 25 degrees of parallel to the pixel's (its own surface curving
             // back, or a layer lying on it) rather than one across the ray's way.
             let parallel = hit.is_some_and(|(_, n)| n.dot(normal).abs() > 0.906);
-            let hao = voxel_ray_occluder(levels, world, normal, dir, start, s, &mut work);
+            let contact = Some((view, bevy_hao::cpu::contacts::ray_jitter(jitter, r)));
+            let hao = ray_occluder(levels, contact, world, normal, dir, start, s, &mut work);
             let w_ref = reference.map_or(0.0, |d| ao_falloff(d, s.max_distance, s.falloff));
-            let w_hao = hao.map_or(0.0, |o| ao_falloff(o.distance, s.max_distance, s.falloff));
+            let w_hao = hao.map_or(0.0, |d| ao_falloff(d, s.max_distance, s.falloff));
             let bin = match reference {
                 None => 0,
                 Some(d) => {

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--rounds 1]
-//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes]
+//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes] [--no-depth-contacts]
 //! ```
 //!
 //! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
@@ -33,8 +33,10 @@
 //! over the view the GPU traced (its depth and normal, read back) and the GPU's voxels, for each row above:
 //! rays per pixel a frame, texel visits per ray (the mean, and as a SIMD device pays them: each ray of a
 //! warp of 8x4 texels of the trace at its slowest lane's visits), voxel texels fetched per pixel a frame, the
-//! share of rays that hit and of marches stopped by the step budget. Unlike the times, these do not depend
-//! on the device.
+//! depth prepass samples a ray reads for its contacts (and the share of rays a contact stops, whose march is
+//! not run), the share of rays that hit and of marches stopped by the step budget. Unlike the times, these
+//! do not depend on the device. `--no-depth-contacts` runs every preset without its depth contacts
+//! (`HybridAmbientOcclusion::depth_contacts`), for a comparison run after run.
 //!
 //! With `--attributes` (and `--res`: the default cascades' attribute sums exceed some devices' binding limit)
 //! the volume keeps multi-valued voxels, and a last table times the `Medium` trace with rays stopping at the
@@ -44,6 +46,7 @@ use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
 use bevy::pbr::{ScreenSpaceAmbientOcclusion, ScreenSpaceAmbientOcclusionQualityLevel};
 use bevy::prelude::*;
+use bevy_hao::cpu::contacts::{ViewDepth, contact_jitter, ray_jitter};
 use bevy_hao::prelude::*;
 use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene};
 use clap::Parser;
@@ -78,10 +81,14 @@ struct Args {
     /// Multi-valued voxels (VoxelVolume::attributes), and the trace with and without ignore_back_hits.
     #[arg(long, requires = "res")]
     attributes: bool,
+    /// The presets without their depth contacts (HybridAmbientOcclusion::depth_contacts off): the voxels
+    /// alone.
+    #[arg(long)]
+    no_depth_contacts: bool,
 }
 
 fn main() {
-    let Args { scene, size, frames, rounds, quality, res, attributes } = Args::parse();
+    let Args { scene, size, frames, rounds, quality, res, attributes, no_depth_contacts } = Args::parse();
     let rounds = rounds as usize;
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
@@ -174,8 +181,9 @@ fn main() {
     let presets: Vec<HybridAmbientOcclusion> = [HybridAmbientOcclusion::default().accumulation_frames, 1]
         .into_iter()
         .flat_map(|accumulation_frames| {
-            [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra]
-                .map(|quality| HybridAmbientOcclusion { quality, accumulation_frames, ..default() })
+            [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra].map(|quality| {
+                HybridAmbientOcclusion { quality, accumulation_frames, depth_contacts: !no_depth_contacts, ..default() }
+            })
         })
         .filter(|settings| quality.is_empty() || quality.iter().any(|&q| HaoQuality::from(q) == settings.quality))
         .collect();
@@ -256,11 +264,12 @@ fn main() {
     };
     app.world_mut().entity_mut(cam).insert((HybridAmbientOcclusion::default(), debug.clone()));
     bevy_hao_tools::harness::run(&mut app, 4);
-    let (w, h, samples) = bevy_hao_tools::harness::view_samples(&mut app, cam, &debug);
+    let (_, _, samples) = bevy_hao_tools::harness::view_samples(&mut app, cam, &debug);
+    let view = bevy_hao_tools::harness::view_depth(&mut app, cam, &debug);
     let voxels = bevy_hao_tools::harness::read_trace_voxels(&mut app);
     let levels = bevy_hao_tools::harness::trace_levels(&voxels);
     let work: Vec<(HybridAmbientOcclusion, Work)> =
-        rows.iter().map(|(settings, _)| (settings.clone(), trace_work(&samples, w, h, &levels, settings))).collect();
+        rows.iter().map(|(settings, _)| (settings.clone(), trace_work(&samples, &view, &levels, settings))).collect();
     bar.finish_and_clear();
     let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
@@ -356,12 +365,13 @@ fn main() {
     );
     println!(
         "| HAO quality | frames accumulated | rays per pixel | mean texel visits per ray | visits per ray, a warp's \
-         slowest lane (lanes busy) | voxel texels fetched per pixel | rays that hit | marches out of steps |"
+         slowest lane (lanes busy) | voxel texels fetched per pixel | depth samples per ray (rays stopped by a \
+         contact) | rays that hit | marches out of steps |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (settings, w) in &work {
         println!(
-            "| {:?} | {} | {:.2} | {:.1} | {:.1} ({:.0} %) | {:.1} | {:.0} % | {:.1} % |",
+            "| {:?} | {} | {:.2} | {:.1} | {:.1} ({:.0} %) | {:.1} | {:.1} ({:.0} %) | {:.0} % | {:.1} % |",
             settings.quality,
             settings.accumulation_frames,
             w.rays_per_pixel,
@@ -369,6 +379,8 @@ fn main() {
             w.warp_visits_per_ray,
             100.0 * w.warp_lanes_busy,
             w.texels_per_pixel,
+            w.depth_loads_per_ray,
+            100.0 * w.contact_share,
             100.0 * w.hit_share,
             100.0 * w.out_of_steps_share
         );
@@ -400,6 +412,10 @@ struct Work {
     /// Share of a warp's lanes' visits spent on their own rays.
     warp_lanes_busy: f64,
     texels_per_pixel: f64,
+    /// Depth prepass samples a ray reads for its contacts.
+    depth_loads_per_ray: f64,
+    /// Share of the rays a contact in the depth prepass stopped (their march is not run).
+    contact_share: f64,
     hit_share: f64,
     out_of_steps_share: f64,
 }
@@ -408,12 +424,12 @@ struct Work {
 /// with the rays and steps `settings` trace a frame, counted.
 fn trace_work(
     samples: &[Option<(Vec3, Vec3)>],
-    w: u32,
-    h: u32,
+    view: &ViewDepth,
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     settings: &HybridAmbientOcclusion,
 ) -> Work {
     use bevy_hao::cpu::ao::{TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
+    let (w, h) = (view.size.x, view.size.y);
     let half = settings.trace_parameters().2;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     // The sampled rows, shared out between threads (at 4K the twin traces half a million pixels).
@@ -425,8 +441,10 @@ fn trace_work(
             for x in (0..w).step_by(STRIDE as usize) {
                 let Some((world, normal)) = samples[(y * w + x) as usize] else { continue };
                 pixels += 1;
-                let rotation = ray_rotation(Vec2::new(x as f32, y as f32), 0);
-                voxel_ambient_occlusion_counted(levels, world, normal, rotation, &trace, &mut work);
+                let pixel = Vec2::new(x as f32, y as f32);
+                let contacts = Some((view, contact_jitter(pixel, 0)));
+                let rotation = ray_rotation(pixel, 0);
+                voxel_ambient_occlusion_counted(levels, contacts, world, normal, rotation, &trace, &mut work);
             }
         }
         (work, pixels)
@@ -437,19 +455,23 @@ fn trace_work(
         work.texel_visits += part.texel_visits;
         work.normal_loads += part.normal_loads;
         work.hits += part.hits;
+        work.depth_loads += part.depth_loads;
+        work.contacts += part.contacts;
         work.out_of_steps += part.out_of_steps;
         pixels += n;
     }
     // At half resolution a traced sample serves a 2x2 block.
     let per_pixel = if half { 0.25 } else { 1.0 } / pixels.max(1) as f64;
     let rays = work.rays.max(1) as f64;
-    let (warp_visits, warp_lanes) = warp_work(samples, w, h, levels, settings);
+    let (warp_visits, warp_lanes) = warp_work(samples, view, levels, settings);
     Work {
         rays_per_pixel: work.rays as f64 * per_pixel,
         visits_per_ray: work.texel_visits as f64 / rays,
         warp_visits_per_ray: warp_visits,
         warp_lanes_busy: warp_lanes,
         texels_per_pixel: (work.texel_visits + work.normal_loads) as f64 * per_pixel,
+        depth_loads_per_ray: work.depth_loads as f64 / rays,
+        contact_share: work.contacts as f64 / rays,
         hit_share: work.hits as f64 / rays,
         out_of_steps_share: work.out_of_steps as f64 / rays,
     }
@@ -468,15 +490,14 @@ const WARP_STRIDE: u32 = 4;
 /// lanes busy).
 fn warp_work(
     samples: &[Option<(Vec3, Vec3)>],
-    w: u32,
-    h: u32,
+    view: &ViewDepth,
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     settings: &HybridAmbientOcclusion,
 ) -> (f64, f64) {
     use bevy_hao::cpu::ao::{
-        TraceWork, hemisphere_direction, orthonormal_basis, ray_rotation, ray_start_level, traced_pixel,
-        voxel_ray_occluder,
+        TraceWork, hemisphere_direction, orthonormal_basis, ray_occluder, ray_rotation, ray_start_level, traced_pixel,
     };
+    let (w, h) = (view.size.x, view.size.y);
     let half = settings.trace_parameters().2;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     let (tw, th) = if half { (w.div_ceil(2), h.div_ceil(2)) } else { (w, h) };
@@ -493,13 +514,15 @@ fn warp_work(
                         let p = traced_pixel(UVec2::new(tx, ty), 0, UVec2::new(w, h), half);
                         let Some((world, normal)) = samples[(p.y * w + p.x) as usize] else { continue };
                         let rotation = ray_rotation(p.as_vec2(), 0);
+                        let jitter = contact_jitter(p.as_vec2(), 0);
                         let basis = orthonormal_basis(normal);
                         let visits = (0..trace.rays)
                             .map(|i| {
                                 let dir = hemisphere_direction(basis, i, trace.rays, rotation);
                                 let start = ray_start_level(levels, world, i, rotation);
                                 let mut work = TraceWork::default();
-                                voxel_ray_occluder(levels, world, normal, dir, start, &trace, &mut work);
+                                let contact = Some((view, ray_jitter(jitter, i)));
+                                ray_occluder(levels, contact, world, normal, dir, start, &trace, &mut work);
                                 work.texel_visits
                             })
                             .collect();

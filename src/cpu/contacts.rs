@@ -1,0 +1,181 @@
+//! The CPU twin of the trace's depth contacts (`src/ao/hao_trace.wgsl`: `depth_contact`, `behind_depth`).
+//!
+//! The voxel march starts each ray `start_offset` cells off the surface and as many along its way, so that a
+//! surface does not occlude itself through the staircase of its own voxels; what lies closer (a moulding on
+//! a wall, a floor meeting a pillar, a layer lying on a surface) no voxel of that size can tell from the
+//! surface itself. Those first cells of each ray are traced in the depth prepass instead: a few points along
+//! the ray are projected into the view, and a point that lies behind the surface the view shows there, by
+//! less than a cell, is inside an occluder. The first such point stops the ray (the march is not run).
+//! The depth prepass holds every surface the view sees up close, which is where these contacts are: unlike
+//! screen-space AO over the whole hemisphere, the rays reach only two cells, so what the view cannot see
+//! (behind, off screen) is left to the voxels.
+
+use super::ao::{GOLDEN, interleaved_gradient_noise};
+use glam::{Mat4, UVec2, Vec2, Vec3, Vec4};
+
+/// Points each ray samples in the depth prepass (WGSL: `CONTACT_SAMPLES`), evenly along its first cells,
+/// shifted by the ray's jitter.
+pub const CONTACT_SAMPLES: u32 = 4;
+/// How far along the ray the depth prepass is sampled, in cells of the level the ray starts in, per cell of
+/// `start_offset` (WGSL: `CONTACT_LENGTH`): the march starts a cell off the surface and a cell along the ray,
+/// at 1.4-2 cells from the surface point.
+pub const CONTACT_LENGTH: f32 = 2.0;
+/// How far behind the surface the view shows a point may lie and still be inside it, in cells (WGSL:
+/// `CONTACT_THICKNESS`): deeper, it is behind a surface in front of it (which a screen-space test cannot
+/// tell from a solid), and the ray goes on.
+pub const CONTACT_THICKNESS: f32 = 1.0;
+/// How far the sampled points are lifted off the surface along its normal, in cells (WGSL: `CONTACT_LIFT`):
+/// against the depth of a pixel's neighbours, which a grazing view or a curved surface sets a little in
+/// front of the ray's first points, and which would otherwise occlude the surface by itself.
+pub const CONTACT_LIFT: f32 = 0.125;
+/// A point is behind the view's surface only if its view depth exceeds the surface's by more than this share
+/// (WGSL: `CONTACT_DEPTH_EPSILON`): the depth prepass's precision.
+pub const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
+
+/// The view's depth prepass as the trace reads it (WGSL: `depth_texture` and `view`'s matrices).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewDepth {
+    /// The view's size in pixels.
+    pub size: UVec2,
+    /// The prepass's depth (normalized device coordinates, Bevy's reverse Z: 0 is the background), row by
+    /// row.
+    pub depth: Vec<f32>,
+    /// World to clip space (with the view's TAA jitter, as the prepass was drawn).
+    pub clip_from_world: Mat4,
+    /// World to view space.
+    pub view_from_world: Mat4,
+    /// Clip to view space.
+    pub view_from_clip: Mat4,
+}
+
+impl ViewDepth {
+    /// Whether the world point `p` lies behind the surface the view shows at the pixel it projects to, by
+    /// more than [`CONTACT_DEPTH_EPSILON`] of its depth and less than `thickness` (world units), counting
+    /// the depth samples it reads in `depth_loads`. Points off the view, behind the camera or over the
+    /// background are not.
+    pub fn behind(&self, p: Vec3, thickness: f32, depth_loads: &mut u64) -> bool {
+        let depth = -(self.view_from_world * p.extend(1.0)).z;
+        self.behind_clip(self.clip_from_world * p.extend(1.0), depth, thickness, depth_loads)
+    }
+
+    /// [`ViewDepth::behind`] for a point given in clip space and by its view depth (WGSL: `behind_depth`):
+    /// both are linear along a ray, so a ray's points cost a multiply-add each.
+    pub fn behind_clip(&self, clip: Vec4, depth: f32, thickness: f32, depth_loads: &mut u64) -> bool {
+        if clip.w <= 0.0 {
+            return false;
+        }
+        let ndc = clip.truncate() / clip.w;
+        if ndc.x.abs() > 1.0 || ndc.y.abs() > 1.0 || ndc.z <= 0.0 || ndc.z > 1.0 {
+            return false;
+        }
+        let size = self.size.as_vec2();
+        let pixel = (Vec2::new(ndc.x + 1.0, 1.0 - ndc.y) * 0.5 * size).as_uvec2().min(self.size - UVec2::ONE);
+        *depth_loads += 1;
+        let d = self.depth[(pixel.y * self.size.x + pixel.x) as usize];
+        if d <= 0.0 {
+            return false;
+        }
+        // The surface's view depth: the z and w rows of view_from_clip times (0, 0, d, 1).
+        let m = &self.view_from_clip;
+        let surface = -(m.z_axis.z * d + m.w_axis.z) / (m.z_axis.w * d + m.w_axis.w);
+        depth > surface * (1.0 + CONTACT_DEPTH_EPSILON) && depth < surface + thickness
+    }
+}
+
+/// The jitter of a pixel's contact samples in frame `frame` (WGSL: `contact_jitter`), in `[0, 1)`: its own
+/// interleaved gradient noise ([`ray_jitter`] shifts it from one ray to the next).
+pub fn contact_jitter(pixel: Vec2, frame: u32) -> f32 {
+    interleaved_gradient_noise(Vec2::new(pixel.y, pixel.x) + Vec2::new(43.0, 11.0), frame)
+}
+
+/// The jitter of ray `i` of a pixel whose [`contact_jitter`] is `pixel_jitter` (WGSL: in `trace`): shifted by
+/// `i` times the golden ratio.
+pub fn ray_jitter(pixel_jitter: f32, i: u32) -> f32 {
+    (pixel_jitter + i as f32 * GOLDEN).fract()
+}
+
+/// The distance from the surface point `world` (normal `normal`) along ray `dir` to its first contact in the
+/// depth prepass within `length` (world units), or `None` (WGSL: `depth_contact`): [`CONTACT_SAMPLES`]
+/// points at `length * (k + jitter) / CONTACT_SAMPLES`, lifted [`CONTACT_LIFT`] cells along the normal, the
+/// first that is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells. `cell`
+/// is the cell size of the level the ray starts in.
+pub fn depth_contact(
+    view: &ViewDepth,
+    world: Vec3,
+    normal: Vec3,
+    dir: Vec3,
+    cell: f32,
+    length: f32,
+    jitter: f32,
+    depth_loads: &mut u64,
+) -> Option<f32> {
+    let base = (world + normal * (CONTACT_LIFT * cell)).extend(1.0);
+    // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
+    let (clip, clip_dir) = (view.clip_from_world * base, view.clip_from_world * dir.extend(0.0));
+    let (depth, depth_dir) = (-(view.view_from_world * base).z, -(view.view_from_world * dir.extend(0.0)).z);
+    (0..CONTACT_SAMPLES)
+        .map(|k| length * (k as f32 + jitter) / CONTACT_SAMPLES as f32)
+        .find(|&t| view.behind_clip(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, depth_loads))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A view looking down -Z from z = 10 at a floor at z = 0, with a step (0.25 high over x > 0): the
+    /// prepass's depth of every pixel, as the GPU would draw it.
+    fn floor_with_a_step() -> ViewDepth {
+        let size = UVec2::new(64, 64);
+        let clip_from_view = Mat4::perspective_infinite_reverse_rh(1.0, 1.0, 0.1);
+        let view_from_world = Mat4::look_at_rh(Vec3::new(0.0, 0.0, 10.0), Vec3::ZERO, Vec3::Y);
+        let clip_from_world = clip_from_view * view_from_world;
+        let world_from_clip = clip_from_world.inverse();
+        let mut depth = Vec::new();
+        for y in 0..size.y {
+            for x in 0..size.x {
+                let ndc = Vec2::new((x as f32 + 0.5) / 32.0 - 1.0, 1.0 - (y as f32 + 0.5) / 32.0);
+                let near = world_from_clip.project_point3(ndc.extend(1.0));
+                let far = world_from_clip.project_point3(ndc.extend(1.0e-4));
+                let dir = (far - near).normalize();
+                // The ray from the camera to the floor or the step's top.
+                let top = if near.x + dir.x * (near.z - 0.25) / -dir.z > 0.0 { 0.25 } else { 0.0 };
+                let hit = near + dir * ((near.z - top) / -dir.z);
+                depth.push(clip_from_world.project_point3(hit).z);
+            }
+        }
+        ViewDepth { size, depth, clip_from_world, view_from_world, view_from_clip: clip_from_view.inverse() }
+    }
+
+    #[test]
+    fn a_ray_into_a_step_finds_it_and_rays_over_open_floor_do_not() {
+        let view = floor_with_a_step();
+        let mut loads = 0;
+        let cell = 0.5;
+        // From the floor just before the step, toward it: inside the step within two cells.
+        let toward = Vec3::new(1.0, 0.0, 0.3).normalize();
+        let t = depth_contact(&view, Vec3::new(-0.2, 0.0, 0.0), Vec3::Z, toward, cell, 2.0 * cell, 0.5, &mut loads);
+        assert!(t.is_some_and(|t| t > 0.1 && t < 0.5), "{t:?}");
+        // Away from it, and up: open.
+        for dir in [Vec3::new(-1.0, 0.0, 0.3).normalize(), Vec3::Z, Vec3::new(0.0, 1.0, 0.2).normalize()] {
+            for jitter in [0.0, 0.5, 0.99] {
+                let at = Vec3::new(-1.5, 0.3, 0.0);
+                assert_eq!(depth_contact(&view, at, Vec3::Z, dir, cell, 2.0 * cell, jitter, &mut loads), None);
+            }
+        }
+        assert!(loads > 0);
+    }
+
+    #[test]
+    fn points_far_behind_a_surface_or_off_the_view_are_not_contacts() {
+        let view = floor_with_a_step();
+        let mut loads = 0;
+        // Under the step's top by 0.15: inside it for a thickness above that, not below.
+        assert!(view.behind(Vec3::new(0.5, 0.0, 0.1), 1.0, &mut loads));
+        assert!(!view.behind(Vec3::new(0.5, 0.0, 0.1), 0.1, &mut loads));
+        // Above the surface, and beside the view.
+        assert!(!view.behind(Vec3::new(0.5, 0.0, 0.4), 1.0, &mut loads));
+        assert!(!view.behind(Vec3::new(50.0, 0.0, 0.0), 1.0, &mut loads));
+        // Behind the camera.
+        assert!(!view.behind(Vec3::new(0.0, 0.0, 20.0), 1.0, &mut loads));
+    }
+}
