@@ -59,7 +59,7 @@ const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
 // lies behind the surface the view shows at the pixel it projects to, by more than CONTACT_DEPTH_EPSILON of
 // its depth and less than `thickness`.
 fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32) -> bool {
-    if clip.w <= 0.0 {
+    if !(clip.w > 0.0) {
         return false;
     }
     let ndc = clip.xyz / clip.w;
@@ -145,7 +145,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         let start = ray_start_level(world, i, rotation);
         let cell = voxel_grid.levels[start].cell_size;
         // The ray's first cells in the depth prepass: a contact there stops it, and the march is not run.
-        if settings.depth_contacts != 0u {
+        if settings.depth_contacts != 0u && settings.start_offset > 0.0 {
             let reach = CONTACT_LENGTH * settings.start_offset * cell;
             let t = depth_contact(world, normal, dir, cell, reach, fract(jitter + f32(i) * GOLDEN));
             if t >= 0.0 {

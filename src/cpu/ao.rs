@@ -507,7 +507,8 @@ pub fn ray_occluder(
     s: &TraceSettings,
     work: &mut TraceWork,
 ) -> Option<f32> {
-    if let Some((view, jitter)) = contact.filter(|_| s.depth_contacts) {
+    // Without a start offset the march starts at the surface, and there is nothing for the contacts to do.
+    if let Some((view, jitter)) = contact.filter(|_| s.depth_contacts && s.start_offset > 0.0) {
         let cell = levels[start].cell_size;
         let length = CONTACT_LENGTH * s.start_offset * cell;
         if let Some(t) = depth_contact(view, world, normal, dir, cell, length, jitter, &mut work.depth_loads) {

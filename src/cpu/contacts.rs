@@ -61,7 +61,8 @@ impl ViewDepth {
     /// [`ViewDepth::behind`] for a point given in clip space and by its view depth (WGSL: `behind_depth`):
     /// both are linear along a ray, so a ray's points cost a multiply-add each.
     pub fn behind_clip(&self, clip: Vec4, depth: f32, thickness: f32, depth_loads: &mut u64) -> bool {
-        if clip.w <= 0.0 {
+        // Also a NaN w; a view without pixels (which the GPU never traces) has no contacts.
+        if !(clip.w > 0.0) || self.size.min_element() == 0 {
             return false;
         }
         let ndc = clip.truncate() / clip.w;
