@@ -72,7 +72,8 @@ impl ViewDepth {
         let size = self.size.as_vec2();
         let pixel = (Vec2::new(ndc.x + 1.0, 1.0 - ndc.y) * 0.5 * size).as_uvec2().min(self.size - UVec2::ONE);
         *depth_loads += 1;
-        let d = self.depth[(pixel.y * self.size.x + pixel.x) as usize];
+        // A depth shorter than the view has no contacts where it is missing.
+        let d = self.depth.get((pixel.y * self.size.x + pixel.x) as usize).copied().unwrap_or(0.0);
         if d <= 0.0 {
             return false;
         }
