@@ -366,11 +366,11 @@ fn wgsl_const(path: &str, name: &str) -> f64 {
 /// mirrors. And the voxelizer's entry points, sized by a shader def, run `VOXELIZE_WORKGROUP` invocations.
 #[test]
 fn shared_constants_agree() {
-    use crate::cpu::{cascade, temporal, voxelize};
+    use crate::cpu::{cascade, contacts, temporal, voxelize};
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 14] = [
+    let pairs: [(&str, &str, f64); 18] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -385,6 +385,10 @@ fn shared_constants_agree() {
         (common, "NORMAL_SCALE", crate::cpu::attributes::NORMAL_SCALE as f64),
         ("src/ao/hao_trace.wgsl", "BACK_HIT_COS", crate::cpu::ao::BACK_HIT_COS as f64),
         ("src/ao/hao_trace.wgsl", "MAX_BACK_HITS", crate::cpu::ao::MAX_BACK_HITS as f64),
+        ("src/ao/hao_trace.wgsl", "CONTACT_LENGTH", contacts::CONTACT_LENGTH as f64),
+        ("src/ao/hao_trace.wgsl", "CONTACT_THICKNESS", contacts::CONTACT_THICKNESS as f64),
+        ("src/ao/hao_trace.wgsl", "CONTACT_LIFT", contacts::CONTACT_LIFT as f64),
+        ("src/ao/hao_trace.wgsl", "CONTACT_DEPTH_EPSILON", contacts::CONTACT_DEPTH_EPSILON as f64),
     ];
     for (path, name, rust) in pairs {
         let wgsl = wgsl_const(path, name);

@@ -48,8 +48,9 @@ fn back_hit_exit(origin: vec3<f32>, dir: vec3<f32>, hit: vec2<f32>) -> f32 {
     return ray_box(o, safe_inverse(dir), cell, cell + vec3<f32>(1.0)).y + 1.0e-3;
 }
 
-// cpu/contacts.rs: CONTACT_SAMPLES, CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT, CONTACT_DEPTH_EPSILON
-const CONTACT_SAMPLES: u32 = 4u;
+// cpu/contacts.rs: CONTACT_SAMPLES (a shader def: src/gpu.rs), CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT,
+// CONTACT_DEPTH_EPSILON
+const CONTACT_SAMPLES: u32 = #{CONTACT_SAMPLES}u;
 const CONTACT_LENGTH: f32 = 2.0;
 const CONTACT_THICKNESS: f32 = 1.0;
 const CONTACT_LIFT: f32 = 0.125;

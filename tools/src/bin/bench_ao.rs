@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--rounds 1]
-//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes] [--no-depth-contacts]
+//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes] [--no-depth-contacts] [--custom RAYS,STEPS ...]
 //! ```
 //!
 //! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
@@ -85,10 +85,21 @@ struct Args {
     /// alone.
     #[arg(long)]
     no_depth_contacts: bool,
+    /// Also a `HaoQuality::Custom` preset, accumulated and at half resolution as the presets are, with
+    /// RAYS rays a frame and STEPS steps a ray: RAYS,STEPS (repeat for more).
+    #[arg(long, value_parser = rays_steps)]
+    custom: Vec<(u32, u32)>,
+}
+
+/// `RAYS,STEPS`, both at least 1.
+fn rays_steps(s: &str) -> Result<(u32, u32), String> {
+    let (rays, steps) = s.split_once(',').ok_or("expected RAYS,STEPS")?;
+    let parse = |v: &str| v.trim().parse::<u32>().ok().filter(|&n| n >= 1).ok_or(format!("not a count: {v}"));
+    Ok((parse(rays)?, parse(steps)?))
 }
 
 fn main() {
-    let Args { scene, size, frames, rounds, quality, res, attributes, no_depth_contacts } = Args::parse();
+    let Args { scene, size, frames, rounds, quality, res, attributes, no_depth_contacts, custom } = Args::parse();
     let rounds = rounds as usize;
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
@@ -186,6 +197,11 @@ fn main() {
             })
         })
         .filter(|settings| quality.is_empty() || quality.iter().any(|&q| HaoQuality::from(q) == settings.quality))
+        .chain(custom.iter().map(|&(rays, steps)| HybridAmbientOcclusion {
+            quality: HaoQuality::Custom { rays, steps, half_resolution: true },
+            depth_contacts: !no_depth_contacts,
+            ..default()
+        }))
         .collect();
     // Each round: Bevy's SSAO alone, then each preset with and without accumulation, each phase right after a
     // phase without AO (its baseline: a phase's cost is its frame less the frame just before it without AO,
