@@ -467,7 +467,7 @@ pub enum HaoQuality {
     #[default]
     Medium,
     /// 48 steps. Accumulated: 3 rays a frame at half resolution, as `Medium` (each pixel accumulates its
-    /// own rays; 5 measured within 0.0004 of 3 against the reference, for two thirds more time); without
+    /// own rays; 5 measured within 0.0004 of 3 against the reference, for a third more time); without
     /// accumulation: 8 rays a frame at full resolution.
     High,
     /// 64 steps. Accumulated: 16 rays a frame at half resolution, as `Medium`; without accumulation: 16
