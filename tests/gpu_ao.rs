@@ -1134,22 +1134,29 @@ fn a_moving_camera_keeps_its_history_without_trails() {
     // along the walls' feet (at 96x64 a pixel is wider than a voxel), where the history's reprojection
     // blurs them; measured 99th percentiles 0.133 and 0.154.
     for (depth_contacts, p99_bound) in [(false, 0.15), (true, 0.18)] {
-        moving_camera_against_many_rays(depth_contacts, p99_bound);
+        let settings = HybridAmbientOcclusion {
+            quality: HaoQuality::Custom { rays: 2, steps: 48, half_resolution: false },
+            denoise_radius: 0,
+            accumulation_frames: 16,
+            depth_contacts,
+            ..hao_settings()
+        };
+        moving_camera_against_many_rays(settings, p99_bound);
     }
+    // `Medium` as a game gets it (1 ray a frame at half resolution, the denoiser): each pixel traces every
+    // fourth frame, so where the view moves on, the pixels newly shown start from their block's traced
+    // neighbours; measured 0.0157 (99th percentile 0.229), and 0.0155 (0.228) with 2 rays a frame.
+    let medium = HybridAmbientOcclusion { quality: HaoQuality::Medium, ..hao_settings() };
+    moving_camera_against_many_rays(medium, 0.25);
 }
 
-/// The camera slides 5 cm a frame for 30 frames; its last view is compared with 64 rays traced there: the
-/// accumulated AO is much closer to it than one frame's, and its 99th percentile error is under `p99_bound`.
-fn moving_camera_against_many_rays(depth_contacts: bool, p99_bound: f32) {
+/// The camera slides 5 cm a frame for 30 frames with `settings`; its last view is compared with 64 rays
+/// traced there: the accumulated AO is much closer to it than one frame of 2 rays, and its 99th percentile
+/// error is under `p99_bound`.
+fn moving_camera_against_many_rays(settings: HybridAmbientOcclusion, p99_bound: f32) {
     let start = Transform::from_xyz(0.0, 9.0, 5.5).looking_at(Vec3::new(-0.5, 0.0, 0.5), Vec3::Y);
     let end = Transform { translation: start.translation + Vec3::new(1.5, 0.0, 0.0), ..start };
-    let settings = HybridAmbientOcclusion {
-        quality: HaoQuality::Custom { rays: 2, steps: 48, half_resolution: false },
-        denoise_radius: 0,
-        accumulation_frames: 16,
-        depth_contacts,
-        ..hao_settings()
-    };
+    let (quality, depth_contacts) = (settings.quality, settings.depth_contacts);
     let mut app = scene_app(start, Ao::Hao(settings), walls);
     run(&mut app, 10);
     for k in 1..=30 {
@@ -1166,8 +1173,8 @@ fn moving_camera_against_many_rays(depth_contacts: bool, p99_bound: f32) {
     errors.sort_by(|a, b| a.partial_cmp(b).unwrap());
     let p99 = errors[errors.len() * 99 / 100];
     println!(
-        "depth contacts {depth_contacts}: two rays against 64 after 30 moving frames: one frame {e1:.4}, accumulated \
-         {em:.4} (99th percentile {p99:.3})"
+        "{quality:?}, depth contacts {depth_contacts}: against 64 rays after 30 moving frames: one frame of two rays \
+         {e1:.4}, accumulated {em:.4} (99th percentile {p99:.3})"
     );
     assert!(em < 0.6 * e1, "{em} against {e1}");
     assert!(p99 < p99_bound, "{p99}");
