@@ -2,12 +2,12 @@
 //! same frames.
 //!
 //! ```text
-//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 20] [--rounds 1]
+//! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 10] [--rounds 3]
 //!     [--quality low|medium|high|ultra ...] [--res N] [--attributes] [--no-depth-contacts] [--custom RAYS,STEPS ...]
 //! ```
 //!
 //! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
-//! warm-up, `--rounds` times in turn, each right after a phase without ambient occlusion:
+//! warm-up, in `--rounds` rounds:
 //!
 //! 1. Bevy's SSAO alone at each of its qualities (Low, Medium, High, Ultra), on a camera without HAO: the
 //!    `ssao` span;
@@ -21,13 +21,16 @@
 //! and its ratio to Bevy's SSAO alone at its default quality, High. Voxelization is not counted there (see
 //! `bench_voxelize`).
 //!
-//! A second table times whole frames on the wall clock, the device waited for after each: a preset's whole
-//! AO cost is its frame less the frame without AO measured just before it, and its ratio is taken to Bevy's
-//! SSAO High measured the same way. This is the measure on lavapipe, whose timestamps are taken when its
-//! rasterizer runs a scene and can miss compute passes between render passes (compute-only passes have read
-//! about 0.05 ms there however long they ran); on a GPU the spans are the measure. On a software
-//! rasterizer such as lavapipe the times are CPU times of the emulated GPU: compare ratios within one run,
-//! not absolute figures.
+//! A second table times whole frames on the wall clock, the device waited for after each. Every round runs
+//! a phase without AO before the first phase and after each one; a phase's cost in a round is the median of
+//! its frames less the mean of the medians of the phases without AO on either side of it (which takes out a
+//! drift of the machine's speed across the phase), and its cost is the median over the rounds. The ratio to
+//! Bevy's SSAO High is taken between those costs, and the lowest and highest of the rounds' own ratios are
+//! printed beside it: the spread to read before comparing two runs. This is the measure on lavapipe, whose
+//! timestamps are taken when its rasterizer runs a scene and can miss compute passes between render passes
+//! (the neighborhood pass reads about 0.05 ms there however long it ran); on a GPU the spans are the
+//! measure. On a software rasterizer such as lavapipe the times are CPU times of the emulated GPU: compare
+//! ratios within one run, not absolute figures.
 //!
 //! A last table counts the trace's work on its CPU twin (`bevy_hao::cpu::ao::voxel_ambient_occlusion_counted`),
 //! over the view the GPU traced (its depth and normal, read back) and the GPU's voxels, for each row above:
@@ -65,11 +68,12 @@ struct Args {
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = bevy_hao_tools::harness::args::size)]
     size: UVec2,
-    /// Frames measured per phase (medians are printed).
-    #[arg(long, default_value_t = 20)]
+    /// Frames measured per phase.
+    #[arg(long, default_value_t = 10)]
     frames: usize,
-    /// Times every phase is measured, in turn; the medians are over the frames of all rounds.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Times every phase is measured, in turn: the spans' medians are over the frames of all rounds, the
+    /// wall-clock costs the medians of the rounds' costs.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..))]
     rounds: u64,
     /// Only this preset (repeat for more; default: every preset).
     #[arg(long, value_enum)]
@@ -158,8 +162,8 @@ fn main() {
     }
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
     // The spans' samples, and the wall-clock time of each frame with the device waited for.
-    let measure = |app: &mut App, spans: &[&str]| -> (Vec<Vec<f64>>, Vec<f64>) {
-        bevy_hao_tools::harness::run(app, 8);
+    let measure = |app: &mut App, warm_up: usize, spans: &[&str]| -> (Vec<Vec<f64>>, Vec<f64>) {
+        bevy_hao_tools::harness::run(app, warm_up);
         bevy_hao_tools::harness::wait_for_gpu(app);
         let mut walls = Vec::new();
         // Only spans recorded since the last frame count: a diagnostic keeps its last value when a pass
@@ -203,74 +207,63 @@ fn main() {
             ..default()
         }))
         .collect();
-    // Each round: Bevy's SSAO alone, then each preset with and without accumulation, each phase right after a
-    // phase without AO (its baseline: a phase's cost is its frame less the frame just before it without AO,
-    // which leaves out the drift of a long run); the samples of every round are pooled.
-    let bar = bevy_hao_tools::harness::progress_bar((rounds * 2 * (4 + presets.len())) as u64, "bench_ao");
-    let without_ao = |app: &mut App| {
-        // The plugin takes the SSAO it added away with HAO (in the next frame).
-        app.world_mut().entity_mut(cam).remove::<(HybridAmbientOcclusion, ScreenSpaceAmbientOcclusion)>();
-        app.update();
-        measure(app, &[]).1
-    };
-    // Bevy's SSAO at each quality: its span's samples, its frames, and the frames without AO before them.
+    // Each round: Bevy's SSAO alone at each quality, then each preset with and without accumulation, with a
+    // phase without AO before the first and after each: a phase's cost in a round is its frames' median less
+    // the mean of the medians of the phases without AO on either side of it, which takes out the drift of the
+    // device's speed across the phase (on a shared CPU, lavapipe's frames drift by a fifth within seconds). A
+    // configuration's cost is the median of its rounds' costs; the spans' samples of every round are pooled.
     let ssao_qualities = [
         ScreenSpaceAmbientOcclusionQualityLevel::Low,
         ScreenSpaceAmbientOcclusionQualityLevel::Medium,
         ScreenSpaceAmbientOcclusionQualityLevel::High,
         ScreenSpaceAmbientOcclusionQualityLevel::Ultra,
     ];
-    let mut ssao_samples = vec![(Vec::new(), Vec::new(), Vec::new()); ssao_qualities.len()];
-    let mut preset_samples = vec![(vec![Vec::new(); spans.len()], Vec::new(), Vec::new()); presets.len()];
+    let phases = ssao_qualities.len() + presets.len();
+    let bar = bevy_hao_tools::harness::progress_bar((rounds * (2 * phases + 1)) as u64, "bench_ao");
+    let without_ao = |app: &mut App| {
+        // The plugin takes the SSAO it added away with HAO (in the next frame).
+        app.world_mut().entity_mut(cam).remove::<(HybridAmbientOcclusion, ScreenSpaceAmbientOcclusion)>();
+        app.update();
+        let walls = measure(app, BASELINE_WARM_UP, &[]).1;
+        bar.inc(1);
+        walls
+    };
+    // Per phase (the SSAO qualities, then the presets): the spans' samples, the frames, the frames without
+    // AO on either side, and the cost in each round.
+    let mut measured: Vec<Measured> = (0..phases).map(|_| Measured::new(spans.len())).collect();
     for _ in 0..rounds {
-        for (quality_level, (samples, walls, baseline)) in ssao_qualities.iter().zip(ssao_samples.iter_mut()) {
-            baseline.extend(without_ao(&mut app));
+        let mut before = without_ao(&mut app);
+        for (phase, m) in measured.iter_mut().enumerate() {
+            let (s, w) = if let Some(quality_level) = ssao_qualities.get(phase) {
+                // Bevy's SSAO alone, at this quality.
+                app.world_mut()
+                    .entity_mut(cam)
+                    .insert(ScreenSpaceAmbientOcclusion { quality_level: *quality_level, ..default() });
+                let (mut s, w) = measure(&mut app, WARM_UP, &["ssao"]);
+                (vec![Vec::new(), Vec::new(), Vec::new(), Vec::new(), s.remove(0)], w)
+            } else {
+                // HAO: the plugin adds its own (cheapest) SSAO.
+                app.world_mut().entity_mut(cam).insert(presets[phase - ssao_qualities.len()].clone());
+                measure(&mut app, WARM_UP, &spans)
+            };
             bar.inc(1);
-            // Bevy's SSAO alone, at this quality.
-            app.world_mut()
-                .entity_mut(cam)
-                .insert(ScreenSpaceAmbientOcclusion { quality_level: *quality_level, ..default() });
-            let (s, w) = measure(&mut app, &["ssao"]);
-            samples.extend(s.into_iter().flatten());
-            walls.extend(w);
-            bar.inc(1);
-        }
-        for (settings, (samples, walls, baseline)) in presets.iter().zip(preset_samples.iter_mut()) {
-            baseline.extend(without_ao(&mut app));
-            bar.inc(1);
-            // HAO: the plugin adds its own (cheapest) SSAO.
-            app.world_mut().entity_mut(cam).insert(settings.clone());
-            let (s, w) = measure(&mut app, &spans);
-            for (all, new) in samples.iter_mut().zip(s) {
-                all.extend(new);
-            }
-            walls.extend(w);
-            bar.inc(1);
+            let after = without_ao(&mut app);
+            m.add_round(s, w, &before, &after);
+            before = after;
         }
     }
     let median = bevy_hao_tools::harness::median;
-    let wall = |walls: Vec<f64>| median(walls).unwrap_or(f64::NAN);
-    // Per SSAO quality: the span's median, and the wall clock's frame and the frame without AO before it.
-    let ssao_rows: Vec<(Option<f64>, f64, f64)> = ssao_samples
-        .into_iter()
-        .map(|(samples, walls, baseline)| (median(samples), wall(walls), wall(baseline)))
-        .collect();
+    let (ssao_measured, preset_measured) = measured.split_at(ssao_qualities.len());
     // HAO is compared with Bevy's default quality, High.
-    let (ssao_alone, ssao_wall, ssao_no_ao) = ssao_rows[2];
-    // Per preset: the spans' medians, and the wall clock's frame and the frame without AO before it.
-    let rows: Vec<(HybridAmbientOcclusion, (Vec<Option<f64>>, f64, f64))> = presets
-        .into_iter()
-        .zip(preset_samples)
-        .map(|(settings, (samples, walls, baseline))| {
-            (settings, (samples.into_iter().map(median).collect(), wall(walls), wall(baseline)))
-        })
-        .collect();
+    let ssao_high = &ssao_measured[2];
+    let ssao_alone = ssao_high.span(4);
+    let rows: Vec<(HybridAmbientOcclusion, &Measured)> = presets.into_iter().zip(preset_measured).collect();
     // With attributes: the Medium trace with rays stopping at backs, then passing through them.
     let mut backs = Vec::new();
     if attributes {
         for ignore_back_hits in [false, true] {
             app.world_mut().entity_mut(cam).insert(HybridAmbientOcclusion { ignore_back_hits, ..default() });
-            backs.push((ignore_back_hits, median(measure(&mut app, &["hao/trace"]).0.remove(0))));
+            backs.push((ignore_back_hits, median(measure(&mut app, WARM_UP, &["hao/trace"]).0.remove(0))));
         }
     }
     // The trace's work on the CPU twin, over the view the GPU traced and its voxels.
@@ -305,16 +298,17 @@ fn main() {
         frames * rounds
     );
     println!(
-        "Bevy's SSAO alone, at each of its qualities (its `ssao` span, and on the wall clock its frame less the frame without AO just before it):\n"
+        "Bevy's SSAO alone, at each of its qualities (its `ssao` span, and on the wall clock its frames less the \
+         frames without AO on either side):\n"
     );
     println!("| Bevy SSAO quality | ssao ms | wall-clock cost ms | / SSAO High (span) |");
     println!("|---|---:|---:|---:|");
-    for (quality_level, (span, wall, no_ao)) in ssao_qualities.iter().zip(&ssao_rows) {
-        let ratio = match (span, ssao_alone) {
+    for (quality_level, m) in ssao_qualities.iter().zip(ssao_measured) {
+        let ratio = match (m.span(4), ssao_alone) {
             (Some(t), Some(s)) if s > 0.0 => format!("{:.2}", t / s),
             _ => "-".into(),
         };
-        println!("| {quality_level:?} | {} | {:.3} | {ratio} |", f(*span), wall - no_ao);
+        println!("| {quality_level:?} | {} | {} | {ratio} |", f(m.span(4)), f(m.cost()));
     }
     println!("\nEach HAO preset beside Bevy's SSAO High:\n");
     println!(
@@ -323,7 +317,8 @@ fn main() {
          | Bevy SSAO (High) alone ms | whole / SSAO |"
     );
     println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for (settings, (m, _, _)) in &rows {
+    for (settings, measured) in &rows {
+        let m: Vec<Option<f64>> = (0..spans.len()).map(|i| measured.span(i)).collect();
         let (rays, steps, half) = settings.trace_parameters();
         // No `hao/apply` span: without the near field the temporal pass writes the AO PBR reads itself.
         let passes = match (m[0], m[1], m[2]) {
@@ -352,25 +347,42 @@ fn main() {
             f(ssao_alone)
         );
     }
-    // The wall-clock costs: each frame less the frame without AO just before it.
-    let ssao_cost = ssao_wall - ssao_no_ao;
+    // The wall-clock costs: each phase's frames less the frames without AO on either side, round by round.
+    let ssao_cost = ssao_high.cost();
     println!(
-        "\nWall-clock frames, the device waited for after each (medians of {} frames in {rounds} round(s)): \
-         Bevy's SSAO High alone {ssao_wall:.3} ms against {ssao_no_ao:.3} ms without AO just before it, a cost \
-         of {ssao_cost:.3} ms. A preset's whole AO cost is its frame less the frame without AO just before it \
-         (every pass and any CPU work it adds):\n",
-        frames * rounds
+        "\nWall-clock frames, the device waited for after each ({frames} frames a phase, {rounds} round(s)): a \
+         phase's cost in a round is the median of its frames less the mean of the medians of the phases without \
+         AO on either side (every pass and any CPU work it adds), and its cost is the median over the rounds. \
+         Bevy's SSAO High alone: {} ms a frame against {} ms without AO, a cost of {} ms. The last column gives \
+         the lowest and highest of the rounds' own ratios, each to SSAO High in the same round:\n",
+        f(median(ssao_high.walls.clone())),
+        f(median(ssao_high.baseline.clone())),
+        f(ssao_cost),
     );
-    println!("| HAO quality | frames accumulated | frame ms | frame without AO ms | whole AO ms | whole / SSAO |");
-    println!("|---|---:|---:|---:|---:|---:|");
-    for (settings, (_, wall, no_ao)) in &rows {
+    println!(
+        "| HAO quality | frames accumulated | frame ms | frame without AO ms | whole AO ms | whole / SSAO | rounds |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---|");
+    for (settings, m) in &rows {
+        let cost = m.cost();
+        // No ratio where SSAO's cost came out at nothing or less (noise on a fast device).
+        let ratio = match (cost, ssao_cost) {
+            (Some(c), Some(s)) if s > 0.0 => format!("{:.2}", c / s),
+            _ => "-".into(),
+        };
+        let per_round: Vec<f64> =
+            m.costs.iter().zip(&ssao_high.costs).filter(|&(_, &s)| s > 0.0).map(|(c, s)| c / s).collect();
+        let range = match (per_round.iter().copied().reduce(f64::min), per_round.iter().copied().reduce(f64::max)) {
+            (Some(lo), Some(hi)) => format!("{lo:.2}-{hi:.2}"),
+            _ => "-".into(),
+        };
         println!(
-            "| {:?} | {} | {wall:.3} | {no_ao:.3} | {:.3} | {} |",
+            "| {:?} | {} | {} | {} | {} | {ratio} | {range} |",
             settings.quality,
             settings.accumulation_frames,
-            wall - no_ao,
-            // No ratio where SSAO's cost came out at nothing or less (noise on a fast device).
-            if ssao_cost > 0.0 { format!("{:.2}", (wall - no_ao) / ssao_cost) } else { "-".into() }
+            f(median(m.walls.clone())),
+            f(median(m.baseline.clone())),
+            f(cost),
         );
     }
     println!(
@@ -413,6 +425,54 @@ fn main() {
         for (ignore, t) in backs {
             println!("| {} | {} |", if ignore { "pass through (the default)" } else { "stop" }, f(t));
         }
+    }
+}
+
+/// Frames run after a change of settings before a phase is measured: a preset's pipelines, its history (at
+/// half resolution every pixel is traced once in four frames) and Bevy's SSAO textures settle.
+const WARM_UP: usize = 8;
+/// Frames run before a phase without AO is measured: only passes stop running.
+const BASELINE_WARM_UP: usize = 2;
+
+/// One phase's measurements over the rounds.
+struct Measured {
+    /// Each span's samples, pooled over the rounds.
+    spans: Vec<Vec<f64>>,
+    /// The wall-clock frames, pooled.
+    walls: Vec<f64>,
+    /// The frames without AO on either side of the phase, pooled.
+    baseline: Vec<f64>,
+    /// The phase's wall-clock cost in each round: its frames' median less the mean of the medians of the
+    /// phases without AO before and after it.
+    costs: Vec<f64>,
+}
+
+impl Measured {
+    fn new(spans: usize) -> Self {
+        Self { spans: vec![Vec::new(); spans], walls: Vec::new(), baseline: Vec::new(), costs: Vec::new() }
+    }
+
+    /// A round: the spans' samples, the frames, and the frames without AO before and after them.
+    fn add_round(&mut self, spans: Vec<Vec<f64>>, walls: Vec<f64>, before: &[f64], after: &[f64]) {
+        let median = bevy_hao_tools::harness::median;
+        if let (Some(w), Some(b), Some(a)) = (median(walls.clone()), median(before.to_vec()), median(after.to_vec())) {
+            self.costs.push(w - 0.5 * (b + a));
+        }
+        for (all, new) in self.spans.iter_mut().zip(spans) {
+            all.extend(new);
+        }
+        self.walls.extend(walls);
+        self.baseline.extend(before.iter().chain(after));
+    }
+
+    /// The median of span `i`'s samples.
+    fn span(&self, i: usize) -> Option<f64> {
+        bevy_hao_tools::harness::median(self.spans[i].clone())
+    }
+
+    /// The wall-clock cost: the median of the rounds' costs.
+    fn cost(&self) -> Option<f64> {
+        bevy_hao_tools::harness::median(self.costs.clone())
     }
 }
 
