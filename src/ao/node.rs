@@ -80,4 +80,6 @@ pub fn hao(
         pass("hao_apply", "hao/apply", apply, &[(0, apply_group, &[])], res.view_size);
     }
     encoder.pop_debug_group();
+    // The temporal pass wrote this frame's history: next frame reads it.
+    res.history_written.store(true, std::sync::atomic::Ordering::Relaxed);
 }

@@ -16,6 +16,8 @@ use bevy::render::renderer::RenderDevice;
 use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::{Msaa, ViewUniforms};
 use bytemuck::{Pod, Zeroable};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// The WGSL `HaoSettings`.
 #[repr(C)]
@@ -66,20 +68,29 @@ pub struct GpuHaoSettings {
     pub depth_contacts: u32,
 }
 
-/// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, and when.
-#[derive(Clone, Copy)]
+/// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, when, and whether
+/// its passes ran then.
+#[derive(Clone)]
 pub struct ViewHistory {
     jitter: Vec2,
     view_size: UVec2,
     trace_size: UVec2,
     frame: u32,
+    /// Set by the render node once it has recorded the view's passes (`HaoViewResources::history_written`):
+    /// a view prepared in a frame whose passes did not run (a pipeline still compiling, no voxel grid yet)
+    /// wrote no history then.
+    written: Arc<AtomicBool>,
 }
 
 impl ViewHistory {
     /// Whether a view traced at `trace_size` in frame `frame` may read the history this record describes:
-    /// only one written the frame before, at the same size (a resize, or a view that was off, restarts it).
+    /// only one written the frame before, at the same size (a resize, a view that was off, or passes that
+    /// did not run restart it).
     pub fn continues(&self, view_size: UVec2, trace_size: UVec2, frame: u32) -> bool {
-        self.frame.wrapping_add(1) == frame && self.view_size == view_size && self.trace_size == trace_size
+        self.frame.wrapping_add(1) == frame
+            && self.view_size == view_size
+            && self.trace_size == trace_size
+            && self.written.load(Ordering::Relaxed)
     }
 }
 
@@ -128,6 +139,9 @@ pub struct HaoViewResources {
     /// does not start at the target's corner (PBR reads it at target coordinates; Bevy's is the viewport's
     /// size). See `pbr_texture`.
     pub pbr_texture: Option<CachedTexture>,
+    /// Set once the render node has recorded this frame's passes, which write `history_out`: next frame's
+    /// history is read only then (`ViewHistory::continues`).
+    pub history_written: Arc<AtomicBool>,
 }
 
 impl HaoViewResources {
@@ -222,9 +236,16 @@ pub fn prepare_hao_textures(
         let result =
             near_field.then(|| texture(&mut texture_cache, "hao_result_texture", view_size, TextureFormat::R32Float));
         let jitter_offset = jitter.map_or(Vec2::ZERO, |j| j.offset);
-        let record = ViewHistory { jitter: jitter_offset, view_size, trace_size, frame: *frame };
+        let history_written = Arc::new(AtomicBool::new(false));
+        let record = ViewHistory {
+            jitter: jitter_offset,
+            view_size,
+            trace_size,
+            frame: *frame,
+            written: history_written.clone(),
+        };
         histories.insert(entity, (record, buffers));
-        let history_valid = last.is_some_and(|l| l.continues(view_size, trace_size, *frame));
+        let history_valid = last.as_ref().is_some_and(|l| l.continues(view_size, trace_size, *frame));
         let previous_clip_from_world = match (previous_view, last) {
             (Some(previous), Some(last)) => previous_clip_from_world(previous, last.jitter, last.view_size),
             (Some(previous), None) => previous.clip_from_world,
@@ -270,6 +291,7 @@ pub fn prepare_hao_textures(
             ignore_back_hits: hao.ignore_back_hits,
             near_field,
             pbr_texture,
+            history_written,
         });
     }
     // Views not prepared this frame (off, removed, despawned) are forgotten; when they come back their
@@ -426,16 +448,24 @@ mod tests {
 
     #[test]
     fn history_continues_only_from_the_frame_before_at_the_same_size() {
-        let h =
-            ViewHistory { jitter: Vec2::ZERO, view_size: UVec2::new(64, 48), trace_size: UVec2::new(32, 24), frame: 7 };
+        let h = ViewHistory {
+            jitter: Vec2::ZERO,
+            view_size: UVec2::new(64, 48),
+            trace_size: UVec2::new(32, 24),
+            frame: 7,
+            written: Arc::new(AtomicBool::new(true)),
+        };
         assert!(h.continues(UVec2::new(64, 48), UVec2::new(32, 24), 8));
         // A resize of the view or of the traced resolution, a frame missed (off, skipped), the same frame.
         assert!(!h.continues(UVec2::new(65, 48), UVec2::new(33, 24), 8));
         assert!(!h.continues(UVec2::new(64, 48), UVec2::new(64, 48), 8));
         assert!(!h.continues(UVec2::new(64, 48), UVec2::new(32, 24), 9));
         assert!(!h.continues(UVec2::new(64, 48), UVec2::new(32, 24), 7));
-        let wrapping = ViewHistory { frame: u32::MAX, ..h };
+        let wrapping = ViewHistory { frame: u32::MAX, ..h.clone() };
         assert!(wrapping.continues(UVec2::new(64, 48), UVec2::new(32, 24), 0));
+        // Prepared the frame before, but its passes did not run (the node left early): no history written.
+        let not_run = ViewHistory { written: Arc::new(AtomicBool::new(false)), ..h };
+        assert!(!not_run.continues(UVec2::new(64, 48), UVec2::new(32, 24), 8));
     }
 
     #[test]
