@@ -192,7 +192,6 @@ fn main() {
         (samples, walls)
     };
     let cam = app.world_mut().query_filtered::<Entity, With<BenchCamera>>().single(app.world()).unwrap();
-    let spans = SPANS;
     let presets: Vec<HybridAmbientOcclusion> = [HybridAmbientOcclusion::default().accumulation_frames, 1]
         .into_iter()
         .flat_map(|accumulation_frames| {
@@ -230,22 +229,20 @@ fn main() {
     };
     // Per phase (the SSAO qualities, then the presets): the spans' samples, the frames, the frames without
     // AO on either side, and the cost in each round.
-    let mut measured: Vec<Measured> = (0..phases).map(|_| Measured::new(spans.len())).collect();
+    let mut measured: Vec<Measured> = (0..phases).map(|_| Measured::new(SPANS.len())).collect();
     for _ in 0..rounds {
         let mut before = without_ao(&mut app);
         for (phase, m) in measured.iter_mut().enumerate() {
-            let (s, w) = if let Some(quality_level) = ssao_qualities.get(phase) {
-                // Bevy's SSAO alone, at this quality.
-                app.world_mut()
-                    .entity_mut(cam)
-                    .insert(ScreenSpaceAmbientOcclusion { quality_level: *quality_level, ..default() });
-                // (The HAO spans record nothing here: only samples taken in the phase count.)
-                measure(&mut app, WARM_UP, &spans)
+            let mut entity = app.world_mut().entity_mut(cam);
+            if let Some(quality_level) = ssao_qualities.get(phase) {
+                // Bevy's SSAO alone, at this quality (HAO's spans record nothing then: only samples taken in
+                // the phase count).
+                entity.insert(ScreenSpaceAmbientOcclusion { quality_level: *quality_level, ..default() });
             } else {
                 // HAO: the plugin adds its own (cheapest) SSAO.
-                app.world_mut().entity_mut(cam).insert(presets[phase - ssao_qualities.len()].clone());
-                measure(&mut app, WARM_UP, &spans)
-            };
+                entity.insert(presets[phase - ssao_qualities.len()].clone());
+            }
+            let (s, w) = measure(&mut app, WARM_UP, &SPANS);
             bar.inc(1);
             let after = without_ao(&mut app);
             m.add_round(s, w, &before, &after);
@@ -318,7 +315,7 @@ fn main() {
     );
     println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (settings, measured) in &rows {
-        let m: Vec<Option<f64>> = (0..spans.len()).map(|i| measured.span(i)).collect();
+        let m: Vec<Option<f64>> = (0..SPANS.len()).map(|i| measured.span(i)).collect();
         let (rays, steps, half) = settings.trace_parameters();
         // No `hao/apply` span: without the near field the temporal pass writes the AO PBR reads itself.
         let passes = match (m[0], m[1], m[2]) {
