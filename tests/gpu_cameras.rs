@@ -478,8 +478,9 @@ fn cameras_with_msaa_keep_it_and_get_the_ao_of_a_camera_without() {
         let difference = mean_difference(&ao, &reference);
         println!("{msaa:?}: mean AO difference from Msaa::Off {difference:.4}");
         // The trace reads sample 0 of each pixel (the same surface but for edges, where it may be the other
-        // side's): the same AO but along edges.
-        assert!(difference < 0.01, "{msaa:?}: AO {difference} from the camera without MSAA");
+        // side's): the same AO but along edges (0.008 on lavapipe with 4 samples; on an NVIDIA H100 0.008
+        // with 4 and 0.010 with 2, whose sample 0 lies elsewhere in the pixel).
+        assert!(difference < 0.012, "{msaa:?}: AO {difference} from the camera without MSAA");
     }
 }
 

@@ -9,12 +9,12 @@ use bevy::prelude::*;
 use bevy::render::RenderPlugin;
 use bevy::render::error_handler::{RenderErrorHandler, RenderErrorPolicy};
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::settings::{Backends, RenderCreation, WgpuSettings};
+use bevy::render::settings::{Backends, RenderCreation, RenderResources, WgpuFeatures, WgpuSettings};
 use bevy::render::storage::ShaderBuffer;
 use bevy::window::ExitCondition;
 use bevy_hao::cpu::{TriangleMesh, VoxelGrid, VoxelOccupancy};
 use bevy_hao::{VoxelGridAssets, VoxelizationStats, VoxelizationStatsData};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 
 static GPU: Mutex<()> = Mutex::new(());
 static RENDER_ERRORS: Mutex<Vec<String>> = Mutex::new(Vec::new());
@@ -24,33 +24,46 @@ pub fn gpu_lock() -> MutexGuard<'static, ()> {
     GPU.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-/// Fails (does not skip) when there is no Vulkan adapter.
-pub fn require_vulkan() {
+/// The render resources (one Vulkan instance, adapter and device) that every app of this process shares once
+/// the first has made them, but for apps on a device of constrained limits (`set_device_limits`), which get
+/// their own. A driver may find no adapter after a few devices in one process (NVIDIA's 580.159.04 on an H100:
+/// none after 15 Bevy apps, with or without this plugin), and a test run makes far more.
+static SHARED_RENDER: Mutex<Option<RenderResources>> = Mutex::new(None);
+
+/// Whether this process found a Vulkan adapter (looked for once).
+static HAS_VULKAN: OnceLock<bool> = OnceLock::new();
+
+fn vulkan_adapters() -> Vec<wgpu::Adapter> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends: wgpu::Backends::VULKAN,
         ..wgpu::InstanceDescriptor::new_without_display_handle()
     });
-    let adapters = bevy::tasks::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
+    bevy::tasks::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN))
+}
+
+/// Fails (does not skip) when there is no Vulkan adapter.
+pub fn require_vulkan() {
     assert!(
-        !adapters.is_empty(),
+        *HAS_VULKAN.get_or_init(|| !vulkan_adapters().is_empty()),
         "no Vulkan adapter found: the GPU tests need one. Install Mesa's lavapipe (a Vulkan device on the CPU): \
          `apt-get install mesa-vulkan-drivers`"
     );
 }
 
 /// Whether the Vulkan adapter can render `samples` MSAA samples into the formats a camera with Bevy's depth
-/// and normal prepasses uses (WebGPU guarantees 1 and 4).
+/// and normal prepasses uses (WebGPU guarantees 1 and 4): the shared apps' adapter, once there is one.
 pub fn msaa_supported(samples: u32) -> bool {
     use wgpu::TextureFormat;
-    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
-        backends: wgpu::Backends::VULKAN,
-        ..wgpu::InstanceDescriptor::new_without_display_handle()
-    });
-    let adapters = bevy::tasks::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
-    let Some(adapter) = adapters.first() else { return false };
-    [TextureFormat::Rgba8UnormSrgb, TextureFormat::Depth32Float, TextureFormat::Rgb10a2Unorm]
-        .iter()
-        .all(|f| adapter.get_texture_format_features(*f).flags.sample_count_supported(samples))
+    let shared = SHARED_RENDER.lock().unwrap_or_else(|e| e.into_inner()).as_ref().map(|r| r.3.clone());
+    let supported = |adapter: &wgpu::Adapter| {
+        [TextureFormat::Rgba8UnormSrgb, TextureFormat::Depth32Float, TextureFormat::Rgb10a2Unorm]
+            .iter()
+            .all(|f| adapter.get_texture_format_features(*f).flags.sample_count_supported(samples))
+    };
+    match shared {
+        Some(adapter) => supported(&adapter),
+        None => vulkan_adapters().first().is_some_and(supported),
+    }
 }
 
 /// wgpu errors reported to Bevy's render error handler since the last call.
@@ -88,19 +101,28 @@ fn plugins() -> PluginGroupBuilder {
     if !first {
         plugins = plugins.disable::<bevy::log::LogPlugin>();
     }
+    let constrained_limits = LIMITS.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    // A device whose limits allow no binding arrays has no binding-array features either: Bevy's bindless
+    // materials look at the features (and would make layouts such a device refuses, on a GPU that has them).
+    let disabled_features = constrained_limits
+        .as_ref()
+        .filter(|l| l.max_binding_array_elements_per_shader_stage == 0)
+        .map(|_| WgpuFeatures::TEXTURE_BINDING_ARRAY | WgpuFeatures::BUFFER_BINDING_ARRAY);
+    let shared = SHARED_RENDER.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    let render_creation = match (constrained_limits, shared) {
+        (None, Some(resources)) => RenderCreation::Manual(resources),
+        (constrained_limits, _) => RenderCreation::Automatic(Box::new(WgpuSettings {
+            backends: Some(Backends::VULKAN),
+            constrained_limits,
+            disabled_features,
+            ..default()
+        })),
+    };
     plugins
         .disable::<bevy::winit::WinitPlugin>()
         .disable::<bevy::render::pipelined_rendering::PipelinedRenderingPlugin>()
         .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
-        .set(RenderPlugin {
-            render_creation: RenderCreation::Automatic(Box::new(WgpuSettings {
-                backends: Some(Backends::VULKAN),
-                constrained_limits: LIMITS.lock().unwrap_or_else(|e| e.into_inner()).clone(),
-                ..default()
-            })),
-            synchronous_pipeline_compilation: true,
-            ..default()
-        })
+        .set(RenderPlugin { render_creation, synchronous_pipeline_compilation: true, ..default() })
 }
 
 /// A headless app with the HAO plugin (and Bevy's render diagnostics, for GPU time spans), ready to
@@ -125,7 +147,28 @@ pub fn headless_app_with(hao: bool, setup: impl FnOnce(&mut App)) -> App {
     setup(&mut app);
     app.finish();
     app.cleanup();
+    share_render_resources(&app);
     app
+}
+
+/// Keeps `app`'s render resources for the next apps of this process, if it is the first on a device of the
+/// adapter's own limits.
+fn share_render_resources(app: &App) {
+    if LIMITS.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
+        return;
+    }
+    let mut shared = SHARED_RENDER.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(world) = app.get_sub_app(bevy::render::RenderApp).map(|r| r.world()) else { return };
+    if shared.is_none() {
+        use bevy::render::renderer::{RenderAdapter, RenderAdapterInfo, RenderDevice, RenderInstance, RenderQueue};
+        *shared = Some(RenderResources(
+            world.resource::<RenderDevice>().clone(),
+            world.resource::<RenderQueue>().clone(),
+            world.resource::<RenderAdapterInfo>().clone(),
+            world.resource::<RenderAdapter>().clone(),
+            world.resource::<RenderInstance>().clone(),
+        ));
+    }
 }
 
 /// Runs `n` frames.
