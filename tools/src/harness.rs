@@ -157,18 +157,21 @@ fn share_render_resources(app: &App) {
     if LIMITS.lock().unwrap_or_else(|e| e.into_inner()).is_some() {
         return;
     }
+    use bevy::render::renderer::{RenderAdapter, RenderAdapterInfo, RenderDevice, RenderInstance, RenderQueue};
     let mut shared = SHARED_RENDER.lock().unwrap_or_else(|e| e.into_inner());
-    let Some(world) = app.get_sub_app(bevy::render::RenderApp).map(|r| r.world()) else { return };
-    if shared.is_none() {
-        use bevy::render::renderer::{RenderAdapter, RenderAdapterInfo, RenderDevice, RenderInstance, RenderQueue};
-        *shared = Some(RenderResources(
-            world.resource::<RenderDevice>().clone(),
-            world.resource::<RenderQueue>().clone(),
-            world.resource::<RenderAdapterInfo>().clone(),
-            world.resource::<RenderAdapter>().clone(),
-            world.resource::<RenderInstance>().clone(),
-        ));
+    if shared.is_some() {
+        return;
     }
+    let Some(world) = app.get_sub_app(bevy::render::RenderApp).map(|r| r.world()) else { return };
+    *shared = (|| {
+        Some(RenderResources(
+            world.get_resource::<RenderDevice>()?.clone(),
+            world.get_resource::<RenderQueue>()?.clone(),
+            world.get_resource::<RenderAdapterInfo>()?.clone(),
+            world.get_resource::<RenderAdapter>()?.clone(),
+            world.get_resource::<RenderInstance>()?.clone(),
+        ))
+    })();
 }
 
 /// Runs `n` frames.
