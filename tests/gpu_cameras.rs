@@ -240,16 +240,9 @@ fn a_view_whose_history_exceeds_the_device_binding_limit_gets_no_ao_until_it_fit
     let _gpu = gpu_lock();
     take_render_errors();
     // A device whose storage bindings hold 1 MiB: the 96x64 view's history (8 bytes a pixel) fits, a
-    // 512x320 one's (1.25 MiB) does not. WebGPU's defaults otherwise, with the storage bindings Bevy's SSAO
-    // and the voxelizer need.
-    set_device_limits(Some(WgpuLimits {
-        max_storage_buffer_binding_size: 1 << 20,
-        max_storage_buffers_per_shader_stage: 8,
-        max_storage_textures_per_shader_stage: 8,
-        ..WgpuLimits::default()
-    }));
-    let mut app = one_camera();
-    set_device_limits(None);
+    // 512x320 one's (1.25 MiB) does not.
+    let limits = WgpuLimits { max_storage_buffer_binding_size: 1 << 20, ..webgpu_limits_with_storage() };
+    let mut app = app_on_device(limits, one_camera);
     run(&mut app, 3);
     let camera = the_camera(&mut app);
     assert_ao_back(&mut app, camera, "the first frames on a device with 1 MiB storage bindings");

@@ -365,27 +365,21 @@ fn bad_input_is_skipped_with_a_warning_and_the_frame_renders() {
 
 #[test]
 fn a_volume_over_the_device_limit_is_refused_and_rendering_goes_on() {
-    use bevy::render::settings::WgpuLimits;
     let _gpu = gpu_lock();
     // A device whose 3D textures have at most 2048 texels a side (WebGPU's default; lavapipe allows 4096, an
-    // H100 16384, which no volume exceeds: `VolumeResolution::Cells` stops at 16384), with the storage
-    // bindings Bevy's SSAO and the voxelizer need.
-    set_device_limits(Some(WgpuLimits {
-        max_storage_buffers_per_shader_stage: 8,
-        max_storage_textures_per_shader_stage: 8,
-        ..WgpuLimits::default()
-    }));
-    let mut app = headless_app(|app| {
-        app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
-            commands.spawn(VoxelVolume {
-                bounds: VolumeBounds::World { min: Vec3::splat(-4.0), max: Vec3::new(4.0, -3.99, -3.99) },
-                resolution: VolumeResolution::Cells(4096),
-                ..default()
+    // H100 16384, which no volume exceeds: `VolumeResolution::Cells` stops at 16384).
+    let mut app = app_on_device(webgpu_limits_with_storage(), || {
+        headless_app(|app| {
+            app.add_systems(Startup, |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                commands.spawn(VoxelVolume {
+                    bounds: VolumeBounds::World { min: Vec3::splat(-4.0), max: Vec3::new(4.0, -3.99, -3.99) },
+                    resolution: VolumeResolution::Cells(4096),
+                    ..default()
+                });
+                commands.spawn((Mesh3d(meshes.add(cube_mesh())), StaticOccluder));
             });
-            commands.spawn((Mesh3d(meshes.add(cube_mesh())), StaticOccluder));
-        });
+        })
     });
-    set_device_limits(None);
     run(&mut app, 5);
     assert!(grid_assets(&app).is_none());
     // Lowering the resolution brings it back.
@@ -537,24 +531,19 @@ fn a_weaker_device_gets_refusals_and_fallbacks_with_warnings_and_no_errors() {
     use bevy::render::settings::WgpuLimits;
     let _gpu = gpu_lock();
     let app_with = |limits: WgpuLimits, volume: VoxelVolume| {
-        set_device_limits(Some(limits));
-        let mut app = headless_app(move |app| {
-            app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
-                commands.spawn(volume);
-                commands.spawn((Mesh3d(meshes.add(cube_mesh())), StaticOccluder));
-                commands.spawn((Camera3d::default(), HybridAmbientOcclusion::default()));
-            });
+        let mut app = app_on_device(limits, || {
+            headless_app(move |app| {
+                app.add_systems(Startup, move |mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>| {
+                    commands.spawn(volume);
+                    commands.spawn((Mesh3d(meshes.add(cube_mesh())), StaticOccluder));
+                    commands.spawn((Camera3d::default(), HybridAmbientOcclusion::default()));
+                });
+            })
         });
-        set_device_limits(None);
         run(&mut app, 10);
         app
     };
-    // WebGPU's defaults, with the storage bindings Bevy's SSAO and the voxelizer need.
-    let base = WgpuLimits {
-        max_storage_buffers_per_shader_stage: 8,
-        max_storage_textures_per_shader_stage: 8,
-        ..WgpuLimits::default()
-    };
+    let base = webgpu_limits_with_storage();
     // A 3D texture limit below the grid (and above Bevy's own 3D textures): the grid is refused (voxel
     // occlusion off), rendering goes on.
     let app = app_with(

@@ -25,7 +25,7 @@ pub fn gpu_lock() -> MutexGuard<'static, ()> {
 }
 
 /// The render resources (one Vulkan instance, adapter and device) that every app of this process shares once
-/// the first has made them, but for apps on a device of constrained limits (`set_device_limits`), which get
+/// the first has made them, but for apps on a device of constrained limits (`app_on_device`), which get
 /// their own. A driver may find no adapter after a few devices in one process (NVIDIA's 580.159.04 on an H100:
 /// none after 15 Bevy apps, with or without this plugin), and a test run makes far more.
 static SHARED_RENDER: Mutex<Option<RenderResources>> = Mutex::new(None);
@@ -78,10 +78,32 @@ static ASSET_ROOT: Mutex<Option<String>> = Mutex::new(None);
 
 static LIMITS: Mutex<Option<bevy::render::settings::WgpuLimits>> = Mutex::new(None);
 
-/// Makes the next apps' device no more capable than `limits` (`None`: the adapter's own), to test how the
-/// plugin copes with a weaker device.
-pub fn set_device_limits(limits: Option<bevy::render::settings::WgpuLimits>) {
+fn set_device_limits(limits: Option<bevy::render::settings::WgpuLimits>) {
     *LIMITS.lock().unwrap_or_else(|e| e.into_inner()) = limits;
+}
+
+/// The app `make` makes, on a device of its own no more capable than `limits`, to test how the plugin copes
+/// with a weaker device (the apps made after it, even where `make` panics, get the adapter's own limits).
+pub fn app_on_device(limits: bevy::render::settings::WgpuLimits, make: impl FnOnce() -> App) -> App {
+    struct Reset;
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            set_device_limits(None);
+        }
+    }
+    set_device_limits(Some(limits));
+    let _reset = Reset;
+    make()
+}
+
+/// WebGPU's default limits, but with the 8 storage buffers and 8 storage textures a shader stage that
+/// Bevy's SSAO and the voxelizer need: the weakest device the plugin runs on whole.
+pub fn webgpu_limits_with_storage() -> bevy::render::settings::WgpuLimits {
+    bevy::render::settings::WgpuLimits {
+        max_storage_buffers_per_shader_stage: 8,
+        max_storage_textures_per_shader_stage: 8,
+        ..default()
+    }
 }
 
 /// Makes the next apps' `AssetServer` read from `dir` (for a model's textures and glTF scenes).
