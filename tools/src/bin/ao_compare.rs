@@ -10,6 +10,15 @@
 //! `--hao-resolution` trace that many rays and steps a frame, at that resolution, instead of the quality's;
 //! `--denoise` sets the denoiser's width (`HybridAmbientOcclusion::denoise_radius`; 0: off).
 //!
+//! `--motion DEG` measures the AO of a moving camera, as a game's is: after the scene has settled, the
+//! cameras swing to and fro about a point ahead of them (a quarter of the scene's extent away; a sine of
+//! `MOTION_PERIOD` frames, at most DEG degrees a frame) for those frames rounded up to whole periods, and
+//! the HAO image is read at the last of them, back at the still camera's pose and at its fastest. The
+//! history is then reprojected every frame and the view keeps uncovering surfaces, so the error shows what
+//! accumulation costs in motion; it is measured against the reference at the same pose as without
+//! `--motion`. (The other two images are read in the still frames after it: Bevy's SSAO keeps no history;
+//! the near field's image has had a few still frames.)
+//!
 //! `--volume` picks the voxel volume: `cascades` (the plugin's default: 4 cascades of 192^3 following the
 //! camera) or `fit` (one grid fitted to the static scene, `--res` cells on its longest axis). `--world`
 //! puts the scene inside a generated level 1 km across (a ground and distant buildings: see
@@ -124,6 +133,10 @@ struct Args {
     /// reference's occluder distance in the cells of the level the ray starts in, and by that level.
     #[arg(long)]
     bias: bool,
+    /// Swing the cameras about a point ahead at up to DEG degrees a frame while HAO accumulates, and read
+    /// HAO's image in motion (see the tool's documentation).
+    #[arg(long, value_name = "DEG", value_parser = motion_speed)]
+    motion: Option<f32>,
     /// The PNG written: HAO, HAO + near field, SSAO and the reference side by side.
     #[arg(long, default_value = "ao_compare.png")]
     out: String,
@@ -153,6 +166,49 @@ fn cascades(v: &str) -> Result<(u32, u32, f32), String> {
 
 #[derive(Component)]
 struct View(usize);
+
+/// Frames of one swing of `--motion`, to and fro.
+const MOTION_PERIOD: u32 = 120;
+
+/// `--motion`: the cameras' pose `frame` frames into the motion, swung about `center` (a sine of amplitude
+/// `amplitude` radians about the vertical over `MOTION_PERIOD` frames), until frame `end`, where it stops.
+#[derive(Resource, Clone, Copy)]
+struct Motion {
+    start: Transform,
+    center: Vec3,
+    amplitude: f32,
+    frame: u32,
+    end: u32,
+}
+
+impl Motion {
+    /// The cameras' pose `frame` frames into the motion.
+    fn pose(&self, frame: u32) -> Transform {
+        let phase = std::f32::consts::TAU * frame as f32 / MOTION_PERIOD as f32;
+        let mut pose = self.start;
+        pose.rotate_around(self.center, Quat::from_rotation_y(self.amplitude * phase.sin()));
+        pose
+    }
+}
+
+/// Each frame of `--motion`, the next pose of every view's camera.
+fn swing_cameras(motion: Option<ResMut<Motion>>, mut cameras: Query<&mut Transform, With<View>>) {
+    let Some(mut motion) = motion else { return };
+    if motion.frame >= motion.end {
+        return;
+    }
+    motion.frame += 1;
+    let pose = motion.pose(motion.frame);
+    for mut t in &mut cameras {
+        *t = pose;
+    }
+}
+
+/// `--motion`'s speed: degrees a frame, above 0 and at most 10.
+fn motion_speed(v: &str) -> Result<f32, String> {
+    let d: f32 = v.parse().map_err(|_| format!("expected degrees a frame, got {v}"))?;
+    if d > 0.0 && d <= 10.0 { Ok(d) } else { Err(format!("--motion {v}: expected above 0 and at most 10")) }
+}
 
 #[derive(Resource, Clone)]
 struct Outputs(Vec<HaoDebugImages>);
@@ -229,6 +285,7 @@ fn main() {
         let hao = setup_hao.clone();
         let world_parts = world_parts.clone();
         app.insert_resource(bevy::light::GlobalAmbientLight { brightness: 300.0, ..default() });
+        app.add_systems(Update, swing_cameras);
         app.add_systems(
             Startup,
             move |mut commands: Commands,
@@ -305,8 +362,23 @@ fn main() {
     }
     // Then until the temporal history has converged: four times its length (the frames before weigh
     // (1 - 1/n)^(4n), under 2 %).
-    let settled = 4 + 4 * accumulation * frames_per_trace;
-    bevy_hao_tools::harness::run(&mut app, settled);
+    let mut settled = 4 + 4 * accumulation * frames_per_trace;
+    if let Some(speed) = args.motion {
+        // Whole swings, so that the last frame is back at the still pose, at its fastest; the last of them
+        // runs in the first read below.
+        settled = settled.div_ceil(MOTION_PERIOD as usize) * MOTION_PERIOD as usize;
+        let extent = (bounds.1 - bounds.0).max_element();
+        app.insert_resource(Motion {
+            start: camera,
+            center: camera.translation + camera.forward().as_vec3() * (0.25 * extent),
+            amplitude: speed.to_radians() * MOTION_PERIOD as f32 / std::f32::consts::TAU,
+            frame: 0,
+            end: settled as u32,
+        });
+        bevy_hao_tools::harness::run(&mut app, settled - 1);
+    } else {
+        bevy_hao_tools::harness::run(&mut app, settled);
+    }
     let errors = bevy_hao_tools::harness::take_render_errors();
     if !errors.is_empty() {
         eprintln!("error: wgpu errors: {errors:?}");
@@ -319,8 +391,17 @@ fn main() {
         eprintln!("warning: --attributes: the plugin turned the volume's attributes off (see its warning above)");
     }
     let outputs = app.world().resource::<Outputs>().clone();
-    let ao: Vec<Vec<f32>> =
-        outputs.0.iter().map(|o| bevy_hao_tools::harness::read_image_f32(&mut app, o.ao.clone(), 2).2).collect();
+    // In motion, HAO's image from the frame that ends it (read with no frame to settle: the last swing's
+    // frame is the first this read runs).
+    let settle = if args.motion.is_some() { 0 } else { 2 };
+    let ao: Vec<Vec<f32>> = outputs
+        .0
+        .iter()
+        .enumerate()
+        .map(|(k, o)| {
+            bevy_hao_tools::harness::read_image_f32(&mut app, o.ao.clone(), if k == 0 { settle } else { 2 }).2
+        })
+        .collect();
     let (w, h, depth) = bevy_hao_tools::harness::read_image_f32(&mut app, outputs.0[0].depth.clone(), 0);
     let (_, _, _, normal_bytes) = bevy_hao_tools::harness::read_image(&mut app, outputs.0[0].normal.clone(), 0);
     let normals: Vec<Vec3> = normal_bytes
@@ -440,8 +521,11 @@ fn main() {
     };
     println!(
         "HAO: {:?}, max distance {}, accumulation over {accumulation} frames (measured {settled} frames after the \
-         scene settled), voxel volume: {volume}{world}; reference: {} rays per pixel\n",
-        hao.quality, args.max_distance, args.rays
+         scene settled{}), voxel volume: {volume}{world}; reference: {} rays per pixel\n",
+        hao.quality,
+        args.max_distance,
+        args.motion.map_or(String::new(), |d| format!(", the camera swinging at up to {d} degrees a frame")),
+        args.rays
     );
     println!("| AO | mean abs. error, all pixels | mean abs. error, off-screen/hidden occluders | mean AO |");
     println!("|---|---:|---:|---:|");
@@ -626,4 +710,42 @@ fn hash(mut x: u32) -> f32 {
     x = x.wrapping_mul(0x846c_a68b);
     x ^= x >> 16;
     (x >> 8) as f32 / (1u32 << 24) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_motion_ends_at_the_still_pose_at_its_fastest() {
+        let start = Transform::from_xyz(1.0, 2.0, 3.0).looking_at(Vec3::new(-4.0, 1.0, 0.0), Vec3::Y);
+        let speed = 0.5f32;
+        let motion = Motion {
+            start,
+            center: start.translation + start.forward().as_vec3() * 5.0,
+            amplitude: speed.to_radians() * MOTION_PERIOD as f32 / std::f32::consts::TAU,
+            frame: 0,
+            end: 3 * MOTION_PERIOD,
+        };
+        let end = motion.pose(motion.end);
+        assert!(
+            end.translation.distance(start.translation) < 1e-4 && end.rotation.angle_between(start.rotation) < 1e-4
+        );
+        // The turn of one frame: DEG at the end, none at the swing's far ends.
+        let turn = |f: u32| motion.pose(f).rotation.angle_between(motion.pose(f - 1).rotation).to_degrees();
+        assert!((turn(motion.end) - speed).abs() < 0.01, "{}", turn(motion.end));
+        assert!(turn(MOTION_PERIOD / 4) < 0.1 * speed, "{}", turn(MOTION_PERIOD / 4));
+        // The camera keeps looking at the centre.
+        let mid = motion.pose(MOTION_PERIOD / 4);
+        let to_center = (motion.center - mid.translation).normalize();
+        assert!(mid.forward().as_vec3().dot(to_center) > 0.9999);
+    }
+
+    #[test]
+    fn motion_speeds_outside_the_range_are_refused() {
+        assert_eq!(motion_speed("0.5"), Ok(0.5));
+        for bad in ["0", "-1", "NaN", "11", "fast"] {
+            assert!(motion_speed(bad).is_err(), "{bad}");
+        }
+    }
 }
