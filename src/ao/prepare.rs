@@ -12,7 +12,7 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::camera::{ExtractedCamera, TemporalJitter};
 use bevy::render::render_resource::*;
-use bevy::render::renderer::RenderDevice;
+use bevy::render::renderer::{RenderDevice, RenderQueue};
 use bevy::render::texture::{CachedTexture, TextureCache};
 use bevy::render::view::{Msaa, ViewUniforms};
 use bytemuck::{Pod, Zeroable};
@@ -121,7 +121,7 @@ pub struct HaoViewResources {
     /// With the near field: the AO combined with Bevy's SSAO, which apply copies into the texture PBR reads
     /// (without, the temporal pass writes there itself).
     pub result: Option<CachedTexture>,
-    /// The settings uniform.
+    /// The settings uniform (the view's own buffer, written each frame).
     pub settings: Buffer,
     /// Size of the trace.
     pub trace_size: UVec2,
@@ -176,6 +176,7 @@ pub fn prepare_hao_textures(
     mut commands: Commands,
     mut texture_cache: ResMut<TextureCache>,
     device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
     mut pipelines: ResMut<HaoPipelines>,
     cache: Res<PipelineCache>,
     views: Query<(
@@ -219,8 +220,8 @@ pub fn prepare_hao_textures(
             )
         };
         // Last frame's record of the view and its buffers, kept while it is prepared every frame at one size:
-        // the trace, its windows and filtered AO, and two histories read and written in turn (new ones are
-        // zeroed, which reads as no history).
+        // the settings, the trace, its windows and filtered AO, and two histories read and written in turn
+        // (new ones are zeroed, which reads as no history).
         let (last, buffers) = match histories.remove(&entity) {
             Some((last, buffers)) if (last.view_size, last.trace_size) == (view_size, trace_size) => {
                 (Some(last), buffers)
@@ -230,6 +231,7 @@ pub fn prepare_hao_textures(
         let [a, b] = buffers.history.clone();
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let (noisy, window, filtered) = (buffers.noisy.clone(), buffers.window.clone(), buffers.filtered.clone());
+        let settings_buffer = buffers.settings.clone();
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
         let near_field = hao.near_field && super::near_field_can_run(samples, origin);
@@ -276,7 +278,10 @@ pub fn prepare_hao_textures(
             trace_height: trace_size.y,
             depth_contacts: hao.depth_contacts as u32,
         };
-        let settings = crate::gpu::uniform_buffer(&device, "hao_settings", &settings, BufferUsages::UNIFORM);
+        // Written into the view's own buffer before this frame's passes run (the last frame's passes were
+        // submitted before this write).
+        queue.write_buffer(&settings_buffer, 0, &crate::gpu::uniform_bytes(&settings));
+        let settings = settings_buffer;
         commands.entity(entity).insert(HaoViewResources {
             noisy,
             window,
@@ -321,6 +326,7 @@ const _: () = assert!(
 
 /// A view's buffers (see `HaoViewResources`), for the view size and trace size of its `ViewHistory`.
 pub struct ViewBuffers {
+    settings: Buffer,
     noisy: Buffer,
     window: Buffer,
     filtered: Buffer,
@@ -338,6 +344,12 @@ impl ViewBuffers {
             })
         };
         Self {
+            settings: device.create_buffer(&BufferDescriptor {
+                label: Some("hao_settings"),
+                size: GpuHaoSettings::min_size().get(),
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
             noisy: buffer("hao_noisy_buffer", trace_size, TRACE_TEXEL_BYTES),
             window: buffer("hao_window_buffer", trace_size, WINDOW_TEXEL_BYTES),
             filtered: buffer("hao_filtered_buffer", trace_size, FILTERED_TEXEL_BYTES),
