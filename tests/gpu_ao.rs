@@ -447,7 +447,7 @@ fn cpu_trace(
         let pf = Vec2::new((i as u32 % w) as f32, (i as u32 / w) as f32);
         let rotation = ray_rotation(pf, frame);
         start[i] = ray_start_level(levels, world, 0, rotation);
-        let contacts = Some((view, contact_jitter(pf, frame)));
+        let contacts = Some(bevy_hao::cpu::ao::DepthContacts { view, jitter: contact_jitter(pf, frame) });
         ao[i] = voxel_ambient_occlusion_counted(
             levels,
             contacts,

@@ -460,9 +460,15 @@ pub fn voxel_ambient_occlusion(
     voxel_ambient_occlusion_counted(levels, None, world, normal, rotation, s, &mut TraceWork::default())
 }
 
-/// The view's depth prepass and a pixel's contact jitter ([`super::contacts::contact_jitter`]), for
-/// [`voxel_ambient_occlusion_counted`]'s depth contacts.
-pub type DepthContacts<'a> = (&'a ViewDepth, f32);
+/// What the depth contacts read: the view's depth prepass, and the jitter of the points they sample.
+#[derive(Clone, Copy)]
+pub struct DepthContacts<'a> {
+    /// The view's depth prepass.
+    pub view: &'a ViewDepth,
+    /// A pixel's contact jitter ([`super::contacts::contact_jitter`]) for [`voxel_ambient_occlusion_counted`],
+    /// which turns it for each ray; one ray's ([`super::contacts::ray_jitter`]) for [`ray_occluder`].
+    pub jitter: f32,
+}
 
 /// Ambient occlusion at one world-space surface point (WGSL: the body of `trace`), through the levels of
 /// the volume and, with `contacts` and [`TraceSettings::depth_contacts`], the depth prepass for each ray's
@@ -482,7 +488,7 @@ pub fn voxel_ambient_occlusion_counted(
     for i in 0..s.rays {
         let dir = hemisphere_direction(basis, i, s.rays, rotation);
         let start = ray_start_level(levels, world, i, rotation);
-        let contact = contacts.map(|(view, jitter)| (view, ray_jitter(jitter, i)));
+        let contact = contacts.map(|c| DepthContacts { jitter: ray_jitter(c.jitter, i), ..c });
         if let Some(d) = ray_occluder(levels, contact, world, normal, dir, start, s, work) {
             work.hits += 1;
             occlusion += ao_falloff(d, s.max_distance, s.falloff);
@@ -499,7 +505,7 @@ pub fn voxel_ambient_occlusion_counted(
 #[allow(clippy::too_many_arguments)]
 pub fn ray_occluder(
     levels: &[TraceLevel],
-    contact: Option<(&ViewDepth, f32)>,
+    contact: Option<DepthContacts>,
     world: Vec3,
     normal: Vec3,
     dir: Vec3,
@@ -508,7 +514,7 @@ pub fn ray_occluder(
     work: &mut TraceWork,
 ) -> Option<f32> {
     // Without a start offset the march starts at the surface, and there is nothing for the contacts to do.
-    if let Some((view, jitter)) = contact.filter(|_| s.depth_contacts && s.start_offset > 0.0) {
+    if let Some(DepthContacts { view, jitter }) = contact.filter(|_| s.depth_contacts && s.start_offset > 0.0) {
         let cell = levels[start].cell_size;
         let length = CONTACT_LENGTH * s.start_offset * cell;
         if let Some(t) = depth_contact(view, world, normal, dir, cell, length, jitter, &mut work.depth_loads) {

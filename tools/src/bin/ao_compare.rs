@@ -638,7 +638,8 @@ fn print_bias(
             // An occluder on a surface within 25 degrees of parallel to the pixel's (its own surface curving
             // back, or a layer lying on it) rather than one across the ray's way.
             let parallel = hit.is_some_and(|(_, n)| n.dot(normal).abs() > 0.906);
-            let contact = Some((view, bevy_hao::cpu::contacts::ray_jitter(jitter, r)));
+            let contact =
+                Some(bevy_hao::cpu::ao::DepthContacts { view, jitter: bevy_hao::cpu::contacts::ray_jitter(jitter, r) });
             let hao = ray_occluder(levels, contact, world, normal, dir, start, s, &mut work);
             let w_ref = reference.map_or(0.0, |d| ao_falloff(d, s.max_distance, s.falloff));
             let w_hao = hao.map_or(0.0, |d| ao_falloff(d, s.max_distance, s.falloff));

@@ -506,7 +506,7 @@ fn trace_work(
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     settings: &HybridAmbientOcclusion,
 ) -> Work {
-    use bevy_hao::cpu::ao::{TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
+    use bevy_hao::cpu::ao::{DepthContacts, TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
     let (w, h) = (view.size.x, view.size.y);
     let half = settings.trace_parameters().2;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
@@ -520,7 +520,7 @@ fn trace_work(
                 let Some((world, normal)) = samples[(y * w + x) as usize] else { continue };
                 pixels += 1;
                 let pixel = Vec2::new(x as f32, y as f32);
-                let contacts = Some((view, contact_jitter(pixel, 0)));
+                let contacts = Some(DepthContacts { view, jitter: contact_jitter(pixel, 0) });
                 let rotation = ray_rotation(pixel, 0);
                 voxel_ambient_occlusion_counted(levels, contacts, world, normal, rotation, &trace, &mut work);
             }
@@ -573,7 +573,8 @@ fn warp_work(
     settings: &HybridAmbientOcclusion,
 ) -> (f64, f64) {
     use bevy_hao::cpu::ao::{
-        TraceWork, hemisphere_direction, orthonormal_basis, ray_occluder, ray_rotation, ray_start_level, traced_pixel,
+        DepthContacts, TraceWork, hemisphere_direction, orthonormal_basis, ray_occluder, ray_rotation, ray_start_level,
+        traced_pixel,
     };
     let (w, h) = (view.size.x, view.size.y);
     let half = settings.trace_parameters().2;
@@ -599,7 +600,7 @@ fn warp_work(
                                 let dir = hemisphere_direction(basis, i, trace.rays, rotation);
                                 let start = ray_start_level(levels, world, i, rotation);
                                 let mut work = TraceWork::default();
-                                let contact = Some((view, ray_jitter(jitter, i)));
+                                let contact = Some(DepthContacts { view, jitter: ray_jitter(jitter, i) });
                                 ray_occluder(levels, contact, world, normal, dir, start, &trace, &mut work);
                                 work.texel_visits
                             })
