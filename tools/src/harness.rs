@@ -235,7 +235,8 @@ fn read_back(app: &mut App, readback: Readback, settle: usize) -> Vec<u8> {
         .world_mut()
         .spawn(readback)
         .observe(move |ev: On<ReadbackComplete>| {
-            *writer.lock().unwrap() = Some(ev.data.clone());
+            // The first to arrive: two frames' data can arrive at once, and the earlier is the one asked for.
+            writer.lock().unwrap().get_or_insert_with(|| ev.data.clone());
         })
         .id();
     run(app, settle);

@@ -133,7 +133,7 @@ struct Args {
     /// reference's occluder distance in the cells of the level the ray starts in, and by that level.
     #[arg(long)]
     bias: bool,
-    /// Swing the cameras about a point ahead at up to DEG degrees a frame while HAO accumulates, and read
+    /// Swing the cameras about a point ahead at up to DEG degrees a frame (at most 3) while HAO accumulates, and read
     /// HAO's image in motion (see the tool's documentation).
     #[arg(long, value_name = "DEG", value_parser = motion_speed)]
     motion: Option<f32>,
@@ -204,10 +204,10 @@ fn swing_cameras(motion: Option<ResMut<Motion>>, mut cameras: Query<&mut Transfo
     }
 }
 
-/// `--motion`'s speed: degrees a frame, above 0 and at most 10.
+/// `--motion`'s speed: degrees a frame, above 0 and at most 3 (a swing of 57 degrees either side).
 fn motion_speed(v: &str) -> Result<f32, String> {
     let d: f32 = v.parse().map_err(|_| format!("expected degrees a frame, got {v}"))?;
-    if d > 0.0 && d <= 10.0 { Ok(d) } else { Err(format!("--motion {v}: expected above 0 and at most 10")) }
+    if d > 0.0 && d <= 3.0 { Ok(d) } else { Err(format!("--motion {v}: expected above 0 and at most 3")) }
 }
 
 #[derive(Resource, Clone)]
@@ -745,7 +745,7 @@ mod tests {
     #[test]
     fn motion_speeds_outside_the_range_are_refused() {
         assert_eq!(motion_speed("0.5"), Ok(0.5));
-        for bad in ["0", "-1", "NaN", "11", "fast"] {
+        for bad in ["0", "-1", "NaN", "3.5", "fast"] {
             assert!(motion_speed(bad).is_err(), "{bad}");
         }
     }
