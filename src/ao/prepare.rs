@@ -231,7 +231,7 @@ pub fn prepare_hao_textures(
         let [a, b] = buffers.history.clone();
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let (noisy, window, filtered) = (buffers.noisy.clone(), buffers.window.clone(), buffers.filtered.clone());
-        let settings_buffer = buffers.settings.clone();
+        let settings = buffers.settings.clone();
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
         let near_field = hao.near_field && super::near_field_can_run(samples, origin);
@@ -254,7 +254,7 @@ pub fn prepare_hao_textures(
             // No previous view (its first frame): the history is not read.
             (None, _) => Mat4::IDENTITY,
         };
-        let settings = GpuHaoSettings {
+        let gpu_settings = GpuHaoSettings {
             previous_clip_from_world,
             rays,
             steps,
@@ -280,8 +280,7 @@ pub fn prepare_hao_textures(
         };
         // Written into the view's own buffer before this frame's passes run (the last frame's passes were
         // submitted before this write).
-        queue.write_buffer(&settings_buffer, 0, &crate::gpu::uniform_bytes(&settings));
-        let settings = settings_buffer;
+        queue.write_buffer(&settings, 0, &crate::gpu::uniform_bytes(&gpu_settings));
         commands.entity(entity).insert(HaoViewResources {
             noisy,
             window,

@@ -133,8 +133,8 @@ struct Args {
     /// reference's occluder distance in the cells of the level the ray starts in, and by that level.
     #[arg(long)]
     bias: bool,
-    /// Swing the cameras about a point ahead at up to DEG degrees a frame (at most 3) while HAO accumulates, and read
-    /// HAO's image in motion (see the tool's documentation).
+    /// Swing the cameras about a point ahead at up to DEG degrees a frame (at most 3) while HAO accumulates,
+    /// and read HAO's image in motion (see the tool's documentation).
     #[arg(long, value_name = "DEG", value_parser = motion_speed)]
     motion: Option<f32>,
     /// The PNG written: HAO, HAO + near field, SSAO and the reference side by side.
@@ -182,6 +182,12 @@ struct Motion {
 }
 
 impl Motion {
+    /// A swing about `center` of `end` frames from the pose `start`, at most `speed` degrees a frame.
+    fn new(start: Transform, center: Vec3, speed: f32, end: u32) -> Self {
+        let amplitude = speed.to_radians() * MOTION_PERIOD as f32 / std::f32::consts::TAU;
+        Self { start, center, amplitude, frame: 0, end }
+    }
+
     /// The cameras' pose `frame` frames into the motion.
     fn pose(&self, frame: u32) -> Transform {
         let phase = std::f32::consts::TAU * frame as f32 / MOTION_PERIOD as f32;
@@ -368,13 +374,8 @@ fn main() {
         // runs in the first read below.
         settled = settled.div_ceil(MOTION_PERIOD as usize) * MOTION_PERIOD as usize;
         let extent = (bounds.1 - bounds.0).max_element();
-        app.insert_resource(Motion {
-            start: camera,
-            center: camera.translation + camera.forward().as_vec3() * (0.25 * extent),
-            amplitude: speed.to_radians() * MOTION_PERIOD as f32 / std::f32::consts::TAU,
-            frame: 0,
-            end: settled as u32,
-        });
+        let center = camera.translation + camera.forward().as_vec3() * (0.25 * extent);
+        app.insert_resource(Motion::new(camera, center, speed, settled as u32));
         bevy_hao_tools::harness::run(&mut app, settled - 1);
     } else {
         bevy_hao_tools::harness::run(&mut app, settled);
@@ -721,13 +722,7 @@ mod tests {
     fn the_motion_ends_at_the_still_pose_at_its_fastest() {
         let start = Transform::from_xyz(1.0, 2.0, 3.0).looking_at(Vec3::new(-4.0, 1.0, 0.0), Vec3::Y);
         let speed = 0.5f32;
-        let motion = Motion {
-            start,
-            center: start.translation + start.forward().as_vec3() * 5.0,
-            amplitude: speed.to_radians() * MOTION_PERIOD as f32 / std::f32::consts::TAU,
-            frame: 0,
-            end: 3 * MOTION_PERIOD,
-        };
+        let motion = Motion::new(start, start.translation + start.forward().as_vec3() * 5.0, speed, 3 * MOTION_PERIOD);
         let end = motion.pose(motion.end);
         assert!(
             end.translation.distance(start.translation) < 1e-4 && end.rotation.angle_between(start.rotation) < 1e-4
