@@ -201,6 +201,7 @@ fn inspector_window(
             ui.add(egui::Slider::new(&mut hao.intensity, 0.0..=3.0).text("intensity"));
             ui.add(egui::Slider::new(&mut hao.start_offset, 0.0..=3.0).text("start offset (voxels)"));
             ui.checkbox(&mut hao.depth_contacts, "contacts from the depth prepass");
+            ui.checkbox(&mut hao.depth_free_space, "free space from the depth prepass");
             ui.add(egui::Slider::new(&mut hao.denoise_radius, 0..=6).text("denoise width"));
             if hao.near_field {
                 egui::ComboBox::from_label("near field (SSAO)")

@@ -64,6 +64,13 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
                 vec![("MULTISAMPLED", ShaderDefValue::Bool(true))],
                 vec![("BACK_HITS", ShaderDefValue::Bool(true))],
                 vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("BACK_HITS", ShaderDefValue::Bool(true))],
+                vec![("FREE_SPACE", ShaderDefValue::Bool(true))],
+                vec![("BACK_HITS", ShaderDefValue::Bool(true)), ("FREE_SPACE", ShaderDefValue::Bool(true))],
+                vec![
+                    ("MULTISAMPLED", ShaderDefValue::Bool(true)),
+                    ("BACK_HITS", ShaderDefValue::Bool(true)),
+                    ("FREE_SPACE", ShaderDefValue::Bool(true)),
+                ],
             ],
         ),
         ("src/ao/hao_neighborhood.wgsl", vec![vec![]]),
@@ -370,7 +377,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 18] = [
+    let pairs: [(&str, &str, f64); 20] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -389,6 +396,8 @@ fn shared_constants_agree() {
         ("src/ao/hao_trace.wgsl", "CONTACT_THICKNESS", contacts::CONTACT_THICKNESS as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_LIFT", contacts::CONTACT_LIFT as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_DEPTH_EPSILON", contacts::CONTACT_DEPTH_EPSILON as f64),
+        ("src/ao/hao_trace.wgsl", "FREE_SPACE_MARGIN", contacts::FREE_SPACE_MARGIN as f64),
+        ("src/ao/hao_trace.wgsl", "MAX_FREE_SPACE_PASSES", contacts::MAX_FREE_SPACE_PASSES as f64),
     ];
     for (path, name, rust) in pairs {
         let wgsl = wgsl_const(path, name);

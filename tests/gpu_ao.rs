@@ -660,42 +660,86 @@ fn clutter(commands: &mut Commands, meshes: &mut Assets<Mesh>, material: Handle<
     }
 }
 
+/// The mean AO of `scene` seen from `camera` with one frame of HAO (`settings`, no denoiser, no
+/// accumulation), after checking that the trace matches its CPU twin pixel by pixel over at least `pixels`
+/// pixels that show a surface. `name` labels the printed line.
+fn traced_like_the_twin(
+    name: &str,
+    camera: Transform,
+    settings: HybridAmbientOcclusion,
+    scene: fn(&mut Commands, &mut Assets<Mesh>, Handle<StandardMaterial>),
+    pixels: usize,
+) -> f32 {
+    use bevy_hao::cpu::ao::TraceLevel;
+    let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, ..settings };
+    let mut app = scene_app(camera, Ao::Hao(settings.clone()), scene);
+    run(&mut app, 8);
+    let occupancy = read_occupancy(&mut app);
+    let assets = grid_assets(&app).unwrap();
+    let mips = bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels);
+    let grid = assets.grid;
+    let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
+    let (gpu, samples) = ao_and_samples(&mut app);
+    let (cpu, _) = cpu_trace(&samples, &view_depth(&mut app), &settings, &levels, 0);
+    let (mut difference, mut ao, mut n) = (0.0, 0.0, 0);
+    for (g, c) in gpu.iter().zip(&cpu).filter(|(_, c)| !c.is_nan()) {
+        difference += (g - c).abs();
+        ao += g;
+        n += 1;
+    }
+    let (difference, ao) = (difference / n as f32, ao / n as f32);
+    println!("{name}: {n} pixels, mean |CPU - GPU| {difference:.4}, mean AO {ao:.4}");
+    assert!(n > pixels, "{n} pixels");
+    assert!(difference < 0.002, "{difference}");
+    assert!(take_render_errors().is_empty());
+    ao
+}
+
 /// The depth contacts on the GPU as on the CPU twin (`bevy_hao::cpu::contacts`), on a view close enough
 /// that a voxel spans several pixels and full of contacts: the trace matches the twin's pixel by pixel, and
 /// the contacts darken the floor around the things lying on it.
 #[test]
 fn the_gpu_depth_contacts_match_their_cpu_twin() {
-    use bevy_hao::cpu::ao::TraceLevel;
     let _gpu = gpu_lock();
     let camera = Transform::from_xyz(0.0, 1.6, 1.8).looking_at(Vec3::new(0.0, 0.0, -0.1), Vec3::Y);
-    let mut mean_ao = Vec::new();
-    for depth_contacts in [false, true] {
-        let settings =
-            HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, depth_contacts, ..hao_settings() };
-        let mut app = scene_app(camera, Ao::Hao(settings.clone()), clutter);
-        run(&mut app, 8);
-        let occupancy = read_occupancy(&mut app);
-        let assets = grid_assets(&app).unwrap();
-        let mips = bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels);
-        let grid = assets.grid;
-        let levels =
-            [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
-        let (gpu, samples) = ao_and_samples(&mut app);
-        let (cpu, _) = cpu_trace(&samples, &view_depth(&mut app), &settings, &levels, 0);
-        let (mut difference, mut ao, mut n) = (0.0, 0.0, 0);
-        for (g, c) in gpu.iter().zip(&cpu).filter(|(_, c)| !c.is_nan()) {
-            difference += (g - c).abs();
-            ao += g;
-            n += 1;
-        }
-        let (difference, ao) = (difference / n as f32, ao / n as f32);
-        println!("depth contacts {depth_contacts}: {n} pixels, mean |CPU - GPU| {difference:.4}, mean AO {ao:.4}");
-        assert!(n > 5000);
-        assert!(difference < 0.002, "{difference}");
-        mean_ao.push(ao);
-        assert!(take_render_errors().is_empty());
-    }
+    let mean_ao = [false, true].map(|depth_contacts| {
+        let settings = HybridAmbientOcclusion { depth_contacts, ..hao_settings() };
+        traced_like_the_twin(&format!("depth contacts {depth_contacts}"), camera, settings, clutter, 5000)
+    });
     assert!(mean_ao[1] < mean_ao[0] - 0.01, "{mean_ao:?}");
+}
+
+/// Thin poles and a rail, each a fraction of a voxel (0.25 m) thick: rays that pass beside them cross
+/// their voxels, whose emptier part the view sees through to the floor and the wall behind.
+fn poles(commands: &mut Commands, meshes: &mut Assets<Mesh>, material: Handle<StandardMaterial>) {
+    for (size, at) in [
+        (Vec3::new(0.04, 2.0, 0.04), Vec3::new(-0.9, 1.0, -0.3)),
+        (Vec3::new(0.04, 2.0, 0.04), Vec3::new(0.1, 1.0, 0.2)),
+        (Vec3::new(0.04, 2.0, 0.04), Vec3::new(1.1, 1.0, -0.6)),
+        (Vec3::new(2.4, 0.04, 0.04), Vec3::new(0.1, 1.2, -0.3)),
+        (Vec3::new(4.0, 2.5, 0.3), Vec3::new(0.0, 1.25, -2.5)),
+    ] {
+        commands.spawn((
+            box_at(meshes, size),
+            MeshMaterial3d(material.clone()),
+            Transform::from_translation(at),
+            StaticOccluder,
+        ));
+    }
+}
+
+/// The voxel hits the view shows in free space are passed on the GPU as on the CPU twin
+/// (`ViewDepth::shows_free_space`): the trace matches the twin pixel by pixel with and without, and passing
+/// them lightens the floor beside the poles, whose voxels are far wider than they are.
+#[test]
+fn the_gpu_free_space_passes_match_their_cpu_twin() {
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(0.3, 1.5, 3.5).looking_at(Vec3::new(0.0, 0.6, -0.5), Vec3::Y);
+    let mean_ao = [false, true].map(|depth_free_space| {
+        let settings = HybridAmbientOcclusion { depth_free_space, ..hao_settings() };
+        traced_like_the_twin(&format!("free space {depth_free_space}"), camera, settings, poles, 4000)
+    });
+    assert!(mean_ao[1] > mean_ao[0] + 0.005, "{mean_ao:?}");
 }
 
 /// The denoiser on the GPU as on its CPU twin (`bevy_hao::cpu::temporal::prefilter`): without accumulation

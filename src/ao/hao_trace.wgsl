@@ -45,7 +45,49 @@ fn back_hit_exit(origin: vec3<f32>, dir: vec3<f32>, hit: vec2<f32>) -> f32 {
     if dot(n, dir) <= BACK_HIT_COS {
         return -1.0;
     }
+    return cell_exit(origin, dir, hit);
+}
+
+// cpu/ao.rs: cell_exit. Where a ray that hit the cell at `hit` (world distance, level) leaves that cell, in
+// the level's cells.
+fn cell_exit(origin: vec3<f32>, dir: vec3<f32>, hit: vec2<f32>) -> f32 {
+    let level = u32(hit.y);
+    let o = level_position(level, origin);
+    let cell = floor(o + dir * (hit.x / voxel_grid.levels[level].cell_size));
     return ray_box(o, safe_inverse(dir), cell, cell + vec3<f32>(1.0)).y + 1.0e-3;
+}
+
+// cpu/contacts.rs: FREE_SPACE_MARGIN, MAX_FREE_SPACE_PASSES
+const FREE_SPACE_MARGIN: f32 = 1.0;
+const MAX_FREE_SPACE_PASSES: u32 = 4u;
+
+// cpu/contacts.rs: ViewDepth::shows_free_space. Whether the view shows the world point `p` in free space:
+// on the view, and in front of the nearest surface of the 3x3 pixels around the one it projects to by more
+// than `margin` (world units, in view depth), or with none of them showing a surface.
+fn shows_free_space(p: vec3<f32>, margin: f32) -> bool {
+    let clip = view.clip_from_world * vec4<f32>(p, 1.0);
+    if !(clip.w > 0.0) {
+        return false;
+    }
+    let ndc = clip.xyz / clip.w;
+    if abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0 || ndc.z <= 0.0 || ndc.z > 1.0 {
+        return false;
+    }
+    let size = vec2<i32>(view.viewport.zw);
+    let pixel = min(vec2<i32>(vec2<f32>(ndc.x + 1.0, 1.0 - ndc.y) * 0.5 * view.viewport.zw), size - 1);
+    // The nearest surface around it: the largest depth (reverse Z), 0 where none shows one.
+    var nearest = 0.0;
+    for (var k = 0; k < 9; k++) {
+        let q = pixel + vec2<i32>(k % 3 - 1, k / 3 - 1);
+        if any(q < vec2<i32>(0)) || any(q >= size) {
+            continue;
+        }
+        nearest = max(nearest, textureLoad(depth_texture, target_pixel(settings, vec2<u32>(q)), 0));
+    }
+    if nearest <= 0.0 {
+        return true;
+    }
+    return -(view.view_from_world * vec4<f32>(p, 1.0)).z < surface_view_depth(nearest) - margin;
 }
 
 // cpu/contacts.rs: CONTACT_SAMPLES (a shader def: src/gpu.rs), CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT,
@@ -73,10 +115,15 @@ fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32) -> bool {
     if d <= 0.0 {
         return false;
     }
-    // The surface's view depth: the z and w rows of view_from_clip times (0, 0, d, 1).
-    let m = view.view_from_clip;
-    let surface = -(m[2].z * d + m[3].z) / (m[2].w * d + m[3].w);
+    let surface = surface_view_depth(d);
     return depth > surface * (1.0 + CONTACT_DEPTH_EPSILON) && depth < surface + thickness;
+}
+
+// cpu/contacts.rs: ViewDepth::surface_view_depth. The view depth of the surface at prepass depth `d`: the z
+// and w rows of view_from_clip times (0, 0, d, 1).
+fn surface_view_depth(d: f32) -> f32 {
+    let m = view.view_from_clip;
+    return -(m[2].z * d + m[3].z) / (m[2].w * d + m[3].w);
 }
 
 // cpu/contacts.rs: contact_jitter.
@@ -167,6 +214,17 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
                 break;
             }
             hit = march_cascades(origin, dir, u32(hit.y), exit, settings.max_distance, settings.steps);
+        }
+#endif
+#ifdef FREE_SPACE
+        // Past the cells the view shows empty where the trace takes their surface to be, a few times at most
+        // (a variant of its own, as BACK_HITS).
+        for (var k = 0u; k < MAX_FREE_SPACE_PASSES && hit.x >= 0.0; k++) {
+            let hit_cell = voxel_grid.levels[u32(hit.y)].cell_size;
+            if !shows_free_space(origin + dir * (hit.x + 0.5 * hit_cell), FREE_SPACE_MARGIN * hit_cell) {
+                break;
+            }
+            hit = march_cascades(origin, dir, u32(hit.y), cell_exit(origin, dir, hit), settings.max_distance, settings.steps);
         }
 #endif
         if hit.x >= 0.0 {

@@ -27,9 +27,8 @@ pub fn hao(
 ) {
     let (res, bind_groups, view_offset, previous_view_offset) = view.into_inner();
     let Some(voxel_grid) = voxel_grid else { return };
-    let back_hits = res.traces_back_hits(&voxel_grid.grid);
     let Some([trace, neighborhood, temporal, temporal_near_field, apply]) =
-        pipelines.view_pipelines(&cache, res.samples, back_hits)
+        pipelines.view_pipelines(&cache, res.samples, res.trace_variant(&voxel_grid.grid))
     else {
         return;
     };

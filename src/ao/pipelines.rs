@@ -34,6 +34,24 @@ pub(crate) const FILTERED_TEXEL_BYTES: u64 = 4;
 /// frames: `pack_history` in hao_common.wgsl), in a storage buffer of its texels row by row, as the history.
 pub(crate) const TRACE_TEXEL_BYTES: u64 = 8;
 
+/// Which loops a view's trace runs after its march, each in a pipeline of its own: on devices that run every
+/// branch and every loop until all its lanes are done, such as lavapipe, a loop compiled in costs a march
+/// per ray whether taken or not.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TraceVariant {
+    /// Through the backs of surfaces (`ignore_back_hits`, with multi-valued voxels): `BACK_HITS`.
+    pub back_hits: bool,
+    /// Past the voxel hits the view shows in free space (`depth_free_space`): `FREE_SPACE`.
+    pub free_space: bool,
+}
+
+impl TraceVariant {
+    /// Its slot in [`PrepassReaders`]'s traces.
+    fn index(self) -> usize {
+        self.back_hits as usize + 2 * self.free_space as usize
+    }
+}
+
 /// The passes that read the depth and normal prepasses (trace, temporal), for one kind of prepass
 /// texture: single-sampled, or multisampled on a camera with MSAA (they read sample 0).
 pub struct PrepassReaders {
@@ -43,11 +61,10 @@ pub struct PrepassReaders {
     pub temporal_layout: BindGroupLayoutDescriptor,
     /// Group 0 of the temporal pass with the near field, which writes the result texture apply copies.
     pub temporal_near_field_layout: BindGroupLayoutDescriptor,
-    /// Rays through the voxels, stopping in the first run of occupied ones they go far enough through.
-    pub trace: CachedComputePipelineId,
-    /// Rays that pass through the backs of surfaces (`ignore_back_hits`, with multi-valued voxels): the
-    /// trace with the `BACK_HITS` loop, queued when a view first needs it.
-    pub trace_back_hits: Option<CachedComputePipelineId>,
+    /// Rays through the voxels, stopping in the first run of occupied ones they go far enough through: each
+    /// [`TraceVariant`] (by `TraceVariant::index`), the plain one queued at once, the others when a view
+    /// first needs them.
+    pub traces: [Option<CachedComputePipelineId>; 4],
     /// Temporal accumulation and the filter, into the texture PBR reads.
     pub temporal: CachedComputePipelineId,
     /// The same and the near field, into the result texture.
@@ -87,8 +104,8 @@ impl HaoPipelines {
     }
 
     /// Queues what a view with `samples` MSAA samples needs, once: the multisampled prepass readers where
-    /// `samples` > 1, and the trace through the backs of surfaces where `back_hits`.
-    pub fn queue_view(&mut self, cache: &PipelineCache, samples: u32, back_hits: bool) {
+    /// `samples` > 1, and the trace of its `variant`.
+    pub fn queue_view(&mut self, cache: &PipelineCache, samples: u32, variant: TraceVariant) {
         if samples > 1 && self.multisampled.is_none() {
             self.multisampled = Some(prepass_readers(
                 cache,
@@ -100,57 +117,66 @@ impl HaoPipelines {
             ));
         }
         let readers = if samples > 1 { self.multisampled.as_mut() } else { Some(&mut self.single) };
-        if let Some(r) = readers.filter(|r| back_hits && r.trace_back_hits.is_none()) {
+        if let Some(r) = readers.filter(|r| r.traces[variant.index()].is_none()) {
             let (layout, multisampled) = (&r.trace_layout, r.multisampled);
-            r.trace_back_hits =
-                Some(queue_trace(cache, &self.shaders[0], layout, &self.view_layout, multisampled, true));
+            r.traces[variant.index()] =
+                Some(queue_trace(cache, &self.shaders[0], layout, &self.view_layout, multisampled, variant));
         }
     }
 
     /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, neighborhood,
     /// temporal, and with the near field temporal_near_field and apply instead of temporal), once all are
-    /// compiled. The trace passes through the backs of surfaces where `back_hits` and that variant is compiled
-    /// (until then, or if it failed to compile, which the pipeline cache logs, its rays stop there).
+    /// compiled. The trace is `variant`'s once that is compiled (until then, or if it failed to compile,
+    /// which the pipeline cache logs, the plain trace: its rays stop at the first voxels they hit).
     pub fn view_pipelines<'a>(
         &self,
         cache: &'a PipelineCache,
         samples: u32,
-        back_hits: bool,
+        variant: TraceVariant,
     ) -> Option<[&'a ComputePipeline; 5]> {
         let r = self.readers(samples)?;
-        let back_hit_trace = r.trace_back_hits.filter(|_| back_hits).and_then(|id| cache.get_compute_pipeline(id));
-        let ids = [r.trace, self.neighborhood, r.temporal, r.temporal_near_field, self.apply];
+        let plain = r.traces[0]?;
+        let chosen = r.traces[variant.index()].and_then(|id| cache.get_compute_pipeline(id));
+        let ids = [plain, self.neighborhood, r.temporal, r.temporal_near_field, self.apply];
         let mut pipelines = ids.map(|id| cache.get_compute_pipeline(id));
-        if back_hit_trace.is_some() {
-            pipelines[0] = back_hit_trace;
+        if chosen.is_some() {
+            pipelines[0] = chosen;
         }
         pipelines.iter().all(Option::is_some).then(|| pipelines.map(Option::unwrap))
     }
 }
 
-/// Queues the trace (group 0: `trace_layout`), for multisampled prepasses or not, with the `BACK_HITS` loop
-/// or without.
+/// Queues the trace (group 0: `trace_layout`), for multisampled prepasses or not, with the loops of
+/// `variant`.
 fn queue_trace(
     cache: &PipelineCache,
     shader: &Handle<Shader>,
     trace_layout: &BindGroupLayoutDescriptor,
     view_layout: &BindGroupLayoutDescriptor,
     multisampled: bool,
-    back_hits: bool,
+    variant: TraceVariant,
 ) -> CachedComputePipelineId {
     let mut defs: Vec<ShaderDefVal> = Vec::new();
     if multisampled {
         defs.push("MULTISAMPLED".into());
     }
-    if back_hits {
+    if variant.back_hits {
         defs.push("BACK_HITS".into());
     }
-    let label = match (multisampled, back_hits) {
-        (false, false) => "hao_trace",
-        (true, false) => "hao_trace_multisampled",
-        (false, true) => "hao_trace_back_hits",
-        (true, true) => "hao_trace_multisampled_back_hits",
-    };
+    if variant.free_space {
+        defs.push("FREE_SPACE".into());
+    }
+    const LABELS: [&str; 8] = [
+        "hao_trace",
+        "hao_trace_back_hits",
+        "hao_trace_free_space",
+        "hao_trace_back_hits_free_space",
+        "hao_trace_multisampled",
+        "hao_trace_multisampled_back_hits",
+        "hao_trace_multisampled_free_space",
+        "hao_trace_multisampled_back_hits_free_space",
+    ];
+    let label = LABELS[variant.index() + 4 * multisampled as usize];
     queue_compute(
         cache,
         label,
@@ -235,13 +261,12 @@ fn prepass_readers(
         &temporal_near_field_layout,
         Some("NEAR_FIELD"),
     );
-    let trace = queue_trace(cache, trace_shader, &trace_layout, view_layout, multisampled, false);
+    let trace = queue_trace(cache, trace_shader, &trace_layout, view_layout, multisampled, TraceVariant::default());
     PrepassReaders {
         trace_layout,
         temporal_layout,
         temporal_near_field_layout,
-        trace,
-        trace_back_hits: None,
+        traces: [Some(trace), None, None, None],
         temporal,
         temporal_near_field,
         multisampled,

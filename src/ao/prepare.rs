@@ -3,7 +3,7 @@
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
 use super::pipelines::{
-    FILTERED_TEXEL_BYTES, HISTORY_TEXEL_BYTES, HaoPipelines, TRACE_TEXEL_BYTES, WINDOW_TEXEL_BYTES,
+    FILTERED_TEXEL_BYTES, HISTORY_TEXEL_BYTES, HaoPipelines, TRACE_TEXEL_BYTES, TraceVariant, WINDOW_TEXEL_BYTES,
 };
 use crate::voxel::bindings::GpuVoxelGrid;
 use crate::voxel::extract::ExtractedVoxelGrid;
@@ -130,8 +130,10 @@ pub struct HaoViewResources {
     /// MSAA samples of the view's prepasses (1: none).
     pub samples: u32,
     /// `HybridAmbientOcclusion::ignore_back_hits`: rays pass through the backs of surfaces where the grid
-    /// keeps attributes (`traces_back_hits`).
+    /// keeps attributes (`trace_variant`).
     pub ignore_back_hits: bool,
+    /// `HybridAmbientOcclusion::depth_free_space` (`trace_variant`).
+    pub depth_free_space: bool,
     /// Whether the minimum with Bevy's SSAO is taken: the near field asked for, on a view Bevy's SSAO can run
     /// on (no MSAA, a viewport at the target's corner).
     pub near_field: bool,
@@ -145,10 +147,11 @@ pub struct HaoViewResources {
 }
 
 impl HaoViewResources {
-    /// Whether the view's trace passes through the backs of surfaces on `grid`: asked for, and the grid keeps
-    /// the voxels' normals (the trace pipeline with the `BACK_HITS` loop; `HaoPipelines::view_pipelines`).
-    pub fn traces_back_hits(&self, grid: &GpuVoxelGrid) -> bool {
-        self.ignore_back_hits && grid.attributes != 0
+    /// The view's trace on `grid`: through the backs of surfaces where asked for and the grid keeps the
+    /// voxels' normals, past the voxel hits the view shows in free space where asked for (the trace
+    /// pipeline with the `BACK_HITS` or `FREE_SPACE` loop; `HaoPipelines::view_pipelines`).
+    pub fn trace_variant(&self, grid: &GpuVoxelGrid) -> TraceVariant {
+        TraceVariant { back_hits: self.ignore_back_hits && grid.attributes != 0, free_space: self.depth_free_space }
     }
 }
 
@@ -201,7 +204,9 @@ pub fn prepare_hao_textures(
         let (hao, _) = hao.sanitized();
         let hao = &hao;
         // The trace through the backs of surfaces is compiled only for a grid with attributes.
-        pipelines.queue_view(&cache, samples, hao.ignore_back_hits && grid_has_attributes);
+        let variant =
+            TraceVariant { back_hits: hao.ignore_back_hits && grid_has_attributes, free_space: hao.depth_free_space };
+        pipelines.queue_view(&cache, samples, variant);
         let (rays, steps, half) = hao.trace_parameters();
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
         let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
@@ -293,6 +298,7 @@ pub fn prepare_hao_textures(
             view_size,
             samples,
             ignore_back_hits: hao.ignore_back_hits,
+            depth_free_space: hao.depth_free_space,
             near_field,
             pbr_texture,
             history_written,

@@ -3,7 +3,7 @@
 //! and operations as the WGSL. The ray-traced reference that HAO is measured against (rays against the real
 //! triangles) shares [`hemisphere_direction`] and [`ao_falloff`] with it.
 
-use super::contacts::{CONTACT_LENGTH, ViewDepth, depth_contact, ray_jitter};
+use super::contacts::{CONTACT_LENGTH, FREE_SPACE_MARGIN, MAX_FREE_SPACE_PASSES, ViewDepth, depth_contact, ray_jitter};
 use super::grid::VoxelOccupancy;
 use glam::{IVec3, Mat3, UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
@@ -392,8 +392,11 @@ pub struct TraceWork {
     pub texel_visits: u64,
     /// Average normals loaded to tell the backs of surfaces ([`TraceSettings::ignore_back_hits`]).
     pub normal_loads: u64,
-    /// Depth prepass samples the rays' first cells read ([`TraceSettings::depth_contacts`]).
+    /// Depth prepass samples read: the rays' first cells ([`TraceSettings::depth_contacts`]) and the voxel
+    /// hits tested for free space ([`TraceSettings::depth_free_space`]).
     pub depth_loads: u64,
+    /// Voxel hits passed because the view shows them in free space ([`TraceSettings::depth_free_space`]).
+    pub free_space_passes: u64,
     /// Rays that hit an occupied voxel or a contact in the depth prepass.
     pub hits: u64,
     /// Rays stopped by a contact in the depth prepass (their march is not run).
@@ -423,7 +426,17 @@ pub fn back_hit_exit(levels: &[TraceLevel], origin: Vec3, dir: Vec3, hit: (f32, 
     if lv.mips.normal(cell.as_ivec3()).dot(dir) <= BACK_HIT_COS {
         return None;
     }
-    Some(ray_box(o, safe_inverse(dir), cell, cell + Vec3::ONE).y + 1.0e-3)
+    Some(cell_exit(levels, origin, dir, hit))
+}
+
+/// Where a ray that hit the cell at `hit` (world distance, level) leaves that cell, in the level's cells
+/// (WGSL: `cell_exit`).
+pub fn cell_exit(levels: &[TraceLevel], origin: Vec3, dir: Vec3, hit: (f32, usize)) -> f32 {
+    let (t, level) = hit;
+    let lv = &levels[level];
+    let o = lv.level_position(origin);
+    let cell = (o + dir * (t / lv.cell_size)).floor();
+    ray_box(o, safe_inverse(dir), cell, cell + Vec3::ONE).y + 1.0e-3
 }
 
 /// Settings of the voxel trace (WGSL `HaoSettings`, the parts the trace reads).
@@ -446,6 +459,9 @@ pub struct TraceSettings {
     /// Each ray's first cells are traced in the depth prepass ([`super::contacts`]), where a view's depth is
     /// given.
     pub depth_contacts: bool,
+    /// A voxel hit the view's depth shows in free space is passed
+    /// ([`super::contacts::ViewDepth::shows_free_space`]), where a view's depth is given.
+    pub depth_free_space: bool,
 }
 
 /// Voxel ambient occlusion at one world-space surface point through the levels of the volume (one for a
@@ -522,7 +538,8 @@ pub fn ray_occluder(
             return Some(t);
         }
     }
-    voxel_ray_occluder(levels, world, normal, dir, start, s, work).map(|o| o.distance)
+    let view = contact.filter(|_| s.depth_free_space).map(|c| c.view);
+    voxel_ray_occluder(levels, view, world, normal, dir, start, s, work).map(|o| o.distance)
 }
 
 /// The occluder one ray of [`voxel_ambient_occlusion`] finds.
@@ -536,9 +553,12 @@ pub struct VoxelOccluder {
 }
 
 /// The occluder that ray `dir` from the surface point `world` (normal `normal`), starting in level `start`,
-/// finds within `s.max_distance`, or `None` (WGSL: the body of the ray loop in `trace`).
+/// finds within `s.max_distance`, or `None` (WGSL: the body of the ray loop in `trace`). With `view`, the
+/// hits it shows in free space are passed ([`TraceSettings::depth_free_space`]).
+#[allow(clippy::too_many_arguments)]
 pub fn voxel_ray_occluder(
     levels: &[TraceLevel],
+    view: Option<&ViewDepth>,
     world: Vec3,
     normal: Vec3,
     dir: Vec3,
@@ -554,6 +574,20 @@ pub fn voxel_ray_occluder(
         work.normal_loads += 1;
         let Some(exit) = back_hit_exit(levels, origin, dir, h) else { break };
         hit = march_cascades_counted(levels, origin, dir, h.1, exit, s.max_distance, s.steps, work);
+    }
+    // Past the cells the view shows empty where the trace takes their surface to be, a few times at most.
+    if let Some(view) = view {
+        for _ in 0..MAX_FREE_SPACE_PASSES {
+            let Some((t, level)) = hit else { break };
+            let cell = levels[level].cell_size;
+            let surface = origin + dir * (t + 0.5 * cell);
+            if !view.shows_free_space(surface, FREE_SPACE_MARGIN * cell, &mut work.depth_loads) {
+                break;
+            }
+            work.free_space_passes += 1;
+            let exit = cell_exit(levels, origin, dir, (t, level));
+            hit = march_cascades_counted(levels, origin, dir, level, exit, s.max_distance, s.steps, work);
+        }
     }
     // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
     hit.map(|(t, level)| VoxelOccluder {
@@ -578,6 +612,7 @@ mod tests {
             start_offset: 1.0,
             ignore_back_hits,
             depth_contacts: false,
+            depth_free_space: false,
         }
     }
 
@@ -679,13 +714,15 @@ mod tests {
         // One ray straight at the wall from x = 24.5: it starts a cell off along the normal, skips a cell
         // along its way and finds the wall's cell (entered at x = 30) at half a cell past its entry.
         let mut work = TraceWork::default();
-        let hit = voxel_ray_occluder(&level, Vec3::new(24.5, 10.5, 10.5), Vec3::X, Vec3::X, 0, &s, &mut work).unwrap();
+        let hit =
+            voxel_ray_occluder(&level, None, Vec3::new(24.5, 10.5, 10.5), Vec3::X, Vec3::X, 0, &s, &mut work).unwrap();
         assert_eq!(hit.level, 0);
         assert!((hit.distance - 6.0).abs() < 0.01, "{hit:?}");
         assert!(work.texel_visits > 0);
         // Away from the wall, none.
         assert!(
-            voxel_ray_occluder(&level, Vec3::new(24.5, 10.5, 10.5), -Vec3::X, -Vec3::X, 0, &s, &mut work).is_none()
+            voxel_ray_occluder(&level, None, Vec3::new(24.5, 10.5, 10.5), -Vec3::X, -Vec3::X, 0, &s, &mut work)
+                .is_none()
         );
     }
 

@@ -9,9 +9,14 @@
 //! The depth prepass holds every surface the view sees up close, which is where these contacts are: unlike
 //! screen-space AO over the whole hemisphere, the rays reach only two cells, so what the view cannot see
 //! (behind, off screen) is left to the voxels.
+//!
+//! The depth prepass also tells where space is free: a point the view shows in front of every surface around
+//! it lies in empty space. An occupied voxel blocks every ray that crosses it though the surface in it may
+//! cover only part of it, most of all in the coarse levels; a ray that crosses such a cell where the view
+//! shows empty space passes on ([`ViewDepth::shows_free_space`], `TraceSettings::depth_free_space`).
 
 use super::ao::{GOLDEN, interleaved_gradient_noise};
-use glam::{Mat4, UVec2, Vec2, Vec3, Vec4};
+use glam::{IVec2, Mat4, UVec2, Vec2, Vec3, Vec4};
 
 /// Points each ray samples in the depth prepass (WGSL: `CONTACT_SAMPLES`), evenly along its first cells,
 /// shifted by the ray's jitter.
@@ -48,7 +53,39 @@ pub struct ViewDepth {
     pub view_from_clip: Mat4,
 }
 
+/// How far in front of the surfaces the view shows around it a voxel hit must lie to be passed as free
+/// space, in cells of the hit's level (WGSL: `FREE_SPACE_MARGIN`): the surface in the hit cell may lie
+/// anywhere in it, in front of the point the trace takes for it.
+pub const FREE_SPACE_MARGIN: f32 = 1.0;
+/// How many voxel hits in free space a ray passes at most (WGSL: `MAX_FREE_SPACE_PASSES`); the next one
+/// occludes. Each pass restarts the march past the cell with the full `steps` budget.
+pub const MAX_FREE_SPACE_PASSES: u32 = 4;
+
 impl ViewDepth {
+    /// Whether the view shows the world point `p` in free space (WGSL: `shows_free_space`): on the view, and
+    /// in front of the nearest surface of the 3x3 pixels around the one it projects to by more than
+    /// `margin` (world units, in view depth), or with none of them showing a surface (the background).
+    /// Points off the view or behind the camera are not: the view cannot tell. The nearest of nine rather
+    /// than one pixel keeps a point beside a silhouette from counting as free where the surface is a pixel
+    /// away.
+    pub fn shows_free_space(&self, p: Vec3, margin: f32, depth_loads: &mut u64) -> bool {
+        let Some(pixel) = self.pixel_at(self.clip_from_world * p.extend(1.0)) else { return false };
+        // The nearest surface around it: the largest depth (reverse Z), 0 where none shows one.
+        let mut nearest = 0.0f32;
+        for k in 0..9 {
+            let q = pixel.as_ivec2() + IVec2::new(k % 3 - 1, k / 3 - 1);
+            if q.cmplt(IVec2::ZERO).any() || q.cmpge(self.size.as_ivec2()).any() {
+                continue;
+            }
+            *depth_loads += 1;
+            nearest = nearest.max(self.depth_at(q));
+        }
+        if nearest <= 0.0 {
+            return true;
+        }
+        -(self.view_from_world * p.extend(1.0)).z < self.surface_view_depth(nearest) - margin
+    }
+
     /// Whether the world point `p` lies behind the surface the view shows at the pixel it projects to, by
     /// more than [`CONTACT_DEPTH_EPSILON`] of its depth and less than `thickness` (world units), counting
     /// the depth samples it reads in `depth_loads`. Points off the view, behind the camera or over the
@@ -61,26 +98,45 @@ impl ViewDepth {
     /// [`ViewDepth::behind`] for a point given in clip space and by its view depth (WGSL: `behind_depth`):
     /// both are linear along a ray, so a ray's points cost a multiply-add each.
     pub fn behind_clip(&self, clip: Vec4, depth: f32, thickness: f32, depth_loads: &mut u64) -> bool {
-        // Also a NaN w; a view without pixels (which the GPU never traces) has no contacts.
-        if !(clip.w > 0.0) || self.size.min_element() == 0 {
-            return false;
-        }
-        let ndc = clip.truncate() / clip.w;
-        if ndc.x.abs() > 1.0 || ndc.y.abs() > 1.0 || ndc.z <= 0.0 || ndc.z > 1.0 {
-            return false;
-        }
-        let size = self.size.as_vec2();
-        let pixel = (Vec2::new(ndc.x + 1.0, 1.0 - ndc.y) * 0.5 * size).as_uvec2().min(self.size - UVec2::ONE);
+        let Some(pixel) = self.pixel_at(clip) else { return false };
         *depth_loads += 1;
-        // A depth shorter than the view has no contacts where it is missing.
-        let d = self.depth.get((pixel.y * self.size.x + pixel.x) as usize).copied().unwrap_or(0.0);
+        let d = self.depth_at(pixel.as_ivec2());
         if d <= 0.0 {
             return false;
         }
-        // The surface's view depth: the z and w rows of view_from_clip times (0, 0, d, 1).
-        let m = &self.view_from_clip;
-        let surface = -(m.z_axis.z * d + m.w_axis.z) / (m.z_axis.w * d + m.w_axis.w);
+        let surface = self.surface_view_depth(d);
         depth > surface * (1.0 + CONTACT_DEPTH_EPSILON) && depth < surface + thickness
+    }
+
+    /// The pixel a point at `clip` (clip space) projects to, or `None` off the view or behind the camera
+    /// (WGSL: the projection in `behind_depth` and `shows_free_space`).
+    fn pixel_at(&self, clip: Vec4) -> Option<UVec2> {
+        // Also a NaN w; a view without pixels (which the GPU never traces) shows nothing.
+        if !(clip.w > 0.0) || self.size.min_element() == 0 {
+            return None;
+        }
+        let ndc = clip.truncate() / clip.w;
+        if ndc.x.abs() > 1.0 || ndc.y.abs() > 1.0 || ndc.z <= 0.0 || ndc.z > 1.0 {
+            return None;
+        }
+        let size = self.size.as_vec2();
+        Some((Vec2::new(ndc.x + 1.0, 1.0 - ndc.y) * 0.5 * size).as_uvec2().min(self.size - UVec2::ONE))
+    }
+
+    /// The prepass's depth at pixel `p`: 0 (the background) off the view or where the depth is shorter
+    /// than the view.
+    fn depth_at(&self, p: IVec2) -> f32 {
+        if p.x < 0 || p.y < 0 || p.x >= self.size.x as i32 || p.y >= self.size.y as i32 {
+            return 0.0;
+        }
+        self.depth.get((p.y as u32 * self.size.x + p.x as u32) as usize).copied().unwrap_or(0.0)
+    }
+
+    /// The view depth of the surface at prepass depth `d` (WGSL: `surface_view_depth`): the z and w rows of
+    /// view_from_clip times (0, 0, d, 1).
+    fn surface_view_depth(&self, d: f32) -> f32 {
+        let m = &self.view_from_clip;
+        -(m.z_axis.z * d + m.w_axis.z) / (m.z_axis.w * d + m.w_axis.w)
     }
 }
 

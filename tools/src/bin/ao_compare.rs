@@ -124,6 +124,10 @@ struct Args {
     /// HAO without its depth contacts (HybridAmbientOcclusion::depth_contacts off): the voxels alone.
     #[arg(long)]
     no_depth_contacts: bool,
+    /// HAO passing the voxel hits the depth prepass shows in free space
+    /// (HybridAmbientOcclusion::depth_free_space on).
+    #[arg(long)]
+    depth_free_space: bool,
     /// Trace the reference (and measure the errors) at every Nth pixel of each row and column only: a
     /// sparse set that keeps the reference affordable at 1920x1080 and above.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
@@ -273,6 +277,7 @@ fn main() {
         denoise_radius: args.denoise.unwrap_or(HybridAmbientOcclusion::default().denoise_radius),
         ignore_back_hits: !args.stop_at_back_hits,
         depth_contacts: !args.no_depth_contacts,
+        depth_free_space: args.depth_free_space,
         ..default()
     };
     let attributes = args.attributes;

@@ -89,6 +89,10 @@ struct Args {
     /// alone.
     #[arg(long)]
     no_depth_contacts: bool,
+    /// The presets passing the voxel hits the depth prepass shows in free space
+    /// (HybridAmbientOcclusion::depth_free_space on).
+    #[arg(long)]
+    depth_free_space: bool,
     /// Also a `HaoQuality::Custom` preset, accumulated and at half resolution as the presets are, with
     /// RAYS rays a frame and STEPS steps a ray: RAYS,STEPS (repeat for more).
     #[arg(long, value_parser = rays_steps)]
@@ -103,7 +107,8 @@ fn rays_steps(s: &str) -> Result<(u32, u32), String> {
 }
 
 fn main() {
-    let Args { scene, size, frames, rounds, quality, res, attributes, no_depth_contacts, custom } = Args::parse();
+    let Args { scene, size, frames, rounds, quality, res, attributes, no_depth_contacts, depth_free_space, custom } =
+        Args::parse();
     let rounds = rounds as usize;
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
@@ -196,13 +201,20 @@ fn main() {
         .into_iter()
         .flat_map(|accumulation_frames| {
             [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra].map(|quality| {
-                HybridAmbientOcclusion { quality, accumulation_frames, depth_contacts: !no_depth_contacts, ..default() }
+                HybridAmbientOcclusion {
+                    quality,
+                    accumulation_frames,
+                    depth_contacts: !no_depth_contacts,
+                    depth_free_space,
+                    ..default()
+                }
             })
         })
         .filter(|settings| quality.is_empty() || quality.iter().any(|&q| HaoQuality::from(q) == settings.quality))
         .chain(custom.iter().map(|&(rays, steps)| HybridAmbientOcclusion {
             quality: HaoQuality::Custom { rays, steps, half_resolution: true },
             depth_contacts: !no_depth_contacts,
+            depth_free_space,
             ..default()
         }))
         .collect();
