@@ -65,6 +65,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
                 vec![("BACK_HITS", ShaderDefValue::Bool(true))],
                 vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("BACK_HITS", ShaderDefValue::Bool(true))],
                 vec![("FREE_SPACE", ShaderDefValue::Bool(true))],
+                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("FREE_SPACE", ShaderDefValue::Bool(true))],
                 vec![("BACK_HITS", ShaderDefValue::Bool(true)), ("FREE_SPACE", ShaderDefValue::Bool(true))],
                 vec![
                     ("MULTISAMPLED", ShaderDefValue::Bool(true)),

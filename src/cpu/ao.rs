@@ -412,7 +412,8 @@ pub struct TraceWork {
 pub const BACK_HIT_COS: f32 = 0.5;
 /// How many backs of surfaces a ray passes through at most; the next voxel it hits occludes. Each pass
 /// restarts the march with the full `steps` budget, so a ray may visit up to `(MAX_BACK_HITS + 1) * steps`
-/// texels.
+/// texels (`(MAX_BACK_HITS + MAX_FREE_SPACE_PASSES + 1) * steps` with
+/// [`TraceSettings::depth_free_space`]).
 pub const MAX_BACK_HITS: u32 = 4;
 
 /// Where a ray that hit the cell at `hit` (world distance, level) leaves that cell, in the level's cells, if
