@@ -46,6 +46,17 @@ pub struct TraceVariant {
 }
 
 impl TraceVariant {
+    /// The loops `settings` ask for (`ignore_back_hits`, `depth_free_space`).
+    pub fn requested(settings: &super::HybridAmbientOcclusion) -> Self {
+        Self { back_hits: settings.ignore_back_hits, free_space: settings.depth_free_space }
+    }
+
+    /// The trace these loops need on a grid that keeps the voxels' normals (`attributes`) or not: through
+    /// the backs of surfaces only with them.
+    pub fn on_grid(self, attributes: bool) -> Self {
+        Self { back_hits: self.back_hits && attributes, ..self }
+    }
+
     /// Its slot in [`PrepassReaders`]'s traces.
     fn index(self) -> usize {
         self.back_hits as usize + 2 * self.free_space as usize

@@ -129,11 +129,8 @@ pub struct HaoViewResources {
     pub view_size: UVec2,
     /// MSAA samples of the view's prepasses (1: none).
     pub samples: u32,
-    /// `HybridAmbientOcclusion::ignore_back_hits`: rays pass through the backs of surfaces where the grid
-    /// keeps attributes (`trace_variant`).
-    pub ignore_back_hits: bool,
-    /// `HybridAmbientOcclusion::depth_free_space` (`trace_variant`).
-    pub depth_free_space: bool,
+    /// The trace's loops asked for (`ignore_back_hits`, `depth_free_space`): see `trace_variant`.
+    pub requested_trace: TraceVariant,
     /// Whether the minimum with Bevy's SSAO is taken: the near field asked for, on a view Bevy's SSAO can run
     /// on (no MSAA, a viewport at the target's corner).
     pub near_field: bool,
@@ -151,7 +148,7 @@ impl HaoViewResources {
     /// voxels' normals, past the voxel hits the view shows in free space where asked for (the trace
     /// pipeline with the `BACK_HITS` or `FREE_SPACE` loop; `HaoPipelines::view_pipelines`).
     pub fn trace_variant(&self, grid: &GpuVoxelGrid) -> TraceVariant {
-        TraceVariant { back_hits: self.ignore_back_hits && grid.attributes != 0, free_space: self.depth_free_space }
+        self.requested_trace.on_grid(grid.attributes != 0)
     }
 }
 
@@ -204,9 +201,8 @@ pub fn prepare_hao_textures(
         let (hao, _) = hao.sanitized();
         let hao = &hao;
         // The trace through the backs of surfaces is compiled only for a grid with attributes.
-        let variant =
-            TraceVariant { back_hits: hao.ignore_back_hits && grid_has_attributes, free_space: hao.depth_free_space };
-        pipelines.queue_view(&cache, samples, variant);
+        let requested_trace = TraceVariant::requested(hao);
+        pipelines.queue_view(&cache, samples, requested_trace.on_grid(grid_has_attributes));
         let (rays, steps, half) = hao.trace_parameters();
         let trace_size = if half { (view_size + UVec2::ONE) / 2 } else { view_size };
         let texture = |cache: &mut TextureCache, label: &'static str, size: UVec2, format: TextureFormat| {
@@ -297,8 +293,7 @@ pub fn prepare_hao_textures(
             trace_size,
             view_size,
             samples,
-            ignore_back_hits: hao.ignore_back_hits,
-            depth_free_space: hao.depth_free_space,
+            requested_trace,
             near_field,
             pbr_texture,
             history_written,
