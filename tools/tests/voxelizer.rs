@@ -197,7 +197,7 @@ fn the_watertight_test_catches_a_hole() {
 
 #[test]
 fn builtin_closed_meshes_are_closed_and_outward() {
-    for name in CLOSED_BUILTINS.iter().chain(["cathedral"].iter()) {
+    for name in CLOSED_BUILTINS.iter().chain(["cathedral", "apartment", "office"].iter()) {
         let parts: Vec<TriangleMesh> = if *name == "cathedral" {
             bevy_hao_tools::meshes::cathedral_parts().into_iter().map(|p| p.1).collect()
         } else {

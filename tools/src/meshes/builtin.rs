@@ -1,6 +1,7 @@
 //! Meshes the project makes itself: the shapes of Fei et al.'s Figure 8 (windmill, pyramid, chamfer box,
-//! star), a tetrahedron, a sphere, a torus, and a procedural cathedral interior, the default scene of the
-//! examples. All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
+//! star), a tetrahedron, a sphere, a torus, a procedural cathedral interior (the default scene of the
+//! examples), and two furnished interiors of boxes, an apartment and an office hall, on which nothing was
+//! tuned. All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
 //! tests check it).
 
 use bevy_hao::cpu::TriangleMesh;
@@ -8,11 +9,22 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 
 /// Names accepted by [`builtin`] (and by the examples as `builtin:NAME`).
-pub const BUILTIN_NAMES: [&str; 9] =
-    ["windmill", "pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "icosphere", "torus", "cathedral"];
+pub const BUILTIN_NAMES: [&str; 11] = [
+    "windmill",
+    "pyramid",
+    "chamfer-box",
+    "star",
+    "tetrahedron",
+    "sphere",
+    "icosphere",
+    "torus",
+    "cathedral",
+    "apartment",
+    "office",
+];
 
 /// The names of the closed shapes among [`BUILTIN_NAMES`] (all but the windmill, whose blades are open
-/// sheets, and the cathedral, which is a union of closed solids with openings).
+/// sheets, and the interiors, which are unions of closed solids).
 pub const CLOSED_BUILTINS: [&str; 7] =
     ["pyramid", "chamfer-box", "star", "tetrahedron", "sphere", "icosphere", "torus"];
 
@@ -28,6 +40,8 @@ pub fn builtin(name: &str) -> Option<TriangleMesh> {
         "icosphere" => icosphere(1.0, 2),
         "torus" => torus(1.0, 0.35, 48, 24),
         "cathedral" => cathedral(),
+        "apartment" => apartment(),
+        "office" => office(),
         _ => return None,
     })
 }
@@ -571,6 +585,194 @@ pub fn cathedral() -> TriangleMesh {
     let mut m = TriangleMesh::default();
     for (_, part) in cathedral_parts() {
         m.append(&part, glam::Affine3A::IDENTITY);
+    }
+    m
+}
+
+/// A box from `(x0, y0, z0)` to `(x1, y1, z1)`, appended to `mesh`.
+fn add_box(mesh: &mut TriangleMesh, [x0, y0, z0, x1, y1, z1]: [f32; 6]) {
+    mesh.append(&cuboid(Vec3::new(x0, y0, z0), Vec3::new(x1, y1, z1)), glam::Affine3A::IDENTITY);
+}
+
+/// A box from `(x0, y0, z0)` to `(x1, y1, z1)` turned by `angle` (radians, from +x towards +z) about the
+/// vertical through its center, appended to `mesh`.
+fn add_turned_box(mesh: &mut TriangleMesh, [x0, y0, z0, x1, y1, z1]: [f32; 6], angle: f32) {
+    let center = Vec3::new(x0 + x1, 0.0, z0 + z1) / 2.0;
+    let local = cuboid(Vec3::new(x0, y0, z0) - center, Vec3::new(x1, y1, z1) - center);
+    mesh.append(&local, glam::Affine3A::from_translation(center) * glam::Affine3A::from_rotation_y(-angle));
+}
+
+/// A furnished two-room apartment (12 x 7 m, 3 m high), every part a box: a floor and a ceiling slab,
+/// walls with two windows, a partition with a door, ceiling beams; in one room a table with four chairs
+/// and a bookshelf full of books, in the other a sofa, a low table, a stair up a wall, a pillar and a
+/// lamp. Thin legs and shelves, objects on the floor and against walls: contacts finer than a voxel.
+pub fn apartment() -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    let (w, d, h, t) = (12.0, 7.0, 3.0, 0.2);
+    let b = |m: &mut TriangleMesh, v: [f32; 6]| add_box(m, v);
+    b(&mut m, [-t, -t, -t, w + t, 0.0, d + t]); // floor
+    b(&mut m, [-t, h, -t, w + t, h + t, d + t]); // ceiling
+    b(&mut m, [-t, 0.0, -t, 0.0, h, d + t]); // west wall
+    b(&mut m, [w, 0.0, -t, w + t, h, d + t]); // east wall
+    // The south wall, with two windows 1.5 m wide (sill 0.9 m, head 2.2 m).
+    for (x0, x1) in [(0.0, 2.0), (3.5, 8.0), (9.5, w)] {
+        b(&mut m, [x0, 0.0, -t, x1, h, 0.0]);
+    }
+    for (x0, x1) in [(2.0, 3.5), (8.0, 9.5)] {
+        b(&mut m, [x0, 0.0, -t, x1, 0.9, 0.0]);
+        b(&mut m, [x0, 2.2, -t, x1, h, 0.0]);
+    }
+    b(&mut m, [0.0, 0.0, d, w, h, d + t]); // north wall
+    // The partition at x = 6, with a door 1 m wide and 2.1 m high.
+    b(&mut m, [6.0, 0.0, 0.0, 6.12, h, 3.0]);
+    b(&mut m, [6.0, 0.0, 4.0, 6.12, h, d]);
+    b(&mut m, [6.0, 2.1, 3.0, 6.12, h, 4.0]);
+    // Ceiling beams every 1.5 m, but over the partition.
+    for k in (1..8).filter(|&k| k != 4) {
+        let x = k as f32 * 1.5;
+        b(&mut m, [x - 0.1, h - 0.3, 0.0, x + 0.1, h, d]);
+    }
+    // Room A: a table on four legs, four chairs.
+    let (tx, tz) = (2.5, 3.5);
+    b(&mut m, [tx - 0.8, 0.72, tz - 0.45, tx + 0.8, 0.76, tz + 0.45]);
+    let legs = [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)];
+    for (sx, sz) in legs {
+        let (x, z) = (tx + sx * 0.72, tz + sz * 0.37);
+        b(&mut m, [x - 0.03, 0.0, z - 0.03, x + 0.03, 0.72, z + 0.03]);
+    }
+    for (cx, cz, back) in
+        [(tx - 0.4, tz - 0.8, -1.0), (tx + 0.4, tz - 0.8, -1.0), (tx - 0.4, tz + 0.8, 1.0), (tx + 0.4, tz + 0.8, 1.0)]
+    {
+        b(&mut m, [cx - 0.22, 0.44, cz - 0.22, cx + 0.22, 0.48, cz + 0.22]);
+        for (sx, sz) in legs {
+            let (x, z) = (cx + sx * 0.19, cz + sz * 0.19);
+            b(&mut m, [x - 0.02, 0.0, z - 0.02, x + 0.02, 0.44, z + 0.02]);
+        }
+        let z = cz + back * 0.22;
+        let (z0, z1) = if back > 0.0 { (z - 0.02, z) } else { (z, z + 0.02) };
+        b(&mut m, [cx - 0.22, 0.48, z0, cx + 0.22, 0.95, z1]);
+    }
+    // Room A: a bookshelf against the north wall, six thin shelves, five of them full of books.
+    let (bx0, bx1, bz0, bz1) = (0.5, 2.3, d - 0.35, d);
+    b(&mut m, [bx0, 0.0, bz0, bx0 + 0.02, 2.0, bz1]);
+    b(&mut m, [bx1 - 0.02, 0.0, bz0, bx1, 2.0, bz1]);
+    b(&mut m, [bx0, 0.0, bz1 - 0.02, bx1, 2.0, bz1]);
+    for k in 0..6 {
+        let y = 0.05 + k as f32 * 0.38;
+        b(&mut m, [bx0, y, bz0, bx1, y + 0.02, bz1]);
+        if k == 5 {
+            continue;
+        }
+        let mut x = bx0 + 0.05;
+        while x < bx1 - 0.1 {
+            // Books of three widths and two heights, in a fixed pattern.
+            let width = 0.03 + 0.02 * ((x * 97.0) as u32 % 3) as f32;
+            let height = 0.22 + 0.05 * ((x * 53.0) as u32 % 2) as f32;
+            b(&mut m, [x, y + 0.02, bz0 + 0.05, x + width, y + 0.02 + height, bz1 - 0.04]);
+            x += width + 0.005;
+        }
+    }
+    // Room B: a sofa, a low table on four legs, a stair of twelve steps up the east wall, a pillar, a lamp.
+    b(&mut m, [7.0, 0.0, 5.6, 10.0, 0.42, 6.6]);
+    b(&mut m, [7.0, 0.42, 6.4, 10.0, 0.9, 6.6]);
+    b(&mut m, [7.0, 0.42, 5.6, 7.2, 0.65, 6.6]);
+    b(&mut m, [9.8, 0.42, 5.6, 10.0, 0.65, 6.6]);
+    b(&mut m, [7.8, 0.35, 4.2, 9.2, 0.4, 4.9]);
+    for x in [7.85, 9.1] {
+        for z in [4.25, 4.8] {
+            b(&mut m, [x, 0.0, z, x + 0.05, 0.35, z + 0.05]);
+        }
+    }
+    for k in 0..12 {
+        let z = 0.5 + k as f32 * 0.28;
+        b(&mut m, [w - 1.0, 0.0, z, w, 0.18 * (k + 1) as f32, z + 0.28]);
+    }
+    b(&mut m, [8.9, 0.0, 1.9, 9.3, h, 2.3]);
+    for k in 0..8 {
+        let x = 10.5 + 0.02 * k as f32;
+        b(&mut m, [x, 0.0, 2.5, x + 0.02, 1.6, 2.55]);
+    }
+    m
+}
+
+/// An open-plan office hall (16 x 10 m, 5 m high), every part a box, some turned: tall windows, a mezzanine
+/// on columns along one wall with a railing of thin bars and shelves on it, a stair up to it, three
+/// columns of two turned boxes each, six desks turned 30 degrees (legs, a screen, a chair), filing
+/// cabinets under the mezzanine, ceiling beams. Surfaces at angles to the voxels, and deep occlusion
+/// under a slab.
+pub fn office() -> TriangleMesh {
+    let mut m = TriangleMesh::default();
+    let (w, d, h, t) = (16.0, 10.0, 5.0, 0.25);
+    let b = |m: &mut TriangleMesh, v: [f32; 6]| add_box(m, v);
+    b(&mut m, [-t, -t, -t, w + t, 0.0, d + t]);
+    b(&mut m, [-t, h, -t, w + t, h + t, d + t]);
+    b(&mut m, [-t, 0.0, -t, 0.0, h, d + t]);
+    b(&mut m, [w, 0.0, -t, w + t, h, d + t]);
+    b(&mut m, [0.0, 0.0, d, w, h, d + t]);
+    // The south wall, with four tall windows (sill 1 m, head 3.6 m).
+    let xs = [0.0, 1.5, 3.0, 5.5, 7.0, 9.5, 11.0, 13.5, 15.0, w];
+    for k in (0..xs.len() - 1).step_by(2) {
+        b(&mut m, [xs[k], 0.0, -t, xs[k + 1], h, 0.0]);
+    }
+    for k in (1..xs.len() - 1).step_by(2) {
+        b(&mut m, [xs[k], 0.0, -t, xs[k + 1], 1.0, 0.0]);
+        b(&mut m, [xs[k], 3.6, -t, xs[k + 1], h, 0.0]);
+    }
+    // The mezzanine along the north wall: a slab on four columns, a railing of bars.
+    let (mz, mh) = (6.5, 2.7);
+    b(&mut m, [0.0, mh, mz, w, mh + 0.25, d]);
+    for x in [2.0, 6.0, 10.0, 14.0] {
+        b(&mut m, [x - 0.15, 0.0, mz - 0.15, x + 0.15, mh, mz + 0.15]);
+    }
+    for k in 0..64 {
+        let x = 0.1 + k as f32 * 0.25;
+        b(&mut m, [x - 0.02, mh + 0.25, mz, x + 0.02, mh + 1.25, mz + 0.04]);
+    }
+    b(&mut m, [0.0, mh + 1.2, mz, w, mh + 1.25, mz + 0.06]);
+    // A stair of fifteen steps up to it along the east wall.
+    for k in 1..=15 {
+        let (y, z) = (k as f32 * mh / 15.0, mz - 0.3 * k as f32);
+        b(&mut m, [w - 1.2, y - 0.18, z, w, y, z + 0.3]);
+    }
+    // Three columns, each two boxes, one turned 45 degrees.
+    for x in [4.0, 8.0, 12.0] {
+        let column = [x - 0.25, 0.0, 3.2 - 0.25, x + 0.25, h, 3.2 + 0.25];
+        b(&mut m, column);
+        add_turned_box(&mut m, column, PI / 4.0);
+    }
+    // Six desks turned 30 degrees: a top on four legs, a screen, a chair (a seat on a post) in front.
+    let turn = 30f32.to_radians();
+    for (dx, dz) in [(2.5, 1.8), (6.0, 1.8), (9.5, 1.8), (2.5, 4.8), (6.0, 4.8), (10.5, 4.8)] {
+        // A point of the desk's own frame in the hall.
+        let at = |ox: f32, oz: f32| (dx + turn.cos() * ox - turn.sin() * oz, dz + turn.sin() * ox + turn.cos() * oz);
+        let piece = |m: &mut TriangleMesh, (x, z): (f32, f32), (hx, hz): (f32, f32), y0: f32, y1: f32| {
+            add_turned_box(m, [x - hx, y0, z - hz, x + hx, y1, z + hz], turn);
+        };
+        piece(&mut m, (dx, dz), (0.8, 0.4), 0.72, 0.75);
+        for (sx, sz) in [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)] {
+            piece(&mut m, at(sx * 0.72, sz * 0.32), (0.03, 0.03), 0.0, 0.72);
+        }
+        piece(&mut m, at(0.0, 0.25), (0.3, 0.02), 0.75, 1.15);
+        piece(&mut m, at(0.0, -0.7), (0.22, 0.22), 0.45, 0.5);
+        piece(&mut m, at(0.0, -0.7), (0.03, 0.03), 0.0, 0.45);
+    }
+    // Filing cabinets under the mezzanine, shelves on it.
+    for k in 0..8 {
+        let x = 0.6 + k as f32 * 0.9;
+        b(&mut m, [x, 0.0, d - 0.6, x + 0.8, 1.3, d]);
+    }
+    for k in 0..5 {
+        let x0 = 1.0 + k as f32 * 2.8;
+        b(&mut m, [x0, mh + 0.25, d - 0.4, x0 + 2.0, mh + 2.2, d - 0.38]);
+        for j in 0..5 {
+            let y = mh + 0.3 + j as f32 * 0.45;
+            b(&mut m, [x0, y, d - 0.4, x0 + 2.0, y + 0.03, d]);
+        }
+    }
+    // Ceiling beams across the hall.
+    for k in 1..8 {
+        let x = k as f32 * 2.0;
+        b(&mut m, [x - 0.15, h - 0.5, 0.0, x + 0.15, h, d]);
     }
     m
 }
