@@ -201,7 +201,19 @@ fn inspector_window(
             ui.add(egui::Slider::new(&mut hao.intensity, 0.0..=3.0).text("intensity"));
             ui.add(egui::Slider::new(&mut hao.start_offset, 0.0..=3.0).text("start offset (voxels)"));
             ui.checkbox(&mut hao.depth_contacts, "contacts from the depth prepass");
-            ui.checkbox(&mut hao.depth_free_space, "free space from the depth prepass");
+            let preset = if hao.uses_depth_free_space() { "the preset's: on" } else { "the preset's: off" };
+            let label = |v: Option<bool>| match v {
+                None => preset,
+                Some(true) => "on",
+                Some(false) => "off",
+            };
+            egui::ComboBox::from_label("free space from the depth prepass")
+                .selected_text(label(hao.depth_free_space))
+                .show_ui(ui, |ui| {
+                    for v in [None, Some(true), Some(false)] {
+                        ui.selectable_value(&mut hao.depth_free_space, v, label(v));
+                    }
+                });
             ui.add(egui::Slider::new(&mut hao.denoise_radius, 0..=6).text("denoise width"));
             if hao.near_field {
                 egui::ComboBox::from_label("near field (SSAO)")

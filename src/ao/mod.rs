@@ -340,13 +340,16 @@ pub struct HybridAmbientOcclusion {
     /// that crosses it, though the surface in it may cover only part of it (most of all in the coarse
     /// cascades, whose voxels are up to 1 m at the defaults), which darkens. Where a ray's hit lies on
     /// screen in front of every surface the view shows around it, by more than a voxel, the ray goes on past
-    /// that voxel, at most four times; what the view cannot see stays the voxels' job. Off by default.
-    /// Against the ray-traced reference (`Medium`, docs/figures.md) it lowered HAO's error by 12 % on the
-    /// built-in cathedral and 22 % on an apartment of boxes, and raised it by 1-3 % on Sibenik and Sponza,
-    /// where the missed contacts' lightening outweighs the voxels' darkening. It costs nine depth loads for each
-    /// ray that hits a voxel and a second march for each hit it passes: on lavapipe the trace took about
-    /// half as long again.
-    pub depth_free_space: bool,
+    /// that voxel, at most four times; what the view cannot see stays the voxels' job. `None` (the default):
+    /// the preset's choice, on for `High` and `Ultra`, off for `Low`, `Medium` and `Custom`
+    /// ([`HybridAmbientOcclusion::uses_depth_free_space`]); `Some` overrides it.
+    /// Against the ray-traced reference (docs/figures.md) it lowered `High`'s error by 14 % on the
+    /// built-in cathedral and by 34-39 % on two furnished interiors of boxes, and raised it by under 3 % on
+    /// Sibenik and Sponza, where the missed contacts' lightening outweighs the voxels' darkening. It costs
+    /// nine depth loads for each ray that hits a voxel and a second march for each hit it passes, which a
+    /// GPU warp runs after every lane's first march: a fifth more texel visits a ray as a warp pays them
+    /// (`bench_ao`'s work table); on lavapipe the trace took 58 % longer.
+    pub depth_free_space: Option<bool>,
     /// Combine with Bevy's screen-space AO (the minimum of both) for contact detail finer than a voxel.
     /// Needs what Bevy's SSAO needs: `Msaa::Off` and a viewport at the target's corner (elsewhere HAO runs
     /// without it, with a warning). Off by default: against a ray-traced reference the minimum measured worse than HAO alone on the
@@ -381,6 +384,12 @@ impl HybridAmbientOcclusion {
     /// rays (and `Medium` at half resolution) for the presets when 4 or more frames are accumulated.
     pub fn trace_parameters(&self) -> (u32, u32, bool) {
         self.quality.parameters_accumulated(self.accumulation_frames.clamp(1, 64))
+    }
+
+    /// Whether the trace passes the voxel hits the depth prepass shows in free space: `depth_free_space`
+    /// where it is given, else the quality's choice (`High` and `Ultra`).
+    pub fn uses_depth_free_space(&self) -> bool {
+        self.depth_free_space.unwrap_or(matches!(self.quality, HaoQuality::High | HaoQuality::Ultra))
     }
 
     /// These settings with every invalid value replaced by the one the passes use, and one message per
@@ -454,7 +463,7 @@ impl Default for HybridAmbientOcclusion {
             intensity: 1.0,
             start_offset: 1.0,
             depth_contacts: true,
-            depth_free_space: false,
+            depth_free_space: None,
             near_field: false,
             near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel::Medium,
             denoise_radius: 1,
@@ -484,10 +493,12 @@ pub enum HaoQuality {
     Medium,
     /// 48 steps. Accumulated: 3 rays a frame at half resolution, as `Medium` (each pixel accumulates its
     /// own rays; 5 measured within 0.0004 of 3 against the reference, for a third more time); without
-    /// accumulation: 8 rays a frame at full resolution.
+    /// accumulation: 8 rays a frame at full resolution. Passes the voxel hits the depth prepass shows in
+    /// free space ([`HybridAmbientOcclusion::depth_free_space`]): the error left once noise is averaged
+    /// away is the voxels' bias, which more rays do not lower.
     High,
     /// 64 steps. Accumulated: 16 rays a frame at half resolution, as `Medium`; without accumulation: 16
-    /// rays a frame at full resolution.
+    /// rays a frame at full resolution. Passes free space, as `High`.
     Ultra,
     /// Your own.
     Custom {
@@ -557,5 +568,16 @@ mod tests {
         let custom = HaoQuality::Custom { rays: 3, steps: 20, half_resolution: false };
         assert_eq!(at(custom, 16), (3, 20, false));
         assert_eq!(at(custom, 1), (3, 20, false));
+    }
+
+    #[test]
+    fn high_and_ultra_pass_free_space_unless_told_otherwise() {
+        let uses = |quality, depth_free_space| {
+            HybridAmbientOcclusion { quality, depth_free_space, ..default() }.uses_depth_free_space()
+        };
+        let custom = HaoQuality::Custom { rays: 3, steps: 20, half_resolution: true };
+        let presets = [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra, custom];
+        assert_eq!(presets.map(|q| uses(q, None)), [false, false, true, true, false]);
+        assert!(presets.iter().all(|&q| uses(q, Some(true)) && !uses(q, Some(false))));
     }
 }

@@ -48,7 +48,7 @@ pub struct TraceVariant {
 impl TraceVariant {
     /// The loops `settings` ask for (`ignore_back_hits`, `depth_free_space`).
     pub fn requested(settings: &super::HybridAmbientOcclusion) -> Self {
-        Self { back_hits: settings.ignore_back_hits, free_space: settings.depth_free_space }
+        Self { back_hits: settings.ignore_back_hits, free_space: settings.uses_depth_free_space() }
     }
 
     /// The trace these loops need on a grid that keeps the voxels' normals (`attributes`) or not: through

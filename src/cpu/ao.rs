@@ -397,6 +397,9 @@ pub struct TraceWork {
     pub depth_loads: u64,
     /// Voxel hits passed because the view shows them in free space ([`TraceSettings::depth_free_space`]).
     pub free_space_passes: u64,
+    /// Of `texel_visits`, those of the marches past the hits passed as free space (a SIMD device runs them
+    /// after every lane's first march: see `bench_ao`'s work table).
+    pub free_space_visits: u64,
     /// Rays that hit an occupied voxel or a contact in the depth prepass.
     pub hits: u64,
     /// Rays stopped by a contact in the depth prepass (their march is not run).
@@ -587,7 +590,9 @@ pub fn voxel_ray_occluder(
             }
             work.free_space_passes += 1;
             let exit = cell_exit(levels, origin, dir, (t, level));
+            let before = work.texel_visits;
             hit = march_cascades_counted(levels, origin, dir, level, exit, s.max_distance, s.steps, work);
+            work.free_space_visits += work.texel_visits - before;
         }
     }
     // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.

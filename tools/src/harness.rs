@@ -374,7 +374,7 @@ pub fn cpu_trace_settings(settings: &bevy_hao::HybridAmbientOcclusion) -> bevy_h
         start_offset: settings.start_offset,
         ignore_back_hits: settings.ignore_back_hits,
         depth_contacts: settings.depth_contacts,
-        depth_free_space: settings.depth_free_space,
+        depth_free_space: settings.uses_depth_free_space(),
     }
 }
 

@@ -124,10 +124,12 @@ struct Args {
     /// HAO without its depth contacts (HybridAmbientOcclusion::depth_contacts off): the voxels alone.
     #[arg(long)]
     no_depth_contacts: bool,
-    /// HAO passing the voxel hits the depth prepass shows in free space
-    /// (HybridAmbientOcclusion::depth_free_space on).
-    #[arg(long)]
-    depth_free_space: bool,
+    /// HAO passing the voxel hits the depth prepass shows in free space, or not
+    /// (HybridAmbientOcclusion::depth_free_space; `--depth-free-space` alone is on; default: each preset's
+    /// own choice, on for High and Ultra).
+    #[arg(long, value_name = "on|off", num_args = 0..=1, default_missing_value = "on",
+        value_parser = clap::builder::BoolishValueParser::new())]
+    depth_free_space: Option<bool>,
     /// Trace the reference (and measure the errors) at every Nth pixel of each row and column only: a
     /// sparse set that keeps the reference affordable at 1920x1080 and above.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
@@ -526,9 +528,10 @@ fn main() {
         _ => String::new(),
     };
     println!(
-        "HAO: {:?}, max distance {}, accumulation over {accumulation} frames (measured {settled} frames after the \
-         scene settled{}), voxel volume: {volume}{world}; reference: {} rays per pixel\n",
+        "HAO: {:?}{}, max distance {}, accumulation over {accumulation} frames (measured {settled} frames after \
+         the scene settled{}), voxel volume: {volume}{world}; reference: {} rays per pixel\n",
         hao.quality,
+        if hao.uses_depth_free_space() { " with free space from the depth prepass" } else { "" },
         args.max_distance,
         args.motion.map_or(String::new(), |d| format!(", the camera swinging at up to {d} degrees a frame")),
         args.rays

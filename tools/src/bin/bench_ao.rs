@@ -89,10 +89,11 @@ struct Args {
     /// alone.
     #[arg(long)]
     no_depth_contacts: bool,
-    /// The presets passing the voxel hits the depth prepass shows in free space
-    /// (HybridAmbientOcclusion::depth_free_space on).
-    #[arg(long)]
-    depth_free_space: bool,
+    /// The presets passing the voxel hits the depth prepass shows in free space, or not, or each preset
+    /// both ways side by side (HybridAmbientOcclusion::depth_free_space; `--depth-free-space` alone is on;
+    /// default: each preset's own choice, on for High and Ultra).
+    #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "on")]
+    depth_free_space: Option<FreeSpace>,
     /// Also a `HaoQuality::Custom` preset, accumulated and at half resolution as the presets are, with
     /// RAYS rays a frame and STEPS steps a ray: RAYS,STEPS (repeat for more).
     #[arg(long, value_parser = rays_steps)]
@@ -104,6 +105,35 @@ fn rays_steps(s: &str) -> Result<(u32, u32), String> {
     let (rays, steps) = s.split_once(',').ok_or("expected RAYS,STEPS")?;
     let parse = |v: &str| v.trim().parse::<u32>().ok().filter(|&n| n >= 1).ok_or(format!("not a count: {v}"));
     Ok((parse(rays)?, parse(steps)?))
+}
+
+/// `--depth-free-space`: [`HybridAmbientOcclusion::depth_free_space`] for every preset.
+#[derive(Clone, Copy, Debug, PartialEq, clap::ValueEnum)]
+enum FreeSpace {
+    /// `Some(true)`.
+    On,
+    /// `Some(false)`.
+    Off,
+    /// Each preset twice, without and with.
+    Both,
+}
+
+impl FreeSpace {
+    /// The settings a preset runs with.
+    fn settings(choice: Option<Self>) -> Vec<Option<bool>> {
+        match choice {
+            None => vec![None],
+            Some(Self::On) => vec![Some(true)],
+            Some(Self::Off) => vec![Some(false)],
+            Some(Self::Both) => vec![Some(false), Some(true)],
+        }
+    }
+}
+
+/// A preset's name in the tables: its quality, and whether it passes free space.
+fn preset_name(settings: &HybridAmbientOcclusion) -> String {
+    let free = if settings.uses_depth_free_space() { " + free space" } else { "" };
+    format!("{:?}{free}", settings.quality)
 }
 
 fn main() {
@@ -200,22 +230,28 @@ fn main() {
     let presets: Vec<HybridAmbientOcclusion> = [HybridAmbientOcclusion::default().accumulation_frames, 1]
         .into_iter()
         .flat_map(|accumulation_frames| {
-            [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra].map(|quality| {
-                HybridAmbientOcclusion {
-                    quality,
-                    accumulation_frames,
-                    depth_contacts: !no_depth_contacts,
-                    depth_free_space,
-                    ..default()
-                }
-            })
+            [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra].into_iter().flat_map(
+                move |quality| {
+                    FreeSpace::settings(depth_free_space).into_iter().map(move |depth_free_space| {
+                        HybridAmbientOcclusion {
+                            quality,
+                            accumulation_frames,
+                            depth_contacts: !no_depth_contacts,
+                            depth_free_space,
+                            ..default()
+                        }
+                    })
+                },
+            )
         })
         .filter(|settings| quality.is_empty() || quality.iter().any(|&q| HaoQuality::from(q) == settings.quality))
-        .chain(custom.iter().map(|&(rays, steps)| HybridAmbientOcclusion {
-            quality: HaoQuality::Custom { rays, steps, half_resolution: true },
-            depth_contacts: !no_depth_contacts,
-            depth_free_space,
-            ..default()
+        .chain(custom.iter().flat_map(|&(rays, steps)| {
+            FreeSpace::settings(depth_free_space).into_iter().map(move |depth_free_space| HybridAmbientOcclusion {
+                quality: HaoQuality::Custom { rays, steps, half_resolution: true },
+                depth_contacts: !no_depth_contacts,
+                depth_free_space,
+                ..default()
+            })
         }))
         .collect();
     // Each round: Bevy's SSAO alone at each quality, then each preset with and without accumulation, with a
@@ -342,8 +378,8 @@ fn main() {
             _ => "-".into(),
         };
         println!(
-            "| {:?} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
-            settings.quality,
+            "| {} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
+            preset_name(settings),
             settings.accumulation_frames,
             if half { ", half res" } else { "" },
             f(m[0]),
@@ -386,8 +422,8 @@ fn main() {
             _ => "-".into(),
         };
         println!(
-            "| {:?} | {} | {} | {} | {} | {ratio} | {range} |",
-            settings.quality,
+            "| {} | {} | {} | {} | {} | {ratio} | {range} |",
+            preset_name(settings),
             settings.accumulation_frames,
             f(median(m.walls.clone())),
             f(median(m.baseline.clone())),
@@ -403,13 +439,13 @@ fn main() {
     println!(
         "| HAO quality | frames accumulated | rays per pixel | mean texel visits per ray | visits per ray, a warp's \
          slowest lane (lanes busy) | voxel texels fetched per pixel | depth samples per ray (rays stopped by a \
-         contact) | rays that hit | marches out of steps |"
+         contact) | rays that hit | marches out of steps | hits passed as free space, per ray |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (settings, w) in &work {
         println!(
-            "| {:?} | {} | {:.2} | {:.1} | {:.1} ({:.0} %) | {:.1} | {:.1} ({:.0} %) | {:.0} % | {:.1} % |",
-            settings.quality,
+            "| {} | {} | {:.2} | {:.1} | {:.1} ({:.0} %) | {:.1} | {:.1} ({:.0} %) | {:.0} % | {:.1} % | {:.1} % |",
+            preset_name(settings),
             settings.accumulation_frames,
             w.rays_per_pixel,
             w.visits_per_ray,
@@ -419,7 +455,8 @@ fn main() {
             w.depth_loads_per_ray,
             100.0 * w.contact_share,
             100.0 * w.hit_share,
-            100.0 * w.out_of_steps_share
+            100.0 * w.out_of_steps_share,
+            100.0 * w.free_space_share
         );
     }
     println!("\nFor scale, Bevy's SSAO (GTAO) takes per pixel: Low 4, Medium 8, High 18, Ultra 54 depth samples (2D).");
@@ -508,6 +545,8 @@ struct Work {
     contact_share: f64,
     hit_share: f64,
     out_of_steps_share: f64,
+    /// Voxel hits passed because the view shows them in free space, per ray.
+    free_space_share: f64,
 }
 
 /// The CPU twin's trace of every `STRIDE`th pixel (at half resolution, of the blocks those pixels start)
@@ -548,6 +587,7 @@ fn trace_work(
         work.depth_loads += part.depth_loads;
         work.contacts += part.contacts;
         work.out_of_steps += part.out_of_steps;
+        work.free_space_passes += part.free_space_passes;
         pixels += n;
     }
     // At half resolution a traced sample serves a 2x2 block.
@@ -564,6 +604,7 @@ fn trace_work(
         contact_share: work.contacts as f64 / rays,
         hit_share: work.hits as f64 / rays,
         out_of_steps_share: work.out_of_steps as f64 / rays,
+        free_space_share: work.free_space_passes as f64 / rays,
     }
 }
 
@@ -576,7 +617,7 @@ const WARP_STRIDE: u32 = 4;
 /// The march visits a ray as a SIMD device pays them: every `WARP_STRIDE`th warp of the trace's texels along
 /// each axis is traced by the CPU twin with the rays and steps `settings` trace a frame, and each of a warp's
 /// rays costs the visits of its slowest lane (lanes that finish wait for it; lanes on the background trace
-/// nothing). Returns those visits per ray, and the share of them that a lane spends on its own ray (the
+/// nothing), in the first march and again in the marches past free space, which come after it. Returns those visits per ray, and the share of them that a lane spends on its own ray (the
 /// lanes busy).
 fn warp_work(
     samples: &[Option<(Vec3, Vec3)>],
@@ -598,8 +639,8 @@ fn warp_work(
         let (mut slowest, mut own, mut lane_rays) = (0u64, 0u64, 0u64);
         for &wy in warp_rows {
             for wx in (0..tw.div_ceil(WARP.0)).step_by(WARP_STRIDE as usize) {
-                // Each busy lane's visits, ray by ray.
-                let mut lanes: Vec<Vec<u64>> = Vec::new();
+                // Each busy lane's visits, ray by ray: in the first march, and past free space.
+                let mut lanes: Vec<Vec<(u64, u64)>> = Vec::new();
                 for ty in wy * WARP.1..((wy + 1) * WARP.1).min(th) {
                     for tx in wx * WARP.0..((wx + 1) * WARP.0).min(tw) {
                         let p = traced_pixel(UVec2::new(tx, ty), 0, UVec2::new(w, h), half);
@@ -614,15 +655,19 @@ fn warp_work(
                                 let mut work = TraceWork::default();
                                 let contact = Some(DepthContacts { view, jitter: ray_jitter(jitter, i) });
                                 ray_occluder(levels, contact, world, normal, dir, start, &trace, &mut work);
-                                work.texel_visits
+                                (work.texel_visits - work.free_space_visits, work.free_space_visits)
                             })
                             .collect();
                         lanes.push(visits);
                     }
                 }
+                // The marches past free space run after the first march's loop, which every lane leaves
+                // first: the warp pays its slowest lane in each.
                 for i in 0..trace.rays as usize {
-                    slowest += lanes.iter().map(|l| l[i]).max().unwrap_or(0) * lanes.len() as u64;
-                    own += lanes.iter().map(|l| l[i]).sum::<u64>();
+                    let first = lanes.iter().map(|l| l[i].0).max().unwrap_or(0);
+                    let past = lanes.iter().map(|l| l[i].1).max().unwrap_or(0);
+                    slowest += (first + past) * lanes.len() as u64;
+                    own += lanes.iter().map(|l| l[i].0 + l[i].1).sum::<u64>();
                 }
                 lane_rays += lanes.len() as u64 * u64::from(trace.rays);
             }
