@@ -59,7 +59,7 @@ fn cell_exit(origin: vec3<f32>, dir: vec3<f32>, hit: vec2<f32>) -> f32 {
 
 // cpu/contacts.rs: FREE_SPACE_MARGIN, MAX_FREE_SPACE_PASSES
 const FREE_SPACE_MARGIN: f32 = 1.0;
-const MAX_FREE_SPACE_PASSES: u32 = 4u;
+const MAX_FREE_SPACE_PASSES: u32 = 2u;
 
 // cpu/contacts.rs: ViewDepth::shows_free_space. Whether the view shows the world point `p` in free space:
 // on the view, and in front of the nearest surface of the 3x3 pixels around the one it projects to by more

@@ -340,15 +340,15 @@ pub struct HybridAmbientOcclusion {
     /// that crosses it, though the surface in it may cover only part of it (most of all in the coarse
     /// cascades, whose voxels are up to 1 m at the defaults), which darkens. Where a ray's hit lies on
     /// screen in front of every surface the view shows around it, by more than a voxel, the ray goes on past
-    /// that voxel, at most four times; what the view cannot see stays the voxels' job. `None` (the default):
+    /// that voxel, at most twice; what the view cannot see stays the voxels' job. `None` (the default):
     /// the preset's choice, on for `High` and `Ultra`, off for `Low`, `Medium` and `Custom`
     /// ([`HybridAmbientOcclusion::uses_depth_free_space`]); `Some` overrides it.
-    /// Against the ray-traced reference (docs/figures.md) it lowered `High`'s error by 14 % on the
-    /// built-in cathedral and by 34-39 % on two furnished interiors of boxes, and raised it by under 3 % on
+    /// Against the ray-traced reference (docs/figures.md) it lowered `High`'s error by 13 % on the
+    /// built-in cathedral and by 27-30 % on two furnished interiors of boxes, and raised it by under 3 % on
     /// Sibenik and Sponza, where the missed contacts' lightening outweighs the voxels' darkening. It costs
-    /// nine depth loads for each ray that hits a voxel and a second march for each hit it passes, which a
-    /// GPU warp runs after every lane's first march: a fifth more texel visits a ray as a warp pays them
-    /// (`bench_ao`'s work table); on lavapipe the trace took 58 % longer.
+    /// nine depth loads for each ray that hits a voxel and another march for each hit it passes, which a
+    /// GPU warp runs after every lane's march before it: 20-37 % more texel visits a ray as a warp pays
+    /// them (`bench_ao`'s work table); on lavapipe `High`'s trace took half as long again.
     pub depth_free_space: Option<bool>,
     /// Combine with Bevy's screen-space AO (the minimum of both) for contact detail finer than a voxel.
     /// Needs what Bevy's SSAO needs: `Msaa::Off` and a viewport at the target's corner (elsewhere HAO runs

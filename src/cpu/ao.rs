@@ -397,9 +397,9 @@ pub struct TraceWork {
     pub depth_loads: u64,
     /// Voxel hits passed because the view shows them in free space ([`TraceSettings::depth_free_space`]).
     pub free_space_passes: u64,
-    /// Of `texel_visits`, those of the marches past the hits passed as free space (a SIMD device runs them
-    /// after every lane's first march: see `bench_ao`'s work table).
-    pub free_space_visits: u64,
+    /// Of `texel_visits`, those of the marches past the hits passed as free space, pass by pass (a SIMD
+    /// device runs each pass after every lane's march before it: see `bench_ao`'s work table).
+    pub free_space_visits: [u64; MAX_FREE_SPACE_PASSES as usize],
     /// Rays that hit an occupied voxel or a contact in the depth prepass.
     pub hits: u64,
     /// Rays stopped by a contact in the depth prepass (their march is not run).
@@ -581,7 +581,7 @@ pub fn voxel_ray_occluder(
     }
     // Past the cells the view shows empty where the trace takes their surface to be, a few times at most.
     if let Some(view) = view {
-        for _ in 0..MAX_FREE_SPACE_PASSES {
+        for pass in 0..MAX_FREE_SPACE_PASSES as usize {
             let Some((t, level)) = hit else { break };
             let cell = levels[level].cell_size;
             let surface = origin + dir * (t + 0.5 * cell);
@@ -592,7 +592,7 @@ pub fn voxel_ray_occluder(
             let exit = cell_exit(levels, origin, dir, (t, level));
             let before = work.texel_visits;
             hit = march_cascades_counted(levels, origin, dir, level, exit, s.max_distance, s.steps, work);
-            work.free_space_visits += work.texel_visits - before;
+            work.free_space_visits[pass] += work.texel_visits - before;
         }
     }
     // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.

@@ -58,8 +58,12 @@ pub struct ViewDepth {
 /// anywhere in it, in front of the point the trace takes for it.
 pub const FREE_SPACE_MARGIN: f32 = 1.0;
 /// How many voxel hits in free space a ray passes at most (WGSL: `MAX_FREE_SPACE_PASSES`); the next one
-/// occludes. Each pass restarts the march past the cell with the full `steps` budget.
-pub const MAX_FREE_SPACE_PASSES: u32 = 4;
+/// occludes. Each pass restarts the march past the cell with the full `steps` budget. A GPU warp runs each
+/// pass after its slowest lane's march before it, so each costs the warp a march; against the ray-traced
+/// reference (`High`) 1, 2 and 4 passes gave 0.0234, 0.0225 and 0.0222 on the built-in cathedral, and 0.0295,
+/// 0.0249 and 0.0216 on `builtin:apartment`, for 12, 20 and 25 % (17, 32 and 48 %) more texel visits a ray
+/// as a warp pays them (docs/figures.md).
+pub const MAX_FREE_SPACE_PASSES: u32 = 2;
 
 impl ViewDepth {
     /// Whether the view shows the world point `p` in free space (WGSL: `shows_free_space`): on the view, and

@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 10] [--rounds 3]
-//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes] [--no-depth-contacts] [--custom RAYS,STEPS ...]
+//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes] [--no-depth-contacts]
+//!     [--depth-free-space [on|off|both]] [--custom RAYS,STEPS ...]
 //! ```
 //!
 //! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
@@ -35,9 +36,10 @@
 //! A last table counts the trace's work on its CPU twin (`bevy_hao::cpu::ao::voxel_ambient_occlusion_counted`),
 //! over the view the GPU traced (its depth and normal, read back) and the GPU's voxels, for each row above:
 //! rays per pixel a frame, texel visits per ray (the mean, and as a SIMD device pays them: each ray of a
-//! warp of 8x4 texels of the trace at its slowest lane's visits), voxel texels fetched per pixel a frame, the
-//! depth prepass samples a ray reads for its contacts (and the share of rays a contact stops, whose march is
-//! not run), the share of rays that hit and of marches stopped by the step budget. Unlike the times, these
+//! warp of 8x4 texels of the trace at its slowest lane's visits, in the first march and again in each pass
+//! past free space), voxel texels fetched per pixel a frame, the depth prepass samples a ray reads for its
+//! contacts and free space (and the share of rays a contact stops, whose march is not run), the share of rays
+//! that hit, of marches stopped by the step budget, and the hits passed as free space per ray. Unlike the times, these
 //! do not depend on the device. `--no-depth-contacts` runs every preset without its depth contacts
 //! (`HybridAmbientOcclusion::depth_contacts`), for a comparison run after run.
 //!
@@ -617,7 +619,8 @@ const WARP_STRIDE: u32 = 4;
 /// The march visits a ray as a SIMD device pays them: every `WARP_STRIDE`th warp of the trace's texels along
 /// each axis is traced by the CPU twin with the rays and steps `settings` trace a frame, and each of a warp's
 /// rays costs the visits of its slowest lane (lanes that finish wait for it; lanes on the background trace
-/// nothing), in the first march and again in the marches past free space, which come after it. Returns those visits per ray, and the share of them that a lane spends on its own ray (the
+/// nothing), in the first march and again in each pass past free space, which comes after the march before
+/// it. (The marches through the backs of surfaces, a loop of their own too, count with the first.) Returns those visits per ray, and the share of them that a lane spends on its own ray (the
 /// lanes busy).
 fn warp_work(
     samples: &[Option<(Vec3, Vec3)>],
@@ -639,8 +642,8 @@ fn warp_work(
         let (mut slowest, mut own, mut lane_rays) = (0u64, 0u64, 0u64);
         for &wy in warp_rows {
             for wx in (0..tw.div_ceil(WARP.0)).step_by(WARP_STRIDE as usize) {
-                // Each busy lane's visits, ray by ray: in the first march, and past free space.
-                let mut lanes: Vec<Vec<(u64, u64)>> = Vec::new();
+                // Each busy lane's visits, ray by ray: in the first march, then in each pass past free space.
+                let mut lanes: Vec<Vec<Vec<u64>>> = Vec::new();
                 for ty in wy * WARP.1..((wy + 1) * WARP.1).min(th) {
                     for tx in wx * WARP.0..((wx + 1) * WARP.0).min(tw) {
                         let p = traced_pixel(UVec2::new(tx, ty), 0, UVec2::new(w, h), half);
@@ -655,19 +658,20 @@ fn warp_work(
                                 let mut work = TraceWork::default();
                                 let contact = Some(DepthContacts { view, jitter: ray_jitter(jitter, i) });
                                 ray_occluder(levels, contact, world, normal, dir, start, &trace, &mut work);
-                                (work.texel_visits - work.free_space_visits, work.free_space_visits)
+                                let past = work.free_space_visits;
+                                std::iter::once(work.texel_visits - past.iter().sum::<u64>()).chain(past).collect()
                             })
                             .collect();
                         lanes.push(visits);
                     }
                 }
-                // The marches past free space run after the first march's loop, which every lane leaves
-                // first: the warp pays its slowest lane in each.
+                // Each pass past free space runs after every lane has left the march before it: the warp
+                // pays its slowest lane in the first march and again in each pass.
                 for i in 0..trace.rays as usize {
-                    let first = lanes.iter().map(|l| l[i].0).max().unwrap_or(0);
-                    let past = lanes.iter().map(|l| l[i].1).max().unwrap_or(0);
-                    slowest += (first + past) * lanes.len() as u64;
-                    own += lanes.iter().map(|l| l[i].0 + l[i].1).sum::<u64>();
+                    let marches = lanes.first().map_or(0, |l| l[i].len());
+                    let warp: u64 = (0..marches).map(|k| lanes.iter().map(|l| l[i][k]).max().unwrap_or(0)).sum();
+                    slowest += warp * lanes.len() as u64;
+                    own += lanes.iter().map(|l| l[i].iter().sum::<u64>()).sum::<u64>();
                 }
                 lane_rays += lanes.len() as u64 * u64::from(trace.rays);
             }

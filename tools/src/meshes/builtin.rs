@@ -696,7 +696,8 @@ pub fn apartment() -> TriangleMesh {
 }
 
 /// An open-plan office hall (16 x 10 m, 5 m high), every part a box, some turned: tall windows, a mezzanine
-/// on columns along one wall with a railing of thin bars and shelves on it, a stair up to it, three
+/// on columns along one wall with a railing of thin bars and shelf units on it (each closed by a panel on
+/// the hall side), a free-standing stair of fifteen steps along the east wall, rising away from it, three
 /// columns of two turned boxes each, six desks turned 30 degrees (legs, a screen, a chair), filing
 /// cabinets under the mezzanine, ceiling beams. Surfaces at angles to the voxels, and deep occlusion
 /// under a slab.
@@ -729,7 +730,8 @@ pub fn office() -> TriangleMesh {
         b(&mut m, [x - 0.02, mh + 0.25, mz, x + 0.02, mh + 1.25, mz + 0.04]);
     }
     b(&mut m, [0.0, mh + 1.2, mz, w, mh + 1.25, mz + 0.06]);
-    // A stair of fifteen steps up to it along the east wall.
+    // A stair of fifteen steps along the east wall, rising from under the mezzanine's edge towards the
+    // windows (it leads nowhere: a block of steps).
     for k in 1..=15 {
         let (y, z) = (k as f32 * mh / 15.0, mz - 0.3 * k as f32);
         b(&mut m, [w - 1.2, y - 0.18, z, w, y, z + 0.3]);
@@ -756,7 +758,7 @@ pub fn office() -> TriangleMesh {
         piece(&mut m, at(0.0, -0.7), (0.22, 0.22), 0.45, 0.5);
         piece(&mut m, at(0.0, -0.7), (0.03, 0.03), 0.0, 0.45);
     }
-    // Filing cabinets under the mezzanine, shelves on it.
+    // Filing cabinets under the mezzanine; shelf units on it, each closed by a panel on the hall side.
     for k in 0..8 {
         let x = 0.6 + k as f32 * 0.9;
         b(&mut m, [x, 0.0, d - 0.6, x + 0.8, 1.3, d]);
