@@ -201,9 +201,7 @@ fn inspector_window(
             ui.add(egui::Slider::new(&mut hao.intensity, 0.0..=3.0).text("intensity"));
             ui.add(egui::Slider::new(&mut hao.start_offset, 0.0..=3.0).text("start offset (voxels)"));
             ui.checkbox(&mut hao.depth_contacts, "contacts from the depth prepass");
-            let preset_passes =
-                HybridAmbientOcclusion { depth_free_space: None, ..hao.clone() }.uses_depth_free_space();
-            let preset = if preset_passes { "the preset's: on" } else { "the preset's: off" };
+            let preset = if hao.quality.passes_free_space() { "the preset's: on" } else { "the preset's: off" };
             let label = |v: Option<bool>| match v {
                 None => preset,
                 Some(true) => "on",

@@ -389,7 +389,7 @@ impl HybridAmbientOcclusion {
     /// Whether the trace passes the voxel hits the depth prepass shows in free space: `depth_free_space`
     /// where it is given, else the quality's choice (`High` and `Ultra`).
     pub fn uses_depth_free_space(&self) -> bool {
-        self.depth_free_space.unwrap_or(matches!(self.quality, HaoQuality::High | HaoQuality::Ultra))
+        self.depth_free_space.unwrap_or(self.quality.passes_free_space())
     }
 
     /// These settings with every invalid value replaced by the one the passes use, and one message per
@@ -525,6 +525,12 @@ impl HaoQuality {
                 (rays.clamp(1, 256), steps.clamp(1, 1024), half_resolution)
             }
         }
+    }
+
+    /// Whether the preset passes the voxel hits the depth prepass shows in free space where
+    /// `HybridAmbientOcclusion::depth_free_space` leaves it to the preset: `High` and `Ultra`.
+    pub(crate) fn passes_free_space(&self) -> bool {
+        matches!(self, Self::High | Self::Ultra)
     }
 
     /// `(rays, steps, half_resolution)` of a frame whose result is accumulated over `accumulation_frames`

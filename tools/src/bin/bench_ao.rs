@@ -39,8 +39,8 @@
 //! warp of 8x4 texels of the trace at its slowest lane's visits, in the first march and again in each pass
 //! past free space), voxel texels fetched per pixel a frame, the depth prepass samples a ray reads for its
 //! contacts and free space (and the share of rays a contact stops, whose march is not run), the share of rays
-//! that hit, of marches stopped by the step budget, and the hits passed as free space per ray. Unlike the times, these
-//! do not depend on the device. `--no-depth-contacts` runs every preset without its depth contacts
+//! that hit, of marches stopped by the step budget, and the hits passed as free space per ray. Unlike the
+//! times, these do not depend on the device. `--no-depth-contacts` runs every preset without its depth contacts
 //! (`HybridAmbientOcclusion::depth_contacts`), for a comparison run after run.
 //!
 //! With `--attributes` (and `--res`: the default cascades' attribute sums exceed some devices' binding limit)
@@ -620,8 +620,8 @@ const WARP_STRIDE: u32 = 4;
 /// each axis is traced by the CPU twin with the rays and steps `settings` trace a frame, and each of a warp's
 /// rays costs the visits of its slowest lane (lanes that finish wait for it; lanes on the background trace
 /// nothing), in the first march and again in each pass past free space, which comes after the march before
-/// it. (The marches through the backs of surfaces, a loop of their own too, count with the first.) Returns those visits per ray, and the share of them that a lane spends on its own ray (the
-/// lanes busy).
+/// it. (The marches through the backs of surfaces, a loop of their own too, count with the first.) Returns
+/// those visits per ray, and the share of them that a lane spends on its own ray (the lanes busy).
 fn warp_work(
     samples: &[Option<(Vec3, Vec3)>],
     view: &ViewDepth,
