@@ -189,7 +189,11 @@ fn inspector_window(
                 .selected_text(format!(
                     "{:?} ({rays} rays x {steps} steps{})",
                     hao.quality,
-                    if half { ", half res" } else { "" }
+                    match (half, hao.uses_checkerboard()) {
+                        (true, true) => ", half res, checkerboard",
+                        (true, false) => ", half res",
+                        _ => "",
+                    }
                 ))
                 .show_ui(ui, |ui| {
                     for q in [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra] {

@@ -212,6 +212,10 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 trace_width,
                 trace_height,
                 depth_contacts,
+                checkerboard,
+                _pad_a,
+                _pad_b,
+                _pad_c,
             ]
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),
@@ -378,7 +382,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 20] = [
+    let pairs: [(&str, &str, f64); 21] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -388,6 +392,7 @@ fn shared_constants_agree() {
         (hao, "CLAMP_MARGIN", temporal::CLAMP_MARGIN as f64),
         (hao, "CLAMPED_COUNT", temporal::CLAMPED_COUNT as f64),
         (hao, "CHANGED_COUNT", temporal::CHANGED_COUNT as f64),
+        (hao, "STAND_IN_COUNT", temporal::STAND_IN_COUNT as f64),
         (common, "MAX_PN_GAMMA_SCALE", crate::cpu::pn::MAX_PN_GAMMA_SCALE as f64),
         (common, "ALBEDO_SCALE", crate::cpu::attributes::ALBEDO_SCALE as f64),
         (common, "NORMAL_SCALE", crate::cpu::attributes::NORMAL_SCALE as f64),

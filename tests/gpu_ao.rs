@@ -519,54 +519,63 @@ fn walls_app_and_voxels(
 
 /// The CPU twin's trace of render frame `frame` as the GPU stores it: one texel per pixel, or per 2x2 block
 /// at half resolution, traced from the block's pixel of the frame (`traced_pixel`) with that pixel's noise
-/// (`noise_frame`), stored as the GPU stores it (`TracedTexel::stored`).
+/// (`noise_frame`), stored as the GPU stores it (`TracedTexel::stored`). In a checkerboard only the texels
+/// the frame traces (`texel_traced`); the others are the `previous` frame's.
 fn cpu_trace_frame(
     samples: &[Option<(Vec3, Vec3)>],
     view: &bevy_hao::cpu::contacts::ViewDepth,
     settings: &HybridAmbientOcclusion,
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
-    half_resolution: bool,
+    previous: Option<&bevy_hao::cpu::temporal::TraceFrame>,
 ) -> bevy_hao::cpu::temporal::TraceFrame {
-    use bevy_hao::cpu::ao::{noise_frame, traced_pixel};
+    use bevy_hao::cpu::ao::{noise_frame, texel_traced, trace_turn, traced_pixel};
     use bevy_hao::cpu::temporal::{TraceFrame, TracedTexel};
+    let half_resolution = settings.trace_parameters().2;
+    let checkerboard = settings.uses_checkerboard() && previous.is_some();
     let (size, w, view_from_world) = (view.size, view.size.x, view.view_from_world);
     let trace_size = if half_resolution { (size + UVec2::ONE) / 2 } else { size };
-    let traced: Vec<usize> = (0..trace_size.x * trace_size.y)
-        .map(|t| {
-            let p = traced_pixel(UVec2::new(t % trace_size.x, t / trace_size.x), frame, size, half_resolution);
-            (p.y * w + p.x) as usize
-        })
-        .collect();
-    // `cpu_trace` over the traced pixels only.
+    let turn = trace_turn(frame, checkerboard);
+    let pixel_of = |t: UVec2| {
+        let p = traced_pixel(t, turn, size, half_resolution);
+        (p.y * w + p.x) as usize
+    };
+    // `cpu_trace` over the pixels traced this frame only.
     let mut sparse = vec![None; samples.len()];
-    for &pixel in &traced {
-        sparse[pixel] = samples[pixel];
+    for t in (0..trace_size.x * trace_size.y).map(|t| UVec2::new(t % trace_size.x, t / trace_size.x)) {
+        if texel_traced(t, frame, checkerboard) {
+            sparse[pixel_of(t)] = samples[pixel_of(t)];
+        }
     }
-    let (ao, _) = cpu_trace(&sparse, view, settings, levels, noise_frame(frame, half_resolution));
-    let texels = traced
-        .iter()
-        .map(|&pixel| {
-            samples[pixel].map(|(world, normal)| {
-                TracedTexel { ao: ao[pixel], depth: -view_from_world.transform_point3(world).z, normal }.stored()
-            })
+    let (ao, _) = cpu_trace(&sparse, view, settings, levels, noise_frame(turn, half_resolution));
+    TraceFrame::traced(frame, checkerboard, trace_size, previous, |t| {
+        let pixel = pixel_of(t);
+        samples[pixel].map(|(world, normal)| {
+            TracedTexel { ao: ao[pixel], depth: -view_from_world.transform_point3(world).z, normal }.stored()
         })
-        .collect();
-    TraceFrame { number: frame, texels }
+    })
 }
 
 /// Holds the GPU's temporal accumulation over a still camera, at full or half resolution, to the CPU
 /// twin's: the trace of every frame (`cpu_trace_frame`) through `bevy_hao::cpu::temporal::accumulate_still`.
-fn assert_accumulation_matches_cpu(half_resolution: bool) {
+fn assert_accumulation_matches_cpu(quality: HaoQuality) {
     use bevy_hao::cpu::ao::TraceLevel;
     use bevy_hao::cpu::temporal::accumulate_still;
     let _gpu = gpu_lock();
-    let quality = HaoQuality::Custom { rays: if half_resolution { 2 } else { 4 }, steps: 48, half_resolution };
     // With the filter (`cpu::temporal::prefilter`), wider than its default.
     let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 8, quality, ..hao_settings() };
+    let half_resolution = settings.trace_parameters().2;
+    // Frames between a pixel's own traces: 1, 4 at half resolution, 8 in a checkerboard.
+    let frames_per_trace = if settings.uses_checkerboard() {
+        8
+    } else if half_resolution {
+        4
+    } else {
+        1
+    };
     // Long enough for the first frames, traced while the grid was still being built, to have left the
-    // history (their weight is (7/8)^50 by the end; at half resolution a pixel traces every fourth frame).
-    let frames_run = if half_resolution { 220 } else { 60 };
+    // history (their weight is (7/8)^50 by the end).
+    let frames_run = 20 + 50 * frames_per_trace;
     let (mut app, mips, grid) = walls_app_and_voxels(&settings, frames_run);
     let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
     let targets = app.world().resource::<Targets>().clone();
@@ -578,9 +587,11 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
     let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
     let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let view = view_depth(&mut app);
-    let frames: Vec<_> = (0..rendered + 2)
-        .map(|f| cpu_trace_frame(&samples, &view, &settings, &levels, f as u32, half_resolution))
-        .collect();
+    let mut frames: Vec<bevy_hao::cpu::temporal::TraceFrame> = Vec::new();
+    for f in 0..rendered + 2 {
+        let frame = cpu_trace_frame(&samples, &view, &settings, &levels, f as u32, frames.last());
+        frames.push(frame);
+    }
     let pixels: Vec<Option<(f32, Vec3)>> =
         samples.iter().map(|s| s.map(|(p, n)| (-view_from_world.transform_point3(p).z, n))).collect();
     let accumulate =
@@ -598,7 +609,7 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
     };
     // The GPU's image is the twin's accumulation of the frames first..=last for some last frame near the
     // end (the readback's latency is not known) and a first frame long enough before it.
-    let back = if half_resolution { [96, 128] } else { [24, 32] };
+    let back = [24, 32].map(|b| b * frames_per_trace);
     let (mut best, mut best_run, mut single) = (f64::MAX, (0, 0), f64::MAX);
     for last in frames.len().saturating_sub(12)..frames.len() {
         single = single.min(error(&accumulate(&frames[last..=last])));
@@ -617,14 +628,23 @@ fn assert_accumulation_matches_cpu(half_resolution: bool) {
 
 #[test]
 fn temporal_accumulation_matches_its_cpu_twin() {
-    assert_accumulation_matches_cpu(false);
+    assert_accumulation_matches_cpu(HaoQuality::Custom { rays: 4, steps: 48, half_resolution: false });
 }
 
 /// At half resolution each block traces one of its pixels a frame, in turn, and each pixel accumulates its
 /// own traces; the twin must pick the same pixels, noise and stand-ins frame by frame to match.
 #[test]
 fn half_resolution_accumulation_matches_its_cpu_twin() {
-    assert_accumulation_matches_cpu(true);
+    assert_accumulation_matches_cpu(HaoQuality::Custom { rays: 2, steps: 48, half_resolution: true });
+}
+
+/// `Low` traces half its blocks a frame, in a checkerboard, and keeps the others' last trace: the twin must
+/// keep the same texels and turn the same pixels and noise to match.
+#[test]
+fn checkerboard_accumulation_matches_its_cpu_twin() {
+    let settings = HybridAmbientOcclusion { accumulation_frames: 8, quality: HaoQuality::Low, ..default() };
+    assert!(settings.uses_checkerboard());
+    assert_accumulation_matches_cpu(HaoQuality::Low);
 }
 
 #[test]

@@ -36,6 +36,12 @@ struct HaoSettings {
     trace_height: u32,
     // 1: each ray's first cells are traced in the depth prepass (`depth_contacts`).
     depth_contacts: u32,
+    // 1: the trace runs on half its texels a frame, in a checkerboard that alternates (`texel_traced`); the
+    // others keep their last frame's trace.
+    checkerboard: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 }
 
 // Where the temporal history holds pixel `p` of the view: its buffers are the view's pixels row by row.
@@ -88,8 +94,28 @@ fn traced_pixel(texel: vec2<u32>, frame: u32, view_size: vec2<u32>, half_resolut
     return select(texel, p, half_resolution);
 }
 
+// cpu/ao.rs: checkerboard_texel. The texel of the trace invocation `id` traces: its own, or with the
+// checkerboard the one of row id.y at column 2 id.x or 2 id.x + 1 that `texel_traced` picks (the pass then
+// runs half the invocations).
+fn checkerboard_texel(id: vec2<u32>, frame: u32, checkerboard: bool) -> vec2<u32> {
+    return select(id, vec2<u32>(id.x * 2u + ((id.y + frame) & 1u), id.y), checkerboard);
+}
+
+// cpu/ao.rs: texel_traced. Whether texel `t` of the trace is traced in `frame`: every texel, or with the
+// checkerboard those whose coordinates' sum has the frame's parity (the others keep their last trace).
+fn texel_traced(t: vec2<u32>, frame: u32, checkerboard: bool) -> bool {
+    return !checkerboard || ((t.x + t.y + frame) & 1u) == 0u;
+}
+
+// cpu/ao.rs: trace_turn. The frame number that picks a block's pixel and turns the noise: with the
+// checkerboard, where each texel is traced every other frame, half the frame.
+fn trace_turn(frame: u32, checkerboard: bool) -> u32 {
+    return select(frame, frame / 2u, checkerboard);
+}
+
 // cpu/ao.rs: noise_frame. The frame number that turns a pixel's ray noise: at half resolution the number of
-// the pixel's own trace (one every fourth frame).
+// the pixel's own trace (one every fourth frame; pass it `trace_turn`, and one every eighth in the
+// checkerboard).
 fn noise_frame(frame: u32, half_resolution: bool) -> u32 {
     return select(frame, frame / 4u, half_resolution);
 }
@@ -185,12 +211,21 @@ fn unpack_normal(p: f32) -> vec3<f32> {
     return octahedral_decode(unpack_octahedral(p));
 }
 
-// cpu/temporal.rs: DEPTH_TOLERANCE, NORMAL_TOLERANCE, CLAMP_MARGIN, CLAMPED_COUNT, CHANGED_COUNT
+// cpu/temporal.rs: DEPTH_TOLERANCE, NORMAL_TOLERANCE, CLAMP_MARGIN, CLAMPED_COUNT, CHANGED_COUNT,
+// STAND_IN_COUNT
 const DEPTH_TOLERANCE: f32 = 0.02;
 const NORMAL_TOLERANCE: f32 = 0.9;
 const CLAMP_MARGIN: f32 = 0.1;
 const CLAMPED_COUNT: f32 = 2.0;
 const CHANGED_COUNT: f32 = 2.0;
+const STAND_IN_COUNT: f32 = 3.0;
+
+// cpu/temporal.rs: uses_stand_in. Whether a pixel without its own trace this frame blends its stand-in: where
+// its history holds fewer than STAND_IN_COUNT frames (or the cap, if lower), its voxels may have changed or
+// nothing is accumulated.
+fn uses_stand_in(history_count: f32, max_count: f32, near_change: bool) -> bool {
+    return history_count < min(STAND_IN_COUNT, max_count) || near_change || max_count <= 1.0;
+}
 
 // cpu/temporal.rs: history_accepts. Whether a texel of view depth `history_depth` and normal along `direction`
 // (any length) saw the surface of depth `expected_depth` and unit normal `normal`: the cosine test squared,
@@ -227,10 +262,10 @@ fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: 
 }
 
 // cpu/temporal.rs: temporal_update; returns (ao, frames of weight). `own`: the pixel was traced this frame
-// and `current` is its AO; else `current` is its stand-in, blended only where there is no history, the
-// voxels near it may have changed, or there is no accumulation (else the history stays as it is).
+// and `current` is its AO; else `current` is its stand-in, blended only where `uses_stand_in` (else the
+// history stays as it is).
 fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, near_change: bool) -> vec2<f32> {
-    if own || history_count <= 0.0 || near_change || max_count <= 1.0 {
+    if own || uses_stand_in(history_count, max_count, near_change) {
         return temporal_blend(history, history_count, window, current, max_count, near_change);
     }
     return vec2<f32>(history, history_count);

@@ -2,7 +2,8 @@
 // Each pixel's surface is reprojected into the previous frame with the camera's previous matrices, the
 // history is read there (bilinear, each texel kept only if it saw the same surface), clamped to the window of
 // this frame's trace around the pixel's block, and blended with its own trace filtered over the block's 3x3
-// texels (both from the neighborhood pass). At half resolution a pixel is traced every fourth frame; in the
+// texels (both from the neighborhood pass). At half resolution a pixel is traced every fourth frame (every eighth in the
+// checkerboard, where the trace keeps half its texels from last frame: `texel_traced`); in the
 // other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
 // in. Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`; a
 // buffer of the view's pixels row by row), which the next frame reprojects, and its AO into the texture PBR
@@ -14,7 +15,8 @@
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, history_accepts, history_index, octahedral_encode, pack_history, pack_normal, target_pixel,
-    temporal_update, trace_index, traced_pixel, unpack_direction, unpack_history,
+    temporal_update, trace_index, uses_stand_in, traced_pixel, texel_traced, trace_turn, unpack_direction,
+    unpack_history,
 }
 #import bevy_hao::voxel_grid::near_changed_voxels
 
@@ -120,10 +122,14 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let normal = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
 
     // This frame's trace: at full resolution every pixel's; at half resolution one pixel of each 2x2 block,
-    // each pixel's own every fourth frame (`traced_pixel`).
+    // each pixel's own every fourth frame (`traced_pixel`), or in the checkerboard every eighth (the block's
+    // texel is traced every other frame: `texel_traced`).
     let half = settings.half_resolution != 0u;
     let block = pixel / select(1u, 2u, half);
-    let traced = all(traced_pixel(block, settings.frame, vec2<u32>(view.viewport.zw), half) == pixel);
+    let checkerboard = settings.checkerboard != 0u;
+    let turn = trace_turn(settings.frame, checkerboard);
+    let traced = texel_traced(block, settings.frame, checkerboard)
+        && all(traced_pixel(block, turn, vec2<u32>(view.viewport.zw), half) == pixel);
     // The window of the trace around its block bounds the history.
     let window = trace_window[trace_index(settings, block)];
 
@@ -167,8 +173,8 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let near_change = history_count > 0.0 && near_changed_voxels(world, settings.max_distance);
     // Its own trace, filtered; or where its block traced another pixel, the traced neighbours on its surface
-    // (the stand-in), read only where it is used: where the pixel has no history or must follow a change.
-    let stand_in_used = !traced && (history_count <= 0.0 || near_change || settings.accumulation_frames <= 1u);
+    // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
+    let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), near_change);
     var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
     if traced {
         current = filtered[trace_index(settings, block)];

@@ -4,14 +4,16 @@
 // mips; each ray's first cells, which the voxels skip, are traced in the depth prepass (`depth_contact`).
 // Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral normal,
 // which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`, with no
-// frames).
+// frames). In the checkerboard (`Low`) it runs on half the texels, alternating
+// (`checkerboard_texel`), and the others keep their last frame's.
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion_counted` (the contacts: `bevy_hao::cpu::contacts`).
 // The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, ray_rotation, hemisphere_direction, orthonormal_basis, ao_falloff, interleaved_gradient_noise,
     GOLDEN,
-    octahedral_encode, traced_pixel, noise_frame, target_pixel, trace_index, pack_history, pack_normal,
+    octahedral_encode, traced_pixel, checkerboard_texel, trace_turn, noise_frame, target_pixel, trace_index,
+    pack_history, pack_normal,
 }
 #import bevy_hao::voxel_grid::{
     voxel_grid, ray_start_level, march_cascades, level_position, voxel_normal_at, safe_inverse, ray_box,
@@ -159,14 +161,18 @@ fn world_position(pixel: vec2<u32>, depth: f32) -> vec3<f32> {
 
 @compute @workgroup_size(#{SCREEN_WORKGROUP}, #{SCREEN_WORKGROUP}, 1)
 fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if any(gid.xy >= vec2<u32>(settings.trace_width, settings.trace_height)) {
+    // With the checkerboard, half the texels a frame (`texel_traced`); the others keep their last trace.
+    let checkerboard = settings.checkerboard != 0u;
+    let texel = checkerboard_texel(gid.xy, settings.frame, checkerboard);
+    if any(texel >= vec2<u32>(settings.trace_width, settings.trace_height)) {
         return;
     }
-    let at = trace_index(settings, gid.xy);
-    // At half resolution, the pixel of the 2x2 block whose turn it is: each pixel traces every fourth frame,
+    let at = trace_index(settings, texel);
+    // At half resolution, the pixel of the 2x2 block whose turn it is: each pixel traces every fourth frame
+    // (every eighth in the checkerboard),
     // and the temporal pass accumulates each pixel's own rays at full resolution.
     let half = settings.half_resolution != 0u;
-    let pixel = traced_pixel(gid.xy, settings.frame, vec2<u32>(view.viewport.zw), half);
+    let pixel = traced_pixel(texel, trace_turn(settings.frame, checkerboard), vec2<u32>(view.viewport.zw), half);
     let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     if depth <= 0.0 {
         // Background: depth 0 tells the passes after this one to skip it.
@@ -182,9 +188,10 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let pf = vec2<f32>(pixel);
-    // The noise turns with each of the pixel's own traces (every frame, or every fourth at half resolution).
-    let rotation = ray_rotation(pf, noise_frame(settings.frame, half));
-    let jitter = contact_jitter(pf, noise_frame(settings.frame, half));
+    // The noise turns with each of the pixel's own traces (every frame, or every fourth or eighth at half
+    // resolution).
+    let rotation = ray_rotation(pf, noise_frame(trace_turn(settings.frame, checkerboard), half));
+    let jitter = contact_jitter(pf, noise_frame(trace_turn(settings.frame, checkerboard), half));
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {

@@ -8,13 +8,16 @@
 //!    frames are accumulated or TAA jitters the view), start about a voxel off the surface and march the
 //!    voxel texture up to `max_distance`, skipping empty space on its mips; each hit weighs
 //!    `(1 - d/max)^falloff`. At half resolution each 2x2 block traces one of its pixels a frame, in turn;
+//!    `Low` traces half the blocks a frame, in a checkerboard that alternates, and the others keep their
+//!    last frame's trace;
 //! 2. **neighborhood** (`hao_neighborhood.wgsl`, `hao/neighborhood`), at the trace's resolution: from each
 //!    texel's 3x3 neighbourhood of traced AO, the window its pixels allow their history (mean plus or minus
 //!    two standard deviations), and its AO filtered over them by a depth- and normal-aware bilateral weight
 //!    (the denoiser), once for the pixels that read it;
 //! 3. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
 //!    checked, clamped to its window and blended with the pixel's own filtered trace (at half resolution
-//!    every fourth frame; a pixel without history takes its traced neighbours on its surface meanwhile). It
+//!    every fourth frame, every eighth in the checkerboard; a pixel without history takes its traced neighbours
+//!    on its surface meanwhile). It
 //!    writes the result into the texture Bevy's PBR reads AO from, so it dims indirect light only;
 //! 4. with the near field only, the temporal pass writes a texture of its own with the minimum of Bevy's
 //!    SSAO, and **apply** (`hao_apply.wgsl`, `hao/apply`) copies it into the texture PBR reads (which holds
@@ -367,7 +370,8 @@ pub struct HybridAmbientOcclusion {
     /// history follows the camera (reprojected with its previous matrices), restarts where a surface was
     /// hidden or has moved, and is clamped to the current frame's neighbourhood so that a moving occluder
     /// leaves no trail (see `bevy_hao::cpu::temporal`). At half resolution it counts a pixel's own traces,
-    /// one every fourth frame, so the history spans four times as many frames.
+    /// one every fourth frame (every eighth in `Low`'s checkerboard), so the history spans
+    /// four (eight) times as many frames.
     pub accumulation_frames: u32,
     /// With multi-valued voxels ([`crate::VoxelVolume::attributes`]): a ray passes through a voxel whose
     /// average normal clearly faces along it (the back of a surface, which a ray reaches only from inside a
@@ -384,6 +388,13 @@ impl HybridAmbientOcclusion {
     /// rays (and `Medium` at half resolution) for the presets when 4 or more frames are accumulated.
     pub fn trace_parameters(&self) -> (u32, u32, bool) {
         self.quality.parameters_accumulated(self.accumulation_frames.clamp(1, 64))
+    }
+
+    /// Whether the trace runs in a checkerboard: half the blocks of its half-resolution trace a frame,
+    /// alternating, so that each pixel traces its own rays every eighth frame. `Low` does when
+    /// 4 or more frames are accumulated.
+    pub fn uses_checkerboard(&self) -> bool {
+        self.accumulation_frames.clamp(1, 64) >= 4 && self.quality.traces_checkerboard()
     }
 
     /// Whether the trace passes the voxel hits the depth prepass shows in free space: `depth_free_space`
@@ -479,9 +490,11 @@ impl Default for HybridAmbientOcclusion {
 #[derive(Reflect, Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[reflect(Default, Debug, PartialEq, Hash, Clone)]
 pub enum HaoQuality {
-    /// 24 steps at half resolution: 1 ray a frame accumulated, 4 without. Accumulated it costs within a
-    /// few percent of `Medium` (the passes after the trace are most of both); without accumulation, under a
-    /// third of `Medium`'s (docs/figures.md).
+    /// 24 steps at half resolution: 1 ray a frame accumulated, 4 without. Accumulated, in a checkerboard:
+    /// half the 2x2 blocks trace a frame, alternating, and the others keep their last trace, so each pixel
+    /// traces its own ray every eighth frame ([`HybridAmbientOcclusion::uses_checkerboard`]). That halves
+    /// the trace's work for a few percent more error than `Medium` on a still view and about a tenth more in
+    /// motion (docs/figures.md). Without accumulation, under a third of `Medium`'s cost.
     Low,
     /// 32 steps, the default. Accumulated: 1 ray a frame at half resolution, where each 2x2 block traces
     /// one of its pixels a frame, in turn, and every pixel accumulates its own rays (so the AO keeps full
@@ -533,6 +546,12 @@ impl HaoQuality {
         matches!(self, Self::High | Self::Ultra)
     }
 
+    /// Whether the preset, accumulated, traces in a checkerboard (`HybridAmbientOcclusion::uses_checkerboard`):
+    /// `Low`.
+    pub(crate) fn traces_checkerboard(&self) -> bool {
+        matches!(self, Self::Low)
+    }
+
     /// `(rays, steps, half_resolution)` of a frame whose result is accumulated over `accumulation_frames`
     /// frames: the presets trace fewer rays from 4 frames on; `Custom` traces what it says.
     pub(crate) fn parameters_accumulated(&self, accumulation_frames: u32) -> (u32, u32, bool) {
@@ -574,6 +593,17 @@ mod tests {
         let custom = HaoQuality::Custom { rays: 3, steps: 20, half_resolution: false };
         assert_eq!(at(custom, 16), (3, 20, false));
         assert_eq!(at(custom, 1), (3, 20, false));
+    }
+
+    #[test]
+    fn low_traces_a_checkerboard_when_it_accumulates() {
+        let uses = |quality, accumulation_frames| {
+            HybridAmbientOcclusion { quality, accumulation_frames, ..default() }.uses_checkerboard()
+        };
+        let custom = HaoQuality::Custom { rays: 1, steps: 24, half_resolution: true };
+        let presets = [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra, custom];
+        assert_eq!(presets.map(|q| uses(q, 16)), [true, false, false, false, false]);
+        assert!(uses(HaoQuality::Low, 4) && !uses(HaoQuality::Low, 3) && !uses(HaoQuality::Low, 1));
     }
 
     #[test]

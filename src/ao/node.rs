@@ -59,7 +59,7 @@ pub fn hao(
             (1, &bind_groups.view, &[view_offset.offset]),
             (VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]),
         ],
-        res.trace_size,
+        res.trace_dispatch,
     );
     pass("hao_neighborhood", "hao/neighborhood", neighborhood, &[(0, &bind_groups.neighborhood, &[])], res.trace_size);
     // The temporal pass writes into the texture PBR reads; with the near field, into the result texture with

@@ -66,6 +66,14 @@ pub struct GpuHaoSettings {
     pub trace_height: u32,
     /// 1 to trace each ray's first cells in the depth prepass.
     pub depth_contacts: u32,
+    /// 1 to trace half the texels a frame, in a checkerboard that alternates.
+    pub checkerboard: u32,
+    /// Padding to the struct's alignment (its matrix's 16 bytes).
+    pub _pad_a: u32,
+    /// Padding.
+    pub _pad_b: u32,
+    /// Padding.
+    pub _pad_c: u32,
 }
 
 /// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, when, and whether
@@ -125,6 +133,8 @@ pub struct HaoViewResources {
     pub settings: Buffer,
     /// Size of the trace.
     pub trace_size: UVec2,
+    /// Invocations of the trace: its size, or with the checkerboard half its width.
+    pub trace_dispatch: UVec2,
     /// Size of the view.
     pub view_size: UVec2,
     /// MSAA samples of the view's prepasses (1: none).
@@ -255,6 +265,12 @@ pub fn prepare_hao_textures(
             // No previous view (its first frame): the history is not read.
             (None, _) => Mat4::IDENTITY,
         };
+        let history_read = history_valid && previous_view.is_some();
+        // The checkerboard keeps half the trace's texels from last frame: a view without a last frame
+        // traces them all.
+        let checkerboard =
+            hao.uses_checkerboard() && half && history_read && std::env::var_os("HAO_NO_CHECKER").is_none();
+        let trace_dispatch = if checkerboard { UVec2::new(trace_size.x.div_ceil(2), trace_size.y) } else { trace_size };
         let gpu_settings = GpuHaoSettings {
             previous_clip_from_world,
             rays,
@@ -270,7 +286,7 @@ pub fn prepare_hao_textures(
             denoise_radius: hao.denoise_radius,
             accumulation_frames: hao.accumulation_frames,
             back_hits: hao.ignore_back_hits as u32,
-            history_valid: (history_valid && previous_view.is_some()) as u32,
+            history_valid: history_read as u32,
             origin_x: origin.x,
             origin_y: origin.y,
             view_width: view_size.x,
@@ -278,6 +294,10 @@ pub fn prepare_hao_textures(
             trace_width: trace_size.x,
             trace_height: trace_size.y,
             depth_contacts: hao.depth_contacts as u32,
+            checkerboard: checkerboard as u32,
+            _pad_a: 0,
+            _pad_b: 0,
+            _pad_c: 0,
         };
         // Written into the view's own buffer before this frame's passes run (the last frame's passes were
         // submitted before this write).
@@ -291,6 +311,7 @@ pub fn prepare_hao_textures(
             result,
             settings,
             trace_size,
+            trace_dispatch,
             view_size,
             samples,
             requested_trace,

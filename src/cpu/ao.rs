@@ -52,8 +52,32 @@ pub fn traced_pixel(texel: glam::UVec2, frame: u32, view_size: glam::UVec2, half
     (texel * 2 + half_resolution_offset(frame)).min(view_size.saturating_sub(glam::UVec2::ONE))
 }
 
+/// The texel of the trace that invocation `id` of the trace pass traces in `frame` (WGSL:
+/// `checkerboard_texel`): its own, or with the checkerboard the texel of row `id.y` at column `2 id.x` or
+/// `2 id.x + 1`, whichever [`texel_traced`] picks. With the checkerboard the pass runs half the invocations.
+pub fn checkerboard_texel(id: glam::UVec2, frame: u32, checkerboard: bool) -> glam::UVec2 {
+    if !checkerboard {
+        return id;
+    }
+    glam::UVec2::new(id.x * 2 + ((id.y + frame) & 1), id.y)
+}
+
+/// Whether texel `texel` of the trace is traced in `frame` (WGSL: `texel_traced`): every texel, or with the
+/// checkerboard those whose coordinates' sum has the frame's parity. The others keep their last frame's trace.
+pub fn texel_traced(texel: glam::UVec2, frame: u32, checkerboard: bool) -> bool {
+    !checkerboard || (texel.x + texel.y + frame) & 1 == 0
+}
+
+/// The frame number that picks a block's pixel ([`traced_pixel`]) and turns the noise ([`noise_frame`])
+/// (WGSL: `trace_turn`): the frame, or with the checkerboard, where each texel is traced every other frame,
+/// half of it, so that each block still traces its four pixels in turn.
+pub fn trace_turn(frame: u32, checkerboard: bool) -> u32 {
+    if checkerboard { frame / 2 } else { frame }
+}
+
 /// The frame number that turns a pixel's ray noise ([`ray_rotation`]; WGSL: in `trace`): the frame at full
-/// resolution; at half resolution the number of the pixel's own trace (one every fourth frame), so that a
+/// resolution; at half resolution the number of the pixel's own trace (one every fourth frame, or with
+/// `frame` from [`trace_turn`] every eighth in a checkerboard), so that a
 /// pixel's successive traces step through the R2 sequence as they do at full resolution (every fourth
 /// element of it would barely move its first coordinate: 4 x 0.7548777 is 0.0195 past a whole number).
 pub fn noise_frame(frame: u32, half_resolution: bool) -> u32 {
@@ -606,6 +630,38 @@ pub fn voxel_ray_occluder(
 mod tests {
     use super::*;
     use crate::cpu::VoxelGrid;
+
+    #[test]
+    fn a_checkerboard_traces_half_the_blocks_a_frame_and_every_pixel_every_eighth() {
+        use glam::UVec2;
+        let (view, trace) = (UVec2::new(10, 6), UVec2::new(5, 3));
+        let mut traced = vec![0; 60];
+        for frame in 40..48 {
+            // The trace pass's invocations (half the width, rounded up) cover exactly the texels traced.
+            let mut from_invocations: Vec<UVec2> = (0..trace.y)
+                .flat_map(|y| (0..trace.x.div_ceil(2)).map(move |x| UVec2::new(x, y)))
+                .map(|id| checkerboard_texel(id, frame, true))
+                .filter(|t| t.x < trace.x)
+                .collect();
+            from_invocations.sort_by_key(|t| (t.y, t.x));
+            let texels: Vec<UVec2> = (0..trace.y)
+                .flat_map(|y| (0..trace.x).map(move |x| UVec2::new(x, y)))
+                .filter(|&t| texel_traced(t, frame, true))
+                .collect();
+            assert_eq!(from_invocations, texels, "frame {frame}");
+            // A checkerboard: no two traced texels side by side.
+            assert!(texels.iter().all(|t| !texel_traced(*t + UVec2::X, frame, true)));
+            for t in texels {
+                let p = traced_pixel(t, trace_turn(frame, true), view, true);
+                traced[(p.y * view.x + p.x) as usize] += 1;
+            }
+        }
+        assert!(traced.iter().all(|&n| n == 1), "{traced:?}");
+        // Without the checkerboard every texel, every frame, and the frame turns the pixel.
+        assert!(texel_traced(UVec2::new(3, 0), 0, false) && checkerboard_texel(UVec2::new(3, 0), 0, false).x == 3);
+        assert_eq!(trace_turn(7, false), 7);
+        assert_eq!(noise_frame(trace_turn(47, true), true), 47 / 8, "each of a pixel's traces turns the noise");
+    }
 
     /// 64 rays of 64 steps reaching 8 cells, starting a cell off.
     fn trace_settings(falloff: f32, ignore_back_hits: bool) -> TraceSettings {

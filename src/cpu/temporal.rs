@@ -31,16 +31,19 @@
 //!
 //! The history is kept at full resolution. A half-resolution trace traces one pixel of each 2x2 block a
 //! frame, each pixel in turn (`cpu::ao::traced_pixel`), so every pixel accumulates its own rays, one trace
-//! every fourth frame: a frame that traced another pixel of its block leaves its history as it is
-//! ([`temporal_update`]). A pixel without history (a disocclusion), or near voxels that may have changed, takes
-//! the traced pixels of its neighbourhood that show its surface in place of its own trace
-//! ([`stand_in`]). `accumulation_frames` counts a pixel's own traces, so at half resolution the
-//! history spans four times as many frames.
+//! every fourth frame (every eighth in a checkerboard, which traces half the blocks a frame, alternating,
+//! and keeps the others' last trace: [`TraceFrame::traced`]): a frame that traced another pixel of its
+//! block, or none, leaves its history as it is
+//! ([`temporal_update`]). A pixel with little history (a disocclusion: under [`STAND_IN_COUNT`] frames), or
+//! near voxels that may have changed, blends the traced pixels of its neighbourhood that show its surface
+//! in place of its own trace ([`stand_in`]) until its own comes. `accumulation_frames` counts a pixel's own
+//! traces, so at half resolution the history spans four (eight) times as many frames.
 
 /// Added to the neighbourhood window on each side, so that a pixel whose neighbours saw no occluder this
 /// frame (common with few rays where AO is near 1) keeps its history.
 pub const CLAMP_MARGIN: f32 = 0.1;
 
+use super::ao::{texel_traced, trace_turn, traced_pixel};
 use super::denoise::HistoryTexel;
 use glam::{IVec2, UVec2, Vec2, Vec3};
 
@@ -49,6 +52,20 @@ pub const CLAMPED_COUNT: f32 = 2.0;
 
 /// The most frames of weight a history keeps near voxels that may have changed.
 pub const CHANGED_COUNT: f32 = 2.0;
+
+/// A pixel whose history holds fewer frames than this (or than the cap, if lower) blends its stand-in in the
+/// frames without its own trace ([`uses_stand_in`]): a new history is noisier than its neighbourhood's traces,
+/// and at half resolution a pixel waits up to 4 frames for its own (8 in a checkerboard). It is the count a
+/// clamped history leaves with ([`CLAMPED_COUNT`] + 1), so that detail finer than the window, which a clamp
+/// cut short, is not then averaged away with its neighbours'.
+pub const STAND_IN_COUNT: f32 = CLAMPED_COUNT + 1.0;
+
+/// Whether a pixel without its own trace this frame blends its [`stand_in`] (WGSL: `uses_stand_in`): where
+/// its history holds fewer than [`STAND_IN_COUNT`] frames (or `max_count`, if lower), the voxels near it may
+/// have changed or there is no accumulation.
+pub fn uses_stand_in(count: f32, max_count: f32, near_change: bool) -> bool {
+    count < STAND_IN_COUNT.min(max_count) || near_change || max_count <= 1.0
+}
 
 /// The relative view-depth tolerance of [`history_accepts`].
 pub const DEPTH_TOLERANCE: f32 = 0.02;
@@ -197,8 +214,8 @@ pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2,
 /// One pixel's new history and frames of weight (WGSL: the end of `temporal`), from its reprojected history
 /// (`count` 0: none), the window, its own trace this frame (`None` where its block traced another pixel),
 /// its stand-in ([`stand_in`]), the cap and whether the voxels near it may have changed. A frame
-/// without its own trace keeps the history as it is, unless there is none, the voxels near it may have
-/// changed or there is no accumulation: then the stand-in is blended as a trace.
+/// without its own trace keeps the history as it is, unless the history is short, the voxels near it may
+/// have changed or there is no accumulation ([`uses_stand_in`]): then the stand-in is blended as a trace.
 pub fn temporal_update(
     history: f32,
     count: f32,
@@ -210,20 +227,49 @@ pub fn temporal_update(
 ) -> (f32, f32) {
     match own {
         Some(current) => temporal_blend(history, count, window, current, max_count, near_change),
-        None if count <= 0.0 || near_change || max_count <= 1.0 => {
+        None if uses_stand_in(count, max_count, near_change) => {
             temporal_blend(history, count, window, stand_in, max_count, near_change)
         }
         None => (history, count),
     }
 }
 
-/// One frame of the trace: its number (which pixels a half-resolution trace traced) and its texels (`None`
-/// where the traced pixel shows no geometry).
+/// One frame of the trace: its number and whether it ran in a checkerboard (which pixels a half-resolution
+/// trace traced), and its texels (`None` where the traced pixel shows no geometry).
 pub struct TraceFrame {
     /// The frame number (`GpuHaoSettings::frame`).
     pub number: u32,
-    /// The trace, one texel per pixel, or per 2x2 block at half resolution.
+    /// Whether the frame traced half the texels (`GpuHaoSettings::checkerboard`): the others hold the last
+    /// frame's.
+    pub checkerboard: bool,
+    /// The trace, one texel per pixel, or per 2x2 block at half resolution, as the trace's buffer holds it
+    /// after the frame's trace.
     pub texels: Vec<Option<TracedTexel>>,
+}
+
+impl TraceFrame {
+    /// The trace's buffer after frame `number`: the texels the frame traces ([`texel_traced`]) from `trace`,
+    /// the others as the `previous` frame left them. Without a previous frame every texel is traced and the
+    /// frame is not a checkerboard's (the GPU's first frame of a view, which has no last trace to keep).
+    pub fn traced(
+        number: u32,
+        checkerboard: bool,
+        trace_size: UVec2,
+        previous: Option<&TraceFrame>,
+        mut trace: impl FnMut(UVec2) -> Option<TracedTexel>,
+    ) -> Self {
+        let checkerboard = checkerboard && previous.is_some();
+        let texels = (0..trace_size.x * trace_size.y)
+            .map(|i| {
+                let t = UVec2::new(i % trace_size.x, i / trace_size.x);
+                match previous {
+                    Some(previous) if !texel_traced(t, number, checkerboard) => previous.texels[i as usize],
+                    _ => trace(t),
+                }
+            })
+            .collect();
+        TraceFrame { number, checkerboard, texels }
+    }
 }
 
 /// The accumulation over a still camera (reprojection is the identity), frame by frame: the twin that the
@@ -247,7 +293,9 @@ pub fn accumulate_still(
             let Some((depth, normal)) = *pixel else { continue };
             let p = UVec2::new(i as u32 % view_size.x, i as u32 / view_size.x);
             let texel = if half_resolution { p / 2 } else { p };
-            let own = (super::ao::traced_pixel(texel, frame.number, view_size, half_resolution) == p
+            let turn = trace_turn(frame.number, frame.checkerboard);
+            let own = (texel_traced(texel, frame.number, frame.checkerboard)
+                && traced_pixel(texel, turn, view_size, half_resolution) == p
                 && frame.texels[(texel.y * trace_size.x + texel.x) as usize].is_some())
             .then(|| prefilter(&frame.texels, trace_size, texel, radius));
             let window = trace_window(&frame.texels, trace_size, texel);
@@ -335,6 +383,7 @@ mod tests {
         let frames: Vec<TraceFrame> = (0..32)
             .map(|k| TraceFrame {
                 number: k,
+                checkerboard: false,
                 texels: (0..w * h).map(|i| texel(if (i + k) % 2 == 0 { 0.5 } else { 1.0 })).collect(),
             })
             .collect();
@@ -355,6 +404,7 @@ mod tests {
         let frames: Vec<TraceFrame> = (0..64)
             .map(|k| TraceFrame {
                 number: k,
+                checkerboard: false,
                 texels: (0..4u32)
                     .map(|t| texel(truth(crate::cpu::ao::traced_pixel(UVec2::new(t % 2, t / 2), k, size, true))))
                     .collect(),
@@ -374,12 +424,47 @@ mod tests {
     }
 
     #[test]
+    fn in_a_checkerboard_each_pixel_accumulates_its_own_traces() {
+        // An 8x8 view traced at half resolution in a checkerboard: each pixel sees its own AO, which no
+        // other pixel of its block shares. Each frame traces half the blocks, each block one of its pixels.
+        let size = UVec2::new(8, 8);
+        let trace_size = UVec2::new(4, 4);
+        let truth = |p: UVec2| 0.1 + 0.8 * ((p.x * 3 + p.y * 5) % 7) as f32 / 6.0;
+        let mut frames: Vec<TraceFrame> = Vec::new();
+        for k in 0..160 {
+            let traced = TraceFrame::traced(k, true, trace_size, frames.last(), |t| {
+                texel(truth(traced_pixel(t, trace_turn(k, !frames.is_empty()), size, true)))
+            });
+            frames.push(traced);
+        }
+        assert!(!frames[0].checkerboard && frames[1].checkerboard, "the first frame traces every texel");
+        // Each frame after the first keeps half the texels as they were.
+        let kept = (0..16).filter(|&i| frames[9].texels[i].unwrap().ao == frames[8].texels[i].unwrap().ao).count();
+        assert_eq!(kept, 8);
+        let ao = accumulate_still(&frames, &flat(8, 8), size, true, 4.0, 0);
+        for (i, a) in ao.iter().enumerate() {
+            let p = UVec2::new(i as u32 % 8, i as u32 / 8);
+            // 20 traces of its own, one every eighth frame: the first frames' stand-ins weigh under 1 %.
+            assert!((a - truth(p)).abs() < 0.02, "pixel {p}: {a}, not {}", truth(p));
+        }
+    }
+
+    #[test]
     fn a_frame_without_the_pixels_own_trace_keeps_its_history() {
         let window = (0.0, 1.2);
         assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, false), (0.4, 6.0));
         // Its own trace is blended; with no history, or near a change, the stand-in is.
         assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, false), (0.5, 4.0));
         assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, false), (0.9, 1.0));
+        // A short history (under STAND_IN_COUNT frames) blends the stand-in until the pixel's own trace
+        // comes; not where the cap is that short itself.
+        let (ao, c) = temporal_update(0.4, 2.0, window, None, 0.9, 16.0, false);
+        assert!((ao - (0.4 + 0.5 / 3.0)).abs() < 1e-6 && c == 3.0, "{ao} {c}");
+        assert_eq!(temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, false), (0.4, STAND_IN_COUNT));
+        // A history the window clamped keeps its own (CLAMPED_COUNT + 1 frames are not a short history).
+        let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, false);
+        assert!(!uses_stand_in(clamped, 16.0, false));
+        assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, false), (0.4, 2.0));
         let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, true);
         assert!((ao - 0.6).abs() < 1e-6 && c == 3.0, "{ao} {c}");
         // No accumulation: the stand-in is the frame's AO.

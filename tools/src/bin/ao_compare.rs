@@ -286,8 +286,13 @@ fn main() {
     let sanitized = hao.sanitized().0;
     let accumulation = sanitized.accumulation_frames as usize;
     let (size, res) = (args.size, args.res);
-    // At half resolution a pixel traces every fourth frame, so its history spans four times the frames.
-    let frames_per_trace = if sanitized.trace_parameters().2 { 4 } else { 1 };
+    // At half resolution a pixel traces every fourth frame (every eighth in a checkerboard), so its history
+    // spans four (eight) times the frames.
+    let frames_per_trace = match (sanitized.trace_parameters().2, sanitized.uses_checkerboard()) {
+        (false, _) => 1,
+        (true, false) => 4,
+        (true, true) => 8,
+    };
     let setup_source = source.clone();
     let setup_hao = hao.clone();
     let fit = args.volume == Volume::Fit;

@@ -383,7 +383,11 @@ fn main() {
             "| {} | {} | {rays} x {steps}{} | {} | {} | {} | {} | {} | {} | {} | {} | {ratio} |",
             preset_name(settings),
             settings.accumulation_frames,
-            if half { ", half res" } else { "" },
+            match (half, settings.uses_checkerboard()) {
+                (true, true) => ", half res, checkerboard",
+                (true, false) => ", half res",
+                _ => "",
+            },
             f(m[0]),
             f(m[1]),
             f(m[2]),
@@ -482,7 +486,8 @@ const SPANS: [&str; 5] = ["hao/trace", "hao/neighborhood", "hao/temporal", "hao/
 const SSAO_SPAN: usize = 4;
 
 /// Frames run after a change of settings before a phase is measured: a preset's pipelines, its history (at
-/// half resolution every pixel is traced once in four frames) and Bevy's SSAO textures settle.
+/// half resolution every pixel is traced once in four frames, in a checkerboard once in eight) and Bevy's SSAO
+/// textures settle.
 const WARM_UP: usize = 8;
 /// Frames run before a phase without AO is measured: only passes stop running.
 const BASELINE_WARM_UP: usize = 2;
@@ -592,8 +597,9 @@ fn trace_work(
         work.free_space_passes += part.free_space_passes;
         pixels += n;
     }
-    // At half resolution a traced sample serves a 2x2 block.
-    let per_pixel = if half { 0.25 } else { 1.0 } / pixels.max(1) as f64;
+    // At half resolution a traced sample serves a 2x2 block; in a checkerboard half the blocks trace a frame.
+    let per_block = if settings.uses_checkerboard() { 0.125 } else { 0.25 };
+    let per_pixel = if half { per_block } else { 1.0 } / pixels.max(1) as f64;
     let rays = work.rays.max(1) as f64;
     let (warp_visits, warp_lanes) = warp_work(samples, view, levels, settings);
     Work {
@@ -616,8 +622,8 @@ const WARP: (u32, u32) = (8, 4);
 /// Warps sampled along each row and column of warps for [`warp_work`].
 const WARP_STRIDE: u32 = 4;
 
-/// The march visits a ray as a SIMD device pays them: every `WARP_STRIDE`th warp of the trace's texels along
-/// each axis is traced by the CPU twin with the rays and steps `settings` trace a frame, and each of a warp's
+/// The march visits a ray as a SIMD device pays them: every `WARP_STRIDE`th warp of the trace's invocations
+/// (its texels, or in a checkerboard every other texel of a row) along each axis is traced by the CPU twin with the rays and steps `settings` trace a frame, and each of a warp's
 /// rays costs the visits of its slowest lane (lanes that finish wait for it; lanes on the background trace
 /// nothing), in the first march and again in each pass past free space, which comes after the march before
 /// it. (The marches through the backs of surfaces, a loop of their own too, count with the first.) Returns
@@ -629,24 +635,31 @@ fn warp_work(
     settings: &HybridAmbientOcclusion,
 ) -> (f64, f64) {
     use bevy_hao::cpu::ao::{
-        DepthContacts, TraceWork, hemisphere_direction, orthonormal_basis, ray_occluder, ray_rotation, ray_start_level,
-        traced_pixel,
+        DepthContacts, TraceWork, checkerboard_texel, hemisphere_direction, orthonormal_basis, ray_occluder,
+        ray_rotation, ray_start_level, traced_pixel,
     };
     let (w, h) = (view.size.x, view.size.y);
     let half = settings.trace_parameters().2;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     let (tw, th) = if half { (w.div_ceil(2), h.div_ceil(2)) } else { (w, h) };
+    // The trace's invocations: in a checkerboard, half the texels of each row (`checkerboard_texel`).
+    let checkerboard = settings.uses_checkerboard();
+    let iw = if checkerboard { tw.div_ceil(2) } else { tw };
     let warp_rows: Vec<u32> = (0..th.div_ceil(WARP.1)).step_by(WARP_STRIDE as usize).collect();
     // Per part: the slowest lanes' visits summed over rays, the busy lanes' own visits, and the lanes' rays.
     let parts = on_every_core(&warp_rows, |warp_rows| {
         let (mut slowest, mut own, mut lane_rays) = (0u64, 0u64, 0u64);
         for &wy in warp_rows {
-            for wx in (0..tw.div_ceil(WARP.0)).step_by(WARP_STRIDE as usize) {
+            for wx in (0..iw.div_ceil(WARP.0)).step_by(WARP_STRIDE as usize) {
                 // Each busy lane's visits, ray by ray: in the first march, then in each pass past free space.
                 let mut lanes: Vec<Vec<Vec<u64>>> = Vec::new();
                 for ty in wy * WARP.1..((wy + 1) * WARP.1).min(th) {
-                    for tx in wx * WARP.0..((wx + 1) * WARP.0).min(tw) {
-                        let p = traced_pixel(UVec2::new(tx, ty), 0, UVec2::new(w, h), half);
+                    for ix in wx * WARP.0..((wx + 1) * WARP.0).min(iw) {
+                        let texel = checkerboard_texel(UVec2::new(ix, ty), 0, checkerboard);
+                        if texel.x >= tw {
+                            continue;
+                        }
+                        let p = traced_pixel(texel, 0, UVec2::new(w, h), half);
                         let Some((world, normal)) = samples[(p.y * w + p.x) as usize] else { continue };
                         let rotation = ray_rotation(p.as_vec2(), 0);
                         let jitter = contact_jitter(p.as_vec2(), 0);
