@@ -268,8 +268,7 @@ pub fn prepare_hao_textures(
         let history_read = history_valid && previous_view.is_some();
         // The checkerboard keeps half the trace's texels from last frame: a view without a last frame
         // traces them all.
-        let checkerboard =
-            hao.uses_checkerboard() && half && history_read && std::env::var_os("HAO_NO_CHECKER").is_none();
+        let checkerboard = hao.uses_checkerboard() && half && history_read;
         let trace_dispatch = if checkerboard { UVec2::new(trace_size.x.div_ceil(2), trace_size.y) } else { trace_size };
         let gpu_settings = GpuHaoSettings {
             previous_clip_from_world,
