@@ -71,6 +71,30 @@ pub fn take_render_errors() -> Vec<String> {
     std::mem::take(&mut *RENDER_ERRORS.lock().unwrap_or_else(|e| e.into_inner()))
 }
 
+/// The labels of the render pipelines that failed to compile, with their errors. Bevy logs a shader error and
+/// goes on without the pipeline, and wgpu reports nothing: a tool must not print figures of passes that
+/// never ran.
+pub fn failed_pipelines(app: &App) -> Vec<String> {
+    use bevy::render::render_resource::{CachedPipelineState, PipelineCache, PipelineDescriptor};
+    let Some(cache) = app.get_sub_app(bevy::render::RenderApp).and_then(|r| r.world().get_resource::<PipelineCache>())
+    else {
+        return Vec::new();
+    };
+    cache
+        .pipelines()
+        .filter_map(|p| match &p.state {
+            CachedPipelineState::Err(e) => {
+                let label = match &p.descriptor {
+                    PipelineDescriptor::RenderPipelineDescriptor(d) => d.label.clone(),
+                    PipelineDescriptor::ComputePipelineDescriptor(d) => d.label.clone(),
+                };
+                Some(format!("{}: {e}", label.as_deref().unwrap_or("unlabelled")))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
 static LOGGING: std::sync::Once = std::sync::Once::new();
 
 /// Where the app's `AssetServer` reads from (the folder of a model given by path), if not `assets/`.

@@ -397,6 +397,11 @@ fn main() {
         eprintln!("error: wgpu errors: {errors:?}");
         std::process::exit(1);
     }
+    let failed = bevy_hao_tools::harness::failed_pipelines(&app);
+    if !failed.is_empty() {
+        eprintln!("error: pipelines failed to compile, so their passes did not run: {failed:?}");
+        std::process::exit(1);
+    }
     // Whether the plugin kept the attributes asked for (it turns them off where they exceed the device's
     // binding limit).
     let attributes_kept = bevy_hao_tools::harness::grid_assets(&app).is_some_and(|g| g.attributes.is_some());

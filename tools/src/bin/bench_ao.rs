@@ -332,6 +332,11 @@ fn main() {
         eprintln!("error: wgpu errors: {errors:?}");
         std::process::exit(1);
     }
+    let failed = bevy_hao_tools::harness::failed_pipelines(&app);
+    if !failed.is_empty() {
+        eprintln!("error: pipelines failed to compile, so their passes did not run: {failed:?}");
+        std::process::exit(1);
+    }
     let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.3}"));
     let grid = bevy_hao_tools::harness::grid_assets(&app).map(|g| g.grid.dims).unwrap_or_default();
     println!(
