@@ -2,8 +2,8 @@
 // Each pixel's surface is reprojected into the previous frame with the camera's previous matrices, the
 // history is read there (bilinear, each texel kept only if it saw the same surface), clamped to the window of
 // this frame's trace around the pixel's block, and blended with its own trace filtered over the block's 3x3
-// texels (both from the neighborhood pass). At half resolution a pixel is traced every fourth frame (every eighth in the
-// checkerboard, where the trace keeps half its texels from last frame: `texel_traced`); in the
+// texels (both from the neighborhood pass). At half resolution a pixel is traced every fourth frame (every
+// eighth in the checkerboard, where the trace keeps half its texels from last frame: `texel_traced`); in the
 // other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
 // in. Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`; a
 // buffer of the view's pixels row by row), which the next frame reprojects, and its AO into the texture PBR

@@ -172,7 +172,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     // (every eighth in the checkerboard),
     // and the temporal pass accumulates each pixel's own rays at full resolution.
     let half = settings.half_resolution != 0u;
-    let pixel = traced_pixel(texel, trace_turn(settings.frame, checkerboard), vec2<u32>(view.viewport.zw), half);
+    let turn = trace_turn(settings.frame, checkerboard);
+    let pixel = traced_pixel(texel, turn, vec2<u32>(view.viewport.zw), half);
     let depth = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     if depth <= 0.0 {
         // Background: depth 0 tells the passes after this one to skip it.
@@ -190,8 +191,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pf = vec2<f32>(pixel);
     // The noise turns with each of the pixel's own traces (every frame, or every fourth or eighth at half
     // resolution).
-    let rotation = ray_rotation(pf, noise_frame(trace_turn(settings.frame, checkerboard), half));
-    let jitter = contact_jitter(pf, noise_frame(trace_turn(settings.frame, checkerboard), half));
+    let rotation = ray_rotation(pf, noise_frame(turn, half));
+    let jitter = contact_jitter(pf, noise_frame(turn, half));
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
     for (var i = 0u; i < settings.rays; i++) {
