@@ -449,6 +449,60 @@ mod tests {
         }
     }
 
+    /// The mean error against `truth` of a flat view of 128x96 pixels after `frames` frames of a noisy
+    /// trace at half resolution, in a checkerboard or not, accumulated over 16 frames and filtered with
+    /// radius 1: one binary ray a frame, 1 with probability `truth` of the traced pixel. The mean over four
+    /// fixed pseudo-random sequences (one alone moves it by a few percent).
+    fn converged_error(checkerboard: bool, frames: u32, truth: impl Fn(UVec2) -> f32) -> f32 {
+        let (size, trace_size) = (UVec2::new(128, 96), UVec2::new(64, 48));
+        let seeds = [0x2545_f491_4f6c_dd1d_u64, 0x9e37_79b9_7f4a_7c15, 0xd1b5_4a32_d192_ed03, 0x8cb9_2ba7_2f3d_8dd7];
+        let mut total = 0.0;
+        for mut state in seeds {
+            let mut random = move || {
+                // xorshift64: [0, 1).
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            };
+            let mut traces: Vec<TraceFrame> = Vec::new();
+            for k in 0..frames {
+                let turn = trace_turn(k, checkerboard && !traces.is_empty());
+                let traced = TraceFrame::traced(k, checkerboard, trace_size, traces.last(), |t| {
+                    texel(if random() < truth(traced_pixel(t, turn, size, true)) { 1.0 } else { 0.0 })
+                });
+                traces.push(traced);
+            }
+            let ao = accumulate_still(&traces, &flat(size.x, size.y), size, true, 16.0, 1);
+            let pixel = |i: usize| UVec2::new(i as u32 % size.x, i as u32 / size.x);
+            total += ao.iter().enumerate().map(|(i, a)| (a - truth(pixel(i))).abs()).sum::<f32>() / ao.len() as f32;
+        }
+        total / seeds.len() as f32
+    }
+
+    #[test]
+    fn a_checkerboard_converges_as_the_whole_trace_on_uniform_ao() {
+        // Each pixel accumulates as many traces of its own in a checkerboard, each filtered over as many
+        // texels: on uniform AO the still error is the same once converged (after four times the history's
+        // frames, 260 and 516, as `ao_compare` waits).
+        let uniform = |_: UVec2| 0.6;
+        let (whole, checkerboard) = (converged_error(false, 260, uniform), converged_error(true, 516, uniform));
+        // Where the AO varies, it does not: in every other frame of the checkerboard the four texels beside
+        // a traced one were traced by another pixel of their blocks (the previous turn's), so the filter
+        // blurs the AO, the more the finer its variation (docs/figures.md).
+        let smooth = |p: UVec2| 0.5 + 0.3 * (p.x as f32 * 0.21).sin() * (p.y as f32 * 0.17).cos();
+        let fine = |p: UVec2| smooth(p) + if (p.x + p.y).is_multiple_of(2) { 0.05 } else { -0.05 };
+        let errors =
+            |truth: &dyn Fn(UVec2) -> f32| (converged_error(false, 260, truth), converged_error(true, 516, truth));
+        let ((smooth_whole, smooth_checkerboard), (fine_whole, fine_checkerboard)) = (errors(&smooth), errors(&fine));
+        println!(
+            "still error, whole trace / checkerboard: uniform AO {whole:.4} / {checkerboard:.4}, smooth \
+             {smooth_whole:.4} / {smooth_checkerboard:.4}, with a pixel-sized pattern {fine_whole:.4} / \
+             {fine_checkerboard:.4}"
+        );
+        assert!((checkerboard - whole).abs() < 0.02 * whole, "{checkerboard} against {whole}");
+    }
+
     #[test]
     fn a_frame_without_the_pixels_own_trace_keeps_its_history() {
         let window = (0.0, 1.2);
