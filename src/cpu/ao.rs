@@ -59,13 +59,14 @@ pub fn checkerboard_texel(id: glam::UVec2, frame: u32, checkerboard: bool) -> gl
     if !checkerboard {
         return id;
     }
-    glam::UVec2::new(id.x * 2 + ((id.y + frame) & 1), id.y)
+    // (Wrapping, as WGSL's u32 arithmetic: only the parity counts.)
+    glam::UVec2::new(id.x * 2 + (id.y.wrapping_add(frame) & 1), id.y)
 }
 
 /// Whether texel `texel` of the trace is traced in `frame` (WGSL: `texel_traced`): every texel, or with the
 /// checkerboard those whose coordinates' sum has the frame's parity. The others keep their last frame's trace.
 pub fn texel_traced(texel: glam::UVec2, frame: u32, checkerboard: bool) -> bool {
-    !checkerboard || (texel.x + texel.y + frame) & 1 == 0
+    !checkerboard || texel.x.wrapping_add(texel.y).wrapping_add(frame) & 1 == 0
 }
 
 /// The frame number that picks a block's pixel ([`traced_pixel`]) and turns the noise ([`noise_frame`])

@@ -485,15 +485,14 @@ mod tests {
         // Each pixel accumulates as many traces of its own in a checkerboard, each filtered over as many
         // texels: on uniform AO the still error is the same once converged (after four times the history's
         // frames, 260 and 516, as `ao_compare` waits).
-        let uniform = |_: UVec2| 0.6;
-        let (whole, checkerboard) = (converged_error(false, 260, uniform), converged_error(true, 516, uniform));
+        let errors =
+            |truth: &dyn Fn(UVec2) -> f32| (converged_error(false, 260, truth), converged_error(true, 516, truth));
+        let (whole, checkerboard) = errors(&|_| 0.6);
         // Where the AO varies, it does not: in every other frame of the checkerboard the four texels beside
         // a traced one were traced by another pixel of their blocks (the previous turn's), so the filter
         // blurs the AO, the more the finer its variation (docs/figures.md).
         let smooth = |p: UVec2| 0.5 + 0.3 * (p.x as f32 * 0.21).sin() * (p.y as f32 * 0.17).cos();
         let fine = |p: UVec2| smooth(p) + if (p.x + p.y).is_multiple_of(2) { 0.05 } else { -0.05 };
-        let errors =
-            |truth: &dyn Fn(UVec2) -> f32| (converged_error(false, 260, truth), converged_error(true, 516, truth));
         let ((smooth_whole, smooth_checkerboard), (fine_whole, fine_checkerboard)) = (errors(&smooth), errors(&fine));
         println!(
             "still error, whole trace / checkerboard: uniform AO {whole:.4} / {checkerboard:.4}, smooth \
