@@ -272,6 +272,10 @@ fn read_back(app: &mut App, readback: Readback, settle: usize) -> Vec<u8> {
             data = Some(d);
             break;
         }
+        // The copy arrives once the device has run it, and nothing holds a headless app's frames back to the
+        // device's pace: on an H100, `ao_compare` at 1920x1080 (`High`, `Low`) got no copy within twenty
+        // frames until it waited here.
+        wait_for_gpu(app);
     }
     app.world_mut().despawn(entity);
     data.expect("no readback arrived within 20 frames")
@@ -569,6 +573,8 @@ pub fn save_screenshot(app: &mut App, target: Handle<Image>, out: &str) -> Resul
         if std::path::Path::new(out).exists() {
             break;
         }
+        // As in `read_back`: the frames may run ahead of the device.
+        wait_for_gpu(app);
     }
     let errors = take_render_errors();
     if !errors.is_empty() {
