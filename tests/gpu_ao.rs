@@ -565,14 +565,7 @@ fn assert_accumulation_matches_cpu(quality: HaoQuality) {
     // With the filter (`cpu::temporal::prefilter`), wider than its default.
     let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 8, quality, ..hao_settings() };
     let half_resolution = settings.trace_parameters().2;
-    // Frames between a pixel's own traces: 1, 4 at half resolution, 8 in a checkerboard.
-    let frames_per_trace = if settings.uses_checkerboard() {
-        8
-    } else if half_resolution {
-        4
-    } else {
-        1
-    };
+    let frames_per_trace = settings.frames_per_trace() as usize;
     // Long enough for the first frames, traced while the grid was still being built, to have left the
     // history (their weight is (7/8)^50 by the end).
     let frames_run = 20 + 50 * frames_per_trace;

@@ -397,6 +397,17 @@ impl HybridAmbientOcclusion {
         self.accumulation_frames.clamp(1, 64) >= 4 && self.quality.traces_checkerboard()
     }
 
+    /// Frames between a pixel's own traces: 1 at full resolution, 4 at half resolution (each 2x2 block
+    /// traces one of its pixels a frame, in turn), 8 in a checkerboard. A pixel's history of
+    /// `accumulation_frames` traces spans that many times the frames.
+    pub fn frames_per_trace(&self) -> u32 {
+        match (self.trace_parameters().2, self.uses_checkerboard()) {
+            (false, _) => 1,
+            (true, false) => 4,
+            (true, true) => 8,
+        }
+    }
+
     /// Whether the trace passes the voxel hits the depth prepass shows in free space: `depth_free_space`
     /// where it is given, else the quality's choice (`High` and `Ultra`).
     pub fn uses_depth_free_space(&self) -> bool {
@@ -605,6 +616,18 @@ mod tests {
         let presets = [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra, custom];
         assert_eq!(presets.map(|q| uses(q, 16)), [true, false, false, false, false]);
         assert!(uses(HaoQuality::Low, 4) && !uses(HaoQuality::Low, 3) && !uses(HaoQuality::Low, 1));
+    }
+
+    #[test]
+    fn a_pixel_traces_every_frame_every_fourth_or_every_eighth() {
+        let frames = |quality, accumulation_frames| {
+            HybridAmbientOcclusion { quality, accumulation_frames, ..default() }.frames_per_trace()
+        };
+        let custom = HaoQuality::Custom { rays: 1, steps: 24, half_resolution: true };
+        let presets = [HaoQuality::Low, HaoQuality::Medium, HaoQuality::High, HaoQuality::Ultra, custom];
+        assert_eq!(presets.map(|q| frames(q, 16)), [8, 4, 4, 4, 4]);
+        // Without accumulation `Low` traces at half resolution without a checkerboard, the others at full.
+        assert_eq!(presets.map(|q| frames(q, 1)), [4, 1, 1, 1, 4]);
     }
 
     #[test]

@@ -288,11 +288,7 @@ fn main() {
     let (size, res) = (args.size, args.res);
     // At half resolution a pixel traces every fourth frame (every eighth in a checkerboard), so its history
     // spans four (eight) times the frames.
-    let frames_per_trace = match (sanitized.trace_parameters().2, sanitized.uses_checkerboard()) {
-        (false, _) => 1,
-        (true, false) => 4,
-        (true, true) => 8,
-    };
+    let frames_per_trace = sanitized.frames_per_trace() as usize;
     let setup_source = source.clone();
     let setup_hao = hao.clone();
     let fit = args.volume == Volume::Fit;
