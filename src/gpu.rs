@@ -36,7 +36,6 @@ pub(crate) fn shader_defs() -> Vec<ShaderDefVal> {
         u("TWO_SIDED_BIT", crate::cpu::attributes::TWO_SIDED_BIT),
         u("VOXELIZE_WORKGROUP", pipelines::VOXELIZE_WORKGROUP),
         u("SCREEN_WORKGROUP", SCREEN_WORKGROUP),
-        u("CONTACT_SAMPLES", crate::cpu::contacts::CONTACT_SAMPLES),
     ]
 }
 

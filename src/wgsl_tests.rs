@@ -213,7 +213,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 trace_height,
                 depth_contacts,
                 checkerboard,
-                _pad_a,
+                contact_samples,
                 _pad_b,
                 _pad_c,
             ]
@@ -400,7 +400,7 @@ fn shared_constants_agree() {
         ("src/ao/hao_trace.wgsl", "MAX_BACK_HITS", crate::cpu::ao::MAX_BACK_HITS as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_LENGTH", contacts::CONTACT_LENGTH as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_THICKNESS", contacts::CONTACT_THICKNESS as f64),
-        ("src/ao/hao_trace.wgsl", "CONTACT_LIFT", contacts::CONTACT_LIFT as f64),
+        ("src/ao/hao_trace.wgsl", "CONTACT_LIFT_PIXELS", contacts::CONTACT_LIFT_PIXELS as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_DEPTH_EPSILON", contacts::CONTACT_DEPTH_EPSILON as f64),
         ("src/ao/hao_trace.wgsl", "FREE_SPACE_MARGIN", contacts::FREE_SPACE_MARGIN as f64),
         ("src/ao/hao_trace.wgsl", "MAX_FREE_SPACE_PASSES", contacts::MAX_FREE_SPACE_PASSES as f64),

@@ -717,15 +717,18 @@ fn traced_like_the_twin(
 }
 
 /// The depth contacts on the GPU as on the CPU twin (`bevy_hao::cpu::contacts`), on a view close enough
-/// that a voxel spans several pixels and full of contacts: the trace matches the twin's pixel by pixel, and
-/// the contacts darken the floor around the things lying on it.
+/// that a voxel spans several pixels and full of contacts: the trace matches the twin's pixel by pixel, with
+/// `High`'s 8 points a ray and `Medium`'s 4, and the contacts darken the floor around the things lying on it.
 #[test]
 fn the_gpu_depth_contacts_match_their_cpu_twin() {
     let _gpu = gpu_lock();
     let camera = Transform::from_xyz(0.0, 1.6, 1.8).looking_at(Vec3::new(0.0, 0.0, -0.1), Vec3::Y);
-    let mean_ao = [false, true].map(|depth_contacts| {
-        let settings = HybridAmbientOcclusion { depth_contacts, ..hao_settings() };
-        traced_like_the_twin(&format!("depth contacts {depth_contacts}"), camera, settings, clutter, 5000)
+    let cases = [(false, HaoQuality::High), (true, HaoQuality::High), (true, HaoQuality::Medium)];
+    let mean_ao = cases.map(|(depth_contacts, quality)| {
+        let settings = HybridAmbientOcclusion { depth_contacts, quality, ..hao_settings() };
+        assert_eq!(settings.contact_samples(), if quality == HaoQuality::High { 8 } else { 4 });
+        let label = format!("depth contacts {depth_contacts}, {quality:?}");
+        traced_like_the_twin(&label, camera, settings, clutter, 5000)
     });
     assert!(mean_ao[1] < mean_ao[0] - 0.01, "{mean_ao:?}");
 }

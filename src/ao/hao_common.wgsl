@@ -39,7 +39,8 @@ struct HaoSettings {
     // 1: the trace runs on half its texels a frame, in a checkerboard that alternates (`texel_traced`); the
     // others keep their last frame's trace.
     checkerboard: u32,
-    pad_a: u32,
+    // Points each ray's depth contacts sample in the depth prepass (`depth_contact`).
+    contact_samples: u32,
     pad_b: u32,
     pad_c: u32,
 }

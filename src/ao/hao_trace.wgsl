@@ -92,12 +92,10 @@ fn shows_free_space(p: vec3<f32>, margin: f32) -> bool {
     return -(view.view_from_world * vec4<f32>(p, 1.0)).z < surface_view_depth(nearest) - margin;
 }
 
-// cpu/contacts.rs: CONTACT_SAMPLES (a shader def: src/gpu.rs), CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT,
-// CONTACT_DEPTH_EPSILON
-const CONTACT_SAMPLES: u32 = #{CONTACT_SAMPLES}u;
+// cpu/contacts.rs: CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT_PIXELS, CONTACT_DEPTH_EPSILON
 const CONTACT_LENGTH: f32 = 2.0;
 const CONTACT_THICKNESS: f32 = 1.0;
-const CONTACT_LIFT: f32 = 0.125;
+const CONTACT_LIFT_PIXELS: f32 = 0.5;
 const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
 
 // cpu/contacts.rs: ViewDepth::behind_clip. Whether the point at `clip` (clip space) and view depth `depth`
@@ -134,17 +132,21 @@ fn contact_jitter(pixel: vec2<f32>, frame: u32) -> f32 {
 }
 
 // cpu/contacts.rs: depth_contact. The distance along ray `dir` from the surface point to its first contact
-// in the depth prepass within `reach`, or -1: CONTACT_SAMPLES points, lifted CONTACT_LIFT cells along the
-// normal, the first behind the view's surface by less than CONTACT_THICKNESS cells.
+// in the depth prepass within `reach`, or -1: settings.contact_samples points, lifted CONTACT_LIFT_PIXELS of
+// the view's pixels along the normal (`ViewDepth::pixel_size`: the prepass's own error is in its pixels),
+// the first behind the view's surface by less than CONTACT_THICKNESS cells.
 fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32) -> f32 {
-    let base = vec4<f32>(world + normal * (CONTACT_LIFT * cell), 1.0);
+    let w = (view.clip_from_world * vec4<f32>(world, 1.0)).w;
+    let pixel_size = 2.0 * w * abs(view.view_from_clip[1][1]) / max(view.viewport.w, 1.0);
+    let base = vec4<f32>(world + normal * (CONTACT_LIFT_PIXELS * pixel_size), 1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
     let clip = view.clip_from_world * base;
     let clip_dir = view.clip_from_world * vec4<f32>(dir, 0.0);
     let depth = -(view.view_from_world * base).z;
     let depth_dir = -(view.view_from_world * vec4<f32>(dir, 0.0)).z;
-    for (var k = 0u; k < CONTACT_SAMPLES; k++) {
-        let t = reach * (f32(k) + jitter) / f32(CONTACT_SAMPLES);
+    let samples = settings.contact_samples;
+    for (var k = 0u; k < samples; k++) {
+        let t = reach * (f32(k) + jitter) / f32(samples);
         if behind_depth(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell) {
             return t;
         }

@@ -68,9 +68,9 @@ pub struct GpuHaoSettings {
     pub depth_contacts: u32,
     /// 1 to trace half the texels a frame, in a checkerboard that alternates.
     pub checkerboard: u32,
+    /// Points each ray's depth contacts sample in the depth prepass.
+    pub contact_samples: u32,
     /// Padding to the struct's alignment (its matrix's 16 bytes).
-    pub _pad_a: u32,
-    /// Padding.
     pub _pad_b: u32,
     /// Padding.
     pub _pad_c: u32,
@@ -294,7 +294,7 @@ pub fn prepare_hao_textures(
             trace_height: trace_size.y,
             depth_contacts: hao.depth_contacts as u32,
             checkerboard: checkerboard as u32,
-            _pad_a: 0,
+            contact_samples: hao.contact_samples(),
             _pad_b: 0,
             _pad_c: 0,
         };

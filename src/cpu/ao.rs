@@ -491,6 +491,8 @@ pub struct TraceSettings {
     /// A voxel hit the view's depth shows in free space is passed
     /// ([`super::contacts::ViewDepth::shows_free_space`]), where a view's depth is given.
     pub depth_free_space: bool,
+    /// Points each ray's depth contacts sample in the depth prepass ([`super::contacts::depth_contact`]).
+    pub contact_samples: u32,
 }
 
 /// Voxel ambient occlusion at one world-space surface point through the levels of the volume (one for a
@@ -562,7 +564,8 @@ pub fn ray_occluder(
     if let Some(DepthContacts { view, jitter }) = contact.filter(|_| s.depth_contacts && s.start_offset > 0.0) {
         let cell = levels[start].cell_size;
         let length = CONTACT_LENGTH * s.start_offset * cell;
-        if let Some(t) = depth_contact(view, world, normal, dir, cell, length, jitter, &mut work.depth_loads) {
+        let samples = s.contact_samples;
+        if let Some(t) = depth_contact(view, world, normal, dir, cell, length, samples, jitter, &mut work.depth_loads) {
             work.contacts += 1;
             return Some(t);
         }
@@ -676,6 +679,7 @@ mod tests {
             ignore_back_hits,
             depth_contacts: false,
             depth_free_space: false,
+            contact_samples: crate::cpu::contacts::CONTACT_SAMPLES,
         }
     }
 

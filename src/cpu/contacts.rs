@@ -18,8 +18,9 @@
 use super::ao::{GOLDEN, interleaved_gradient_noise};
 use glam::{IVec2, Mat4, UVec2, Vec2, Vec3, Vec4};
 
-/// Points each ray samples in the depth prepass (WGSL: `CONTACT_SAMPLES`), evenly along its first cells,
-/// shifted by the ray's jitter.
+/// Points each ray samples in the depth prepass by default (`TraceSettings::contact_samples`; the presets'
+/// choice: `HybridAmbientOcclusion::contact_samples`), evenly along its first cells, shifted by the ray's
+/// jitter.
 pub const CONTACT_SAMPLES: u32 = 4;
 /// How far along the ray the depth prepass is sampled, in cells of the level the ray starts in, per cell of
 /// `start_offset` (WGSL: `CONTACT_LENGTH`): the march starts a cell off the surface and a cell along the ray,
@@ -29,10 +30,14 @@ pub const CONTACT_LENGTH: f32 = 2.0;
 /// `CONTACT_THICKNESS`): deeper, it is behind a surface in front of it (which a screen-space test cannot
 /// tell from a solid), and the ray goes on.
 pub const CONTACT_THICKNESS: f32 = 1.0;
-/// How far the sampled points are lifted off the surface along its normal, in cells (WGSL: `CONTACT_LIFT`):
-/// against the depth of a pixel's neighbours, which a grazing view or a curved surface sets a little in
-/// front of the ray's first points, and which would otherwise occlude the surface by itself.
-pub const CONTACT_LIFT: f32 = 0.125;
+/// How far the sampled points are lifted off the surface along its normal, in pixels of the view at the
+/// surface (WGSL: `CONTACT_LIFT_PIXELS`; [`ViewDepth::pixel_size`]): against the depth of a pixel's
+/// neighbours, which a grazing view or a curved surface sets a little in front of the ray's first points,
+/// and which would otherwise occlude the surface by itself. That error is the depth prepass's, so the lift
+/// is in its pixels: a lift of an eighth of a cell (before) was right at 320x180 but hid the contacts of
+/// layers and mouldings lying on a surface at 1920x1080, where a pixel is a sixth of the size
+/// (docs/figures.md).
+pub const CONTACT_LIFT_PIXELS: f32 = 0.5;
 /// A point is behind the view's surface only if its view depth exceeds the surface's by more than this share
 /// (WGSL: `CONTACT_DEPTH_EPSILON`): the depth prepass's precision.
 pub const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
@@ -112,6 +117,13 @@ impl ViewDepth {
         depth > surface * (1.0 + CONTACT_DEPTH_EPSILON) && depth < surface + thickness
     }
 
+    /// The size of one of the view's pixels, in world units, at a point whose clip-space w is `clip_w`
+    /// (WGSL: in `depth_contact`): the view-space height of a pixel's step in normalized device coordinates,
+    /// for a perspective (w: the view depth) or an orthographic projection (w: 1) alike.
+    pub fn pixel_size(&self, clip_w: f32) -> f32 {
+        2.0 * clip_w * self.view_from_clip.y_axis.y.abs() / self.size.y.max(1) as f32
+    }
+
     /// The pixel a point at `clip` (clip space) projects to, or `None` off the view or behind the camera
     /// (WGSL: the projection in `behind_depth` and `shows_free_space`).
     fn pixel_at(&self, clip: Vec4) -> Option<UVec2> {
@@ -157,10 +169,11 @@ pub fn ray_jitter(pixel_jitter: f32, i: u32) -> f32 {
 }
 
 /// The distance from the surface point `world` (normal `normal`) along ray `dir` to its first contact in the
-/// depth prepass within `length` (world units), or `None` (WGSL: `depth_contact`): [`CONTACT_SAMPLES`]
-/// points at `length * (k + jitter) / CONTACT_SAMPLES`, lifted [`CONTACT_LIFT`] cells along the normal, the
-/// first that is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells. `cell`
-/// is the cell size of the level the ray starts in.
+/// depth prepass within `length` (world units), or `None` (WGSL: `depth_contact`): `samples` points at
+/// `length * (k + jitter) / samples`, lifted [`CONTACT_LIFT_PIXELS`] pixels along the normal, the first that
+/// is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells. `cell` is the cell
+/// size of the level the ray starts in.
+#[allow(clippy::too_many_arguments)]
 pub fn depth_contact(
     view: &ViewDepth,
     world: Vec3,
@@ -168,15 +181,17 @@ pub fn depth_contact(
     dir: Vec3,
     cell: f32,
     length: f32,
+    samples: u32,
     jitter: f32,
     depth_loads: &mut u64,
 ) -> Option<f32> {
-    let base = (world + normal * (CONTACT_LIFT * cell)).extend(1.0);
+    let lift = CONTACT_LIFT_PIXELS * view.pixel_size((view.clip_from_world * world.extend(1.0)).w);
+    let base = (world + normal * lift).extend(1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
     let (clip, clip_dir) = (view.clip_from_world * base, view.clip_from_world * dir.extend(0.0));
     let (depth, depth_dir) = (-(view.view_from_world * base).z, -(view.view_from_world * dir.extend(0.0)).z);
-    (0..CONTACT_SAMPLES)
-        .map(|k| length * (k as f32 + jitter) / CONTACT_SAMPLES as f32)
+    (0..samples)
+        .map(|k| length * (k as f32 + jitter) / samples as f32)
         .find(|&t| view.behind_clip(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, depth_loads))
 }
 
@@ -209,19 +224,40 @@ mod tests {
     }
 
     #[test]
+    fn a_pixel_measures_what_the_view_shows_of_it() {
+        // Perspective: the floor 10 units away, its points under two neighbouring pixels' centers.
+        let view = floor_with_a_step();
+        let world_from_clip = view.clip_from_world.inverse();
+        let floor = |ndc: Vec2| {
+            let near = world_from_clip.project_point3(ndc.extend(1.0));
+            let dir = (world_from_clip.project_point3(ndc.extend(1.0e-4)) - near).normalize();
+            near + dir * (near.z / -dir.z)
+        };
+        let step = floor(Vec2::new(-0.5 / 32.0, 0.5 / 32.0)).distance(floor(Vec2::new(-0.5 / 32.0, -0.5 / 32.0)));
+        let w = (view.clip_from_world * Vec3::ZERO.extend(1.0)).w;
+        assert!((view.pixel_size(w) - step).abs() < 1.0e-4 * step, "{} {step}", view.pixel_size(w));
+        // Orthographic: 8 units tall on 64 pixels, at any depth.
+        let clip_from_view = Mat4::orthographic_rh(-4.0, 4.0, -4.0, 4.0, 0.1, 100.0);
+        let ortho = ViewDepth { view_from_clip: clip_from_view.inverse(), clip_from_world: clip_from_view, ..view };
+        assert!((ortho.pixel_size(1.0) - 8.0 / 64.0).abs() < 1.0e-6);
+    }
+
+    #[test]
     fn a_ray_into_a_step_finds_it_and_rays_over_open_floor_do_not() {
         let view = floor_with_a_step();
         let mut loads = 0;
         let cell = 0.5;
         // From the floor just before the step, toward it: inside the step within two cells.
         let toward = Vec3::new(1.0, 0.0, 0.3).normalize();
-        let t = depth_contact(&view, Vec3::new(-0.2, 0.0, 0.0), Vec3::Z, toward, cell, 2.0 * cell, 0.5, &mut loads);
+        let (from, reach) = (Vec3::new(-0.2, 0.0, 0.0), 2.0 * cell);
+        let t = depth_contact(&view, from, Vec3::Z, toward, cell, reach, CONTACT_SAMPLES, 0.5, &mut loads);
         assert!(t.is_some_and(|t| t > 0.1 && t < 0.5), "{t:?}");
         // Away from it, and up: open.
         for dir in [Vec3::new(-1.0, 0.0, 0.3).normalize(), Vec3::Z, Vec3::new(0.0, 1.0, 0.2).normalize()] {
             for jitter in [0.0, 0.5, 0.99] {
                 let at = Vec3::new(-1.5, 0.3, 0.0);
-                assert_eq!(depth_contact(&view, at, Vec3::Z, dir, cell, 2.0 * cell, jitter, &mut loads), None);
+                let t = depth_contact(&view, at, Vec3::Z, dir, cell, reach, CONTACT_SAMPLES, jitter, &mut loads);
+                assert_eq!(t, None);
             }
         }
         assert!(loads > 0);

@@ -403,6 +403,7 @@ pub fn cpu_trace_settings(settings: &bevy_hao::HybridAmbientOcclusion) -> bevy_h
         ignore_back_hits: settings.ignore_back_hits,
         depth_contacts: settings.depth_contacts,
         depth_free_space: settings.uses_depth_free_space(),
+        contact_samples: settings.contact_samples(),
     }
 }
 
