@@ -131,14 +131,19 @@ fn contact_jitter(pixel: vec2<f32>, frame: u32) -> f32 {
     return interleaved_gradient_noise(pixel.yx + vec2<f32>(43.0, 11.0), frame);
 }
 
+// cpu/contacts.rs: ViewDepth::pixel_size. The size of one of the view's pixels, in world units, at a point
+// whose clip-space w is `clip_w` (perspective or orthographic alike).
+fn pixel_size(clip_w: f32) -> f32 {
+    return 2.0 * clip_w * abs(view.view_from_clip[1][1]) / max(view.viewport.w, 1.0);
+}
+
 // cpu/contacts.rs: depth_contact. The distance along ray `dir` from the surface point to its first contact
 // in the depth prepass within `reach`, or -1: settings.contact_samples points, lifted CONTACT_LIFT_PIXELS of
-// the view's pixels along the normal (`ViewDepth::pixel_size`: the prepass's own error is in its pixels),
-// the first behind the view's surface by less than CONTACT_THICKNESS cells.
+// the view's pixels along the normal (the prepass's own error is in its pixels), the first behind the
+// view's surface by less than CONTACT_THICKNESS cells.
 fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32) -> f32 {
-    let w = (view.clip_from_world * vec4<f32>(world, 1.0)).w;
-    let pixel_size = 2.0 * w * abs(view.view_from_clip[1][1]) / max(view.viewport.w, 1.0);
-    let base = vec4<f32>(world + normal * (CONTACT_LIFT_PIXELS * pixel_size), 1.0);
+    let lift = CONTACT_LIFT_PIXELS * pixel_size((view.clip_from_world * vec4<f32>(world, 1.0)).w);
+    let base = vec4<f32>(world + normal * lift, 1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
     let clip = view.clip_from_world * base;
     let clip_dir = view.clip_from_world * vec4<f32>(dir, 0.0);

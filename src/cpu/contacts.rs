@@ -118,7 +118,7 @@ impl ViewDepth {
     }
 
     /// The size of one of the view's pixels, in world units, at a point whose clip-space w is `clip_w`
-    /// (WGSL: in `depth_contact`): the view-space height of a pixel's step in normalized device coordinates,
+    /// (WGSL: `pixel_size`): the view-space height of a pixel's step in normalized device coordinates,
     /// for a perspective (w: the view depth) or an orthographic projection (w: 1) alike.
     pub fn pixel_size(&self, clip_w: f32) -> f32 {
         2.0 * clip_w * self.view_from_clip.y_axis.y.abs() / self.size.y.max(1) as f32
