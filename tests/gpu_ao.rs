@@ -683,7 +683,8 @@ fn clutter(commands: &mut Commands, meshes: &mut Assets<Mesh>, material: Handle<
 
 /// The mean AO of `scene` seen from `camera` with one frame of HAO (`settings`, no denoiser, no
 /// accumulation), after checking that the trace matches its CPU twin pixel by pixel over at least `pixels`
-/// pixels that show a surface. `name` labels the printed line.
+/// pixels that show a surface (on average, and at most one pixel in a thousand apart by over 0.05). `name`
+/// labels the printed line.
 fn traced_like_the_twin(
     name: &str,
     camera: Transform,
@@ -702,16 +703,21 @@ fn traced_like_the_twin(
     let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
     let (gpu, samples) = ao_and_samples(&mut app);
     let (cpu, _) = cpu_trace(&samples, &view_depth(&mut app), &settings, &levels, 0);
-    let (mut difference, mut ao, mut n) = (0.0, 0.0, 0);
+    let (mut difference, mut ao, mut n, mut apart) = (0.0, 0.0, 0, 0);
     for (g, c) in gpu.iter().zip(&cpu).filter(|(_, c)| !c.is_nan()) {
         difference += (g - c).abs();
+        apart += usize::from((g - c).abs() > 0.05);
         ao += g;
         n += 1;
     }
     let (difference, ao) = (difference / n as f32, ao / n as f32);
-    println!("{name}: {n} pixels, mean |CPU - GPU| {difference:.4}, mean AO {ao:.4}");
+    println!(
+        "{name}: {n} pixels, mean |CPU - GPU| {difference:.4}, {apart} pixels apart by over 0.05, mean AO {ao:.4}"
+    );
     assert!(n > pixels, "{n} pixels");
     assert!(difference < 0.002, "{difference}");
+    // A few pixels may tip one ray either way (a point on a depth edge); a rule applied differently tips many.
+    assert!(apart * 1000 <= n, "{apart} of {n} pixels apart");
     assert!(take_render_errors().is_empty());
     ao
 }
@@ -719,15 +725,24 @@ fn traced_like_the_twin(
 /// The depth contacts on the GPU as on the CPU twin (`bevy_hao::cpu::contacts`), on a view close enough
 /// that a voxel spans several pixels and full of contacts: the trace matches the twin's pixel by pixel, with
 /// `High`'s 8 points a ray and `Medium`'s 4, and the contacts darken the floor around the things lying on it.
+/// From farther back, where a pixel is over a quarter of a cell, the points are lifted an eighth of a cell
+/// rather than half a pixel (`contact_lift`), on both: with the half pixel alone in WGSL, 127 pixels of that view
+/// came out apart.
 #[test]
 fn the_gpu_depth_contacts_match_their_cpu_twin() {
     let _gpu = gpu_lock();
-    let camera = Transform::from_xyz(0.0, 1.6, 1.8).looking_at(Vec3::new(0.0, 0.0, -0.1), Vec3::Y);
-    let cases = [(false, HaoQuality::High), (true, HaoQuality::High), (true, HaoQuality::Medium)];
-    let mean_ao = cases.map(|(depth_contacts, quality)| {
+    let near = Transform::from_xyz(0.0, 1.6, 1.8).looking_at(Vec3::new(0.0, 0.0, -0.1), Vec3::Y);
+    let far = Transform::from_xyz(0.0, 4.8, 5.4).looking_at(Vec3::new(0.0, 0.0, -0.1), Vec3::Y);
+    let cases = [
+        (false, HaoQuality::High, near),
+        (true, HaoQuality::High, near),
+        (true, HaoQuality::Medium, near),
+        (true, HaoQuality::High, far),
+    ];
+    let mean_ao = cases.map(|(depth_contacts, quality, camera)| {
         let settings = HybridAmbientOcclusion { depth_contacts, quality, ..hao_settings() };
         assert_eq!(settings.contact_samples(), if quality == HaoQuality::High { 8 } else { 4 });
-        let label = format!("depth contacts {depth_contacts}, {quality:?}");
+        let label = format!("depth contacts {depth_contacts}, {quality:?}, camera at {}", camera.translation);
         traced_like_the_twin(&label, camera, settings, clutter, 5000)
     });
     assert!(mean_ao[1] < mean_ao[0] - 0.01, "{mean_ao:?}");

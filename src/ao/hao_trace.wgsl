@@ -92,10 +92,12 @@ fn shows_free_space(p: vec3<f32>, margin: f32) -> bool {
     return -(view.view_from_world * vec4<f32>(p, 1.0)).z < surface_view_depth(nearest) - margin;
 }
 
-// cpu/contacts.rs: CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT_PIXELS, CONTACT_DEPTH_EPSILON
+// cpu/contacts.rs: CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT_PIXELS, CONTACT_LIFT_CELLS,
+// CONTACT_DEPTH_EPSILON
 const CONTACT_LENGTH: f32 = 2.0;
 const CONTACT_THICKNESS: f32 = 1.0;
 const CONTACT_LIFT_PIXELS: f32 = 0.5;
+const CONTACT_LIFT_CELLS: f32 = 0.125;
 const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
 
 // cpu/contacts.rs: ViewDepth::behind_clip. Whether the point at `clip` (clip space) and view depth `depth`
@@ -137,12 +139,17 @@ fn pixel_size(clip_w: f32) -> f32 {
     return 2.0 * clip_w * abs(view.view_from_clip[1][1]) / max(view.viewport.w, 1.0);
 }
 
+// cpu/contacts.rs: contact_lift. How far a ray's contact points are lifted off the surface: CONTACT_LIFT_PIXELS
+// pixels of size `pixel` (the prepass's own error is in its pixels), at most CONTACT_LIFT_CELLS cells.
+fn contact_lift(pixel: f32, cell: f32) -> f32 {
+    return min(CONTACT_LIFT_PIXELS * pixel, CONTACT_LIFT_CELLS * cell);
+}
+
 // cpu/contacts.rs: depth_contact. The distance along ray `dir` from the surface point to its first contact
-// in the depth prepass within `reach`, or -1: settings.contact_samples points, lifted CONTACT_LIFT_PIXELS of
-// the view's pixels along the normal (the prepass's own error is in its pixels), the first behind the
-// view's surface by less than CONTACT_THICKNESS cells.
+// in the depth prepass within `reach`, or -1: settings.contact_samples points, lifted `contact_lift` along the
+// normal, the first behind the view's surface by less than CONTACT_THICKNESS cells.
 fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32) -> f32 {
-    let lift = CONTACT_LIFT_PIXELS * pixel_size((view.clip_from_world * vec4<f32>(world, 1.0)).w);
+    let lift = contact_lift(pixel_size((view.clip_from_world * vec4<f32>(world, 1.0)).w), cell);
     let base = vec4<f32>(world + normal * lift, 1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
     let clip = view.clip_from_world * base;

@@ -31,13 +31,17 @@ pub const CONTACT_LENGTH: f32 = 2.0;
 /// tell from a solid), and the ray goes on.
 pub const CONTACT_THICKNESS: f32 = 1.0;
 /// How far the sampled points are lifted off the surface along its normal, in pixels of the view at the
-/// surface (WGSL: `CONTACT_LIFT_PIXELS`; [`ViewDepth::pixel_size`]): against the depth of a pixel's
-/// neighbours, which a grazing view or a curved surface sets a little in front of the ray's first points,
-/// and which would otherwise occlude the surface by itself. That error is the depth prepass's, so the lift
-/// is in its pixels: a lift of an eighth of a cell (before) was right at 320x180 but hid the contacts of
-/// layers and mouldings lying on a surface at 1920x1080, where a pixel is a sixth of the size
-/// (docs/figures.md).
+/// surface (WGSL: `CONTACT_LIFT_PIXELS`; [`ViewDepth::pixel_size`]), at most [`CONTACT_LIFT_CELLS`]: against
+/// the depth of a pixel's neighbours, which a grazing view or a curved surface sets a little in front of the
+/// ray's first points, and which would otherwise occlude the surface by itself. That error is the depth
+/// prepass's, so the lift is in its pixels: a lift of an eighth of a cell alone (before) hid the contacts of
+/// layers and mouldings lying on a surface at 1920x1080, where it is 2-3 pixels (docs/figures.md).
 pub const CONTACT_LIFT_PIXELS: f32 = 0.5;
+/// The most the sampled points are lifted, in cells of the level the ray starts in (WGSL:
+/// `CONTACT_LIFT_CELLS`): where a pixel is larger than a quarter of a cell (a small object seen whole, a low
+/// resolution), half a pixel would lift the points over what lies within the first cell, which only the
+/// contacts can find.
+pub const CONTACT_LIFT_CELLS: f32 = 0.125;
 /// A point is behind the view's surface only if its view depth exceeds the surface's by more than this share
 /// (WGSL: `CONTACT_DEPTH_EPSILON`): the depth prepass's precision.
 pub const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
@@ -168,9 +172,15 @@ pub fn ray_jitter(pixel_jitter: f32, i: u32) -> f32 {
     (pixel_jitter + i as f32 * GOLDEN).fract()
 }
 
+/// How far a ray's contact points are lifted off the surface (WGSL: `contact_lift`): [`CONTACT_LIFT_PIXELS`]
+/// pixels of size `pixel`, at most [`CONTACT_LIFT_CELLS`] cells of size `cell` (world units alike).
+pub fn contact_lift(pixel: f32, cell: f32) -> f32 {
+    (CONTACT_LIFT_PIXELS * pixel).min(CONTACT_LIFT_CELLS * cell)
+}
+
 /// The distance from the surface point `world` (normal `normal`) along ray `dir` to its first contact in the
 /// depth prepass within `length` (world units), or `None` (WGSL: `depth_contact`): `samples` points at
-/// `length * (k + jitter) / samples`, lifted [`CONTACT_LIFT_PIXELS`] pixels along the normal, the first that
+/// `length * (k + jitter) / samples`, lifted [`contact_lift`] along the normal, the first that
 /// is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells. `cell` is the cell
 /// size of the level the ray starts in.
 #[allow(clippy::too_many_arguments)]
@@ -185,7 +195,7 @@ pub fn depth_contact(
     jitter: f32,
     depth_loads: &mut u64,
 ) -> Option<f32> {
-    let lift = CONTACT_LIFT_PIXELS * view.pixel_size((view.clip_from_world * world.extend(1.0)).w);
+    let lift = contact_lift(view.pixel_size((view.clip_from_world * world.extend(1.0)).w), cell);
     let base = (world + normal * lift).extend(1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
     let (clip, clip_dir) = (view.clip_from_world * base, view.clip_from_world * dir.extend(0.0));
@@ -240,6 +250,16 @@ mod tests {
         let clip_from_view = Mat4::orthographic_rh(-4.0, 4.0, -4.0, 4.0, 0.1, 100.0);
         let ortho = ViewDepth { view_from_clip: clip_from_view.inverse(), clip_from_world: clip_from_view, ..view };
         assert!((ortho.pixel_size(1.0) - 8.0 / 64.0).abs() < 1.0e-6);
+    }
+
+    #[test]
+    fn the_lift_is_half_a_pixel_at_most_an_eighth_of_a_cell() {
+        // Pixels a tenth of a cell (a fine view): half a pixel.
+        assert_eq!(contact_lift(0.1, 1.0), 0.05);
+        // Pixels half a cell (a small object seen whole): an eighth of the cell, not a quarter.
+        assert_eq!(contact_lift(0.5, 1.0), 0.125);
+        // The two meet where a pixel is a quarter of a cell.
+        assert_eq!(contact_lift(0.25, 1.0), 0.125);
     }
 
     #[test]
