@@ -1266,23 +1266,35 @@ fn moving_camera_against_many_rays(settings: HybridAmbientOcclusion, p99_bound: 
 #[test]
 fn under_taa_the_converged_ao_equals_the_ao_without_taa() {
     let _gpu = gpu_lock();
-    // Without the depth contacts (the voxels alone), and with them (the default): under TAA their points
-    // project to pixels moved by up to half a pixel, and at 96x64 a pixel is wider than a voxel, so the
-    // contacts along the walls' feet differ more between the two views; measured 0.0078 and 0.0093.
-    for (depth_contacts, bound) in [(false, 0.0085), (true, 0.011)] {
-        taa_against_still(depth_contacts, bound);
+    // Without the depth contacts (the voxels alone), and with them (the default). Under TAA every frame is
+    // traced from pixel centres moved by up to half a pixel, and the history is read where the previous frame
+    // (with its own jitter) traced it: the converged AO is the still view's averaged over half a pixel, and
+    // differs from it at edges. At 96x64 a pixel is wider than a voxel, so the contacts along the walls' feet
+    // differ more. Measured, the code as it is: 0.0083-0.0085 and 0.0097-0.0101 on lavapipe (with 2, 4 or 8
+    // rays a frame: not noise), 0.0087 without the contacts on an NVIDIA H100; the history read without the
+    // previous frame's jitter: 0.0115-0.0118 and 0.0135 on lavapipe. The bounds lie between.
+    let measured: Vec<_> = [(false, 0.0100), (true, 0.0117)]
+        .into_iter()
+        .map(|(depth_contacts, bound)| (depth_contacts, bound, taa_against_still(depth_contacts)))
+        .collect();
+    for (depth_contacts, bound, (difference, darkness_change)) in measured {
+        assert!(
+            difference < bound,
+            "depth contacts {depth_contacts}: TAA's converged AO is {difference} from the still view's"
+        );
+        assert!(
+            darkness_change < 0.01,
+            "depth contacts {depth_contacts}: TAA changes the mean occlusion by {darkness_change}"
+        );
     }
 }
 
-/// The converged AO under TAA differs from the still view's by less than `bound` on average, and their mean
-/// occlusion by less than 0.01.
-fn taa_against_still(depth_contacts: bool, bound: f32) {
+/// The mean difference of the converged AO under TAA from the still view's, and the change of their mean
+/// occlusion (each case printed before any is asserted, so that a failure shows them all).
+fn taa_against_still(depth_contacts: bool) -> (f32, f32) {
     let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
     let converged = |taa: bool| {
-        // Two rays a frame at half resolution, as `Medium` traced before it went to one: the noise of one ray
-        // a frame between the two converged views (0.0086 without the contacts) would hide the errors of
-        // half a pixel this bound is set to catch (reading the history without the previous frame's jitter
-        // gave 0.0093).
+        // Two rays a frame at half resolution, as `Medium` traced before it went to one.
         let quality = HaoQuality::Custom { rays: 2, steps: 32, half_resolution: true };
         let hao = HybridAmbientOcclusion { quality, depth_contacts, ..default() };
         let mut app = scene_app(camera, Ao::Hao(hao), walls);
@@ -1300,9 +1312,6 @@ fn taa_against_still(depth_contacts: bool, bound: f32) {
     };
     let still = converged(false);
     let jittered = converged(true);
-    // Under TAA every frame is traced from pixel centres moved by up to half a pixel, and the history is read
-    // where the previous frame (with its own jitter) traced it; the converged AO may differ from the still
-    // view's by the AO's change across half a pixel at edges, not more.
     let difference = mean_difference(&jittered, &still);
     let darkness = |ao: &[f32]| ao.iter().map(|v| 1.0 - v).sum::<f32>() / ao.len() as f32;
     println!(
@@ -1311,8 +1320,5 @@ fn taa_against_still(depth_contacts: bool, bound: f32) {
         darkness(&jittered),
         darkness(&still)
     );
-    // Without the contacts: measured 0.0071-0.0078 (lavapipe, 96x64); reading the history without the
-    // previous frame's jitter gave 0.0093.
-    assert!(difference < bound, "TAA's converged AO is {difference} from the still view's");
-    assert!((darkness(&jittered) - darkness(&still)).abs() < 0.01, "TAA changes the mean occlusion");
+    (difference, (darkness(&jittered) - darkness(&still)).abs())
 }
