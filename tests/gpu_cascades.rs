@@ -277,7 +277,7 @@ fn solid_occluders_fill_slab_by_slab_as_the_camera_walks() {
 fn multi_valued_voxels_scroll_with_the_cascades() {
     use bevy_hao::cpu::attributes::{MeshAlbedo, SAMPLE_WORDS, pack_albedo};
     let _gpu = gpu_lock();
-    // The corridor moved off the lattice by a few millimetres. At its own coordinates (faces at whole metres,
+    // The corridor moved off the lattice by 7-14 mm. At its own coordinates (faces at whole metres,
     // cells of 0.25, 0.5 and 1 m) many points' centroids fall exactly on cell faces, and there the cell
     // depends on how the device rounds `v0 + e1 * a + e2 * b`: an NVIDIA H100 fuses it into multiply-adds
     // (WGSL allows that), and 168 of level 0's 2,914 voxels then counted points their CPU twin put in the
