@@ -283,11 +283,8 @@ fn multi_valued_voxels_scroll_with_the_cascades() {
     // (WGSL allows that), and 168 of level 0's 2,914 voxels then counted points their CPU twin put in the
     // next voxel (the CPU twin with `mul_add` there gives the same 168). The occupancy tests above tolerate
     // such ties; point counts move with every one.
-    let offset = Vec3::new(0.0137, 0.0071, 0.0093);
-    let parts: Vec<TriangleMesh> = corridor()
-        .into_iter()
-        .map(|m| TriangleMesh::new(m.positions.iter().map(|p| *p + offset).collect(), m.triangles))
-        .collect();
+    let offset = Affine3A::from_translation(Vec3::new(0.0137, 0.0071, 0.0093));
+    let parts: Vec<TriangleMesh> = corridor().iter().map(|m| m.transformed(offset)).collect();
     let color = |k: usize| {
         let c = Color::hsl(k as f32 * 47.0 % 360.0, 0.7, 0.5).to_linear();
         Vec3::new(c.red, c.green, c.blue)
