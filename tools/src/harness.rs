@@ -555,6 +555,66 @@ pub fn read_image(app: &mut App, image: Handle<Image>, settle: usize) -> (u32, u
     (w, h, texel, out)
 }
 
+/// Reads `images` back in each of the next `frames` frames, consecutive ones, calling `after_frame` after
+/// each (its index): per image, each frame's bytes without the row padding. The last frames' copies arrive in
+/// the frames after them (`after_frame` can stop whatever moves the scene at the last). Fails if they do not
+/// arrive within 20 frames.
+pub fn read_frames(
+    app: &mut App,
+    images: &[Handle<Image>],
+    frames: usize,
+    mut after_frame: impl FnMut(&mut App, usize),
+) -> Vec<Vec<Vec<u8>>> {
+    let sinks: Vec<Arc<Mutex<Vec<Vec<u8>>>>> = images.iter().map(|_| Arc::default()).collect();
+    let entities: Vec<Entity> = images
+        .iter()
+        .zip(&sinks)
+        .map(|(image, sink)| {
+            let sink = sink.clone();
+            app.world_mut()
+                .spawn(Readback::texture(image.clone()))
+                .observe(move |ev: On<ReadbackComplete>| sink.lock().unwrap().push(ev.data.clone()))
+                .id()
+        })
+        .collect();
+    let arrived = |sinks: &[Arc<Mutex<Vec<Vec<u8>>>>]| sinks.iter().map(|s| s.lock().unwrap().len()).min().unwrap_or(0);
+    for k in 0..frames {
+        app.update();
+        // Each frame's copy arrives in the next once the device has run it (see `read_back`).
+        wait_for_gpu(app);
+        after_frame(app, k);
+    }
+    for _ in 0..20 {
+        if arrived(&sinks) >= frames {
+            break;
+        }
+        app.update();
+        wait_for_gpu(app);
+    }
+    for e in entities {
+        app.world_mut().despawn(e);
+    }
+    assert!(arrived(&sinks) >= frames, "the readbacks of {frames} frames did not arrive within 20 frames");
+    images
+        .iter()
+        .zip(sinks)
+        .map(|(image, sink)| {
+            let (w, h, texel) = {
+                let img = app.world().resource::<Assets<Image>>().get(image).expect("image asset");
+                let size = img.texture_descriptor.size;
+                (size.width, size.height, img.texture_descriptor.format.block_copy_size(None).expect("uncompressed"))
+            };
+            let row = (w * texel) as usize;
+            let padded = row.div_ceil(256) * 256;
+            let data = std::mem::take(&mut *sink.lock().unwrap());
+            data.into_iter()
+                .take(frames)
+                .map(|d| (0..h as usize).flat_map(|y| d[y * padded..y * padded + row].iter().copied()).collect())
+                .collect()
+        })
+        .collect()
+}
+
 /// An `R32Float` image read back as floats, with its width and height.
 pub fn read_image_f32(app: &mut App, image: Handle<Image>, settle: usize) -> (u32, u32, Vec<f32>) {
     let (w, h, texel, bytes) = read_image(app, image, settle);

@@ -8,15 +8,17 @@
 //!   [`ply`]: the albedo and normal sidecar of multi-valued voxels.
 //! * [`mod@reference`]: the ray-traced AO reference (rays against the real triangles through a BVH).
 //! * [`harness`]: headless Bevy apps on Vulkan for the tools and the GPU tests (readback, GPU timings);
-//!   [`scene`]: scenes spawned from the meshes.
+//!   [`scene`]: scenes spawned from the meshes; [`motion`]: scripted scenes of contacts and moving props.
 //!
-//! The tools (`src/bin`): `voxelize`, `ao_compare`, `bench_voxelize`, `bench_level`, `bench_ao`; see docs/tools.md.
+//! The tools (`src/bin`): `voxelize`, `ao_compare`, `ao_motion`, `bench_voxelize`, `bench_level`, `bench_ao`; see
+//! docs/tools.md.
 
 pub mod binvox;
 pub mod ground_truth;
 pub mod harness;
 pub mod meshes;
 pub mod metrics;
+pub mod motion;
 pub mod ply;
 pub mod reference;
 pub mod scene;

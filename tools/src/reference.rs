@@ -87,3 +87,14 @@ pub fn reference_ao(
         hidden_share: if occlusion > 0.0 { hidden_occlusion / occlusion } else { 0.0 },
     }
 }
+
+/// A hash of an integer to [0, 1): the tools' per-pixel ray rotations and jitters (the same pixel gets the
+/// same rays in every frame and every run).
+pub fn hash(mut x: u32) -> f32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    (x >> 8) as f32 / (1u32 << 24) as f32
+}

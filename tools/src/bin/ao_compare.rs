@@ -49,7 +49,7 @@ use bevy::prelude::*;
 use bevy_hao::cpu::SubdivisionPattern;
 use bevy_hao::prelude::*;
 use bevy_hao_tools::harness::args;
-use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
+use bevy_hao_tools::reference::{ReferenceScene, hash, reference_ao};
 use bevy_hao_tools::scene::{SceneSource, default_camera, spawn_scene};
 use clap::{Parser, ValueEnum};
 
@@ -596,7 +596,6 @@ fn main() {
     }
 }
 
-/// A hash of an integer to [0, 1).
 /// Rays a pixel of the `--bias` table.
 const BIAS_RAYS: u32 = 64;
 
@@ -717,15 +716,6 @@ fn print_bias(
     for (l, row) in by_level.iter().enumerate() {
         print(format!("{l} ({})", levels[l].cell_size), row);
     }
-}
-
-fn hash(mut x: u32) -> f32 {
-    x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb_352d);
-    x ^= x >> 15;
-    x = x.wrapping_mul(0x846c_a68b);
-    x ^= x >> 16;
-    (x >> 8) as f32 / (1u32 << 24) as f32
 }
 
 #[cfg(test)]

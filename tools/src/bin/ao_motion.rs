@@ -1,0 +1,505 @@
+//! Ambient occlusion in motion and at contacts: HAO and Bevy's SSAO in the same frames of a scripted scene,
+//! against a ray-traced reference on the triangles as drawn in each frame.
+//!
+//! ```text
+//! cargo run --release -p bevy_hao_tools --bin ao_motion -- [contacts|roll] [OPTIONS]   (--help lists them)
+//! ```
+//!
+//! The scenes are `bevy_hao_tools::motion`'s: `contacts`, a room corner with a crate, a step, a pole leaning
+//! on the wall and a sphere resting on the floor, all still (`--marker dynamic` makes the sphere a
+//! `DynamicOccluder`, as a prop that could move is); `roll`, the same room with the sphere rolling across
+//! the floor at 1.5 m/s and a box sliding along the wall at 1 m/s (both `DynamicOccluder`). `--motion DEG`
+//! swings the camera about the scene at up to DEG degrees a frame.
+//!
+//! One headless app renders two cameras of the same view in the same frames: HAO on a camera as a user
+//! spawns it (Bevy's default MSAA, 4 samples; `--msaa 1` for none), and Bevy's SSAO (`High`, which needs
+//! `Msaa::Off`). `--taa` puts Bevy's TAA on both (it needs `Msaa::Off`: HAO's camera too). The scene runs
+//! until voxelized and converged (four times HAO's history, in motion as measured), then `--frames`
+//! consecutive frames (32) are read back, centred on the scene's nominal pose. Then the script stops at the
+//! last of them and HAO converges there: the same frame, still and converged, for comparison.
+//!
+//! The reference traces `--rays` cosine-weighted rays per pixel against the frame's triangles (the props
+//! posed) from the positions and normals of each camera's own prepass, with HAO's maximum distance and
+//! falloff; a pixel's rays are the same in every frame, so that its reference changes only where the scene
+//! or the surface under it does. Printed, for each: the mean absolute error over the view, over the contact
+//! band (the pixels whose reference AO is under 0.5: contacts and creases), and over the pixels within 1 m of
+//! a moving prop (of any prop where none moves); and the temporal noise, the mean absolute change of the AO
+//! from one frame to the next at pixels whose reference does not change (by under 0.002; 0.01 with
+//! `--motion`), near the props (within 1 m) and away from them. The PNG shows the last four frames of each
+//! camera and the reference, one row each, and HAO still and converged in the last frame's pose.
+
+use bevy::anti_alias::taa::TemporalAntiAliasing;
+use bevy::camera::RenderTarget;
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::prelude::*;
+use bevy::render::view::Msaa;
+use bevy_hao::cpu::TriangleMesh;
+use bevy_hao::prelude::*;
+use bevy_hao_tools::harness::{self, args};
+use bevy_hao_tools::motion::{Marker, MotionScene, MotionScript, MotionScriptPlugin, ScriptedCamera};
+use bevy_hao_tools::reference::{ReferenceScene, hash, reference_ao};
+use clap::Parser;
+
+/// Ambient occlusion in motion and at contacts: HAO and Bevy's SSAO against a ray-traced reference.
+#[derive(Parser)]
+#[command(version)]
+struct Args {
+    /// The scene: contacts (everything still) or roll (a sphere rolling, a box sliding).
+    #[arg(default_value = "contacts")]
+    scene: String,
+    /// In `contacts`, how the sphere is voxelized.
+    #[arg(long, value_enum, default_value_t = Marker::Dynamic)]
+    marker: Marker,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "320x180", value_parser = args::size)]
+    size: UVec2,
+    /// Rays per pixel of the ray-traced reference.
+    #[arg(long, default_value_t = 256)]
+    rays: u32,
+    /// Consecutive frames measured.
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(2..=256))]
+    frames: u32,
+    /// HAO's quality preset.
+    #[arg(long, value_enum, default_value_t = args::Quality::Medium)]
+    quality: args::Quality,
+    /// Swing the camera at up to DEG degrees a frame (at most 3).
+    #[arg(long, value_name = "DEG")]
+    motion: Option<f32>,
+    /// MSAA samples of HAO's camera (1, 2, 4 or 8; Bevy's default is 4). Bevy's SSAO needs none.
+    #[arg(long, default_value_t = 4)]
+    msaa: u32,
+    /// Bevy's TAA on both cameras (HAO's then without MSAA).
+    #[arg(long)]
+    taa: bool,
+    /// The PNG written.
+    #[arg(long, default_value = "ao_motion.png")]
+    out: String,
+    /// Also write the last frame's crop X,Y,W,H (pixels), four times enlarged, beside the PNG (`-zoom.png`):
+    /// HAO, HAO still and converged, Bevy's SSAO, the reference.
+    #[arg(long, value_parser = crop)]
+    zoom: Option<[u32; 4]>,
+}
+
+/// `X,Y,W,H`.
+fn crop(v: &str) -> Result<[u32; 4], String> {
+    let p: Vec<u32> =
+        v.split(',').map(|x| x.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+    <[u32; 4]>::try_from(p).map_err(|_| format!("expected X,Y,W,H, got {v}"))
+}
+
+/// One camera's frame: AO, depth and world normal per pixel.
+struct View {
+    ao: Vec<f32>,
+    depth: Vec<f32>,
+    normal: Vec<Vec3>,
+}
+
+impl View {
+    fn new(ao: &[u8], depth: &[u8], normal: &[u8]) -> Self {
+        let floats = |d: &[u8]| bytemuck::cast_slice::<u8, f32>(d).to_vec();
+        let normal = normal
+            .chunks_exact(8)
+            .map(|c| Vec3::new(harness::f16_at(c, 0), harness::f16_at(c, 2), harness::f16_at(c, 4)).normalize_or_zero())
+            .collect();
+        Self { ao: floats(ao), depth: floats(depth), normal }
+    }
+
+    fn shows(&self, i: usize) -> bool {
+        self.depth[i] > 0.0 && self.normal[i] != Vec3::ZERO
+    }
+}
+
+/// What is measured of one camera over the frames.
+#[derive(Default, Clone, Copy)]
+struct Errors {
+    view: Mean,
+    contact: Mean,
+    near: Mean,
+    noise_near: Mean,
+    noise_away: Mean,
+}
+
+#[derive(Default, Clone, Copy)]
+struct Mean {
+    sum: f64,
+    n: u64,
+}
+
+impl Mean {
+    fn add(&mut self, v: f32) {
+        self.sum += f64::from(v);
+        self.n += 1;
+    }
+    fn get(&self) -> f64 {
+        if self.n == 0 { f64::NAN } else { self.sum / self.n as f64 }
+    }
+}
+
+/// Where sample 0 of a pixel lies (from its top left corner) with `samples` MSAA samples: Vulkan's standard
+/// sample locations, which the prepasses' sample 0 (what HAO and the debug images read) was rendered at.
+fn sample_zero(samples: u32) -> Vec2 {
+    match samples {
+        2 => Vec2::new(0.75, 0.75),
+        4 => Vec2::new(0.375, 0.125),
+        8 => Vec2::new(0.5625, 0.3125),
+        _ => Vec2::splat(0.5),
+    }
+}
+
+/// The reference at each pixel of `view` that shows geometry (1 elsewhere), and each pixel's world position
+/// (at `sample`, where in the pixel its depth was taken).
+fn reference(
+    scene: &ReferenceScene,
+    view: &View,
+    world_from_clip: Mat4,
+    size: UVec2,
+    sample: Vec2,
+    rays: u32,
+    max_distance: f32,
+    falloff: f32,
+) -> (Vec<f32>, Vec<Vec3>) {
+    let (w, h) = (size.x as usize, size.y as usize);
+    let epsilon = 1.0e-3;
+    let position = |i: usize| {
+        let (x, y) = ((i % w) as f32, (i / w) as f32);
+        let ndc =
+            Vec3::new((x + sample.x) / w as f32 * 2.0 - 1.0, 1.0 - (y + sample.y) / h as f32 * 2.0, view.depth[i]);
+        world_from_clip.project_point3(ndc)
+    };
+    let positions: Vec<Vec3> = (0..w * h).map(position).collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let pixels: Vec<usize> = (0..w * h).collect();
+    let chunks: Vec<&[usize]> = pixels.chunks((w * h).div_ceil(threads)).collect();
+    let ao: Vec<f32> = std::thread::scope(|s| {
+        let handles: Vec<_> = chunks
+            .into_iter()
+            .map(|chunk| {
+                let positions = &positions;
+                s.spawn(move || {
+                    chunk
+                        .iter()
+                        .map(|&i| {
+                            if !view.shows(i) {
+                                return 1.0;
+                            }
+                            let rotation = Vec2::new(hash(i as u32 * 2 + 1), hash(i as u32 * 2 + 2));
+                            let r = reference_ao(
+                                scene,
+                                positions[i],
+                                view.normal[i],
+                                rays,
+                                rotation,
+                                max_distance,
+                                falloff,
+                                1.0,
+                                epsilon,
+                                |_| false,
+                            );
+                            r.ao
+                        })
+                        .collect::<Vec<f32>>()
+                })
+            })
+            .collect();
+        handles.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    });
+    (ao, positions)
+}
+
+/// The distance from `p` to the box `(lo, hi)` (0 inside).
+fn box_distance(p: Vec3, (lo, hi): (Vec3, Vec3)) -> f32 {
+    (lo - p).max(p - hi).max(Vec3::ZERO).length()
+}
+
+/// How far from a prop a pixel counts as near it.
+const NEAR: f32 = 1.0;
+/// Reference AO under which a pixel is in the contact band.
+const CONTACT_BAND: f32 = 0.5;
+
+fn main() {
+    let args = Args::parse();
+    let Some(mut scene) = MotionScene::named(&args.scene, args.marker) else {
+        eprintln!("error: unknown scene {} (known: {})", args.scene, bevy_hao_tools::motion::MOTION_SCENES.join(", "));
+        std::process::exit(1)
+    };
+    if let Some(d) = args.motion {
+        if !(d > 0.0 && d <= 3.0) {
+            eprintln!("error: --motion {d}: expected above 0 and at most 3 degrees a frame");
+            std::process::exit(1);
+        }
+        scene.camera_speed = d;
+    }
+    if ![1, 2, 4, 8].contains(&args.msaa) {
+        eprintln!("error: --msaa {}: expected 1, 2, 4 or 8", args.msaa);
+        std::process::exit(1);
+    }
+    let msaa = if args.taa { Msaa::Off } else { Msaa::from_samples(args.msaa) };
+    let hao = HybridAmbientOcclusion { quality: args.quality.into(), ..default() };
+    let sanitized = hao.sanitized().0;
+    let size = args.size;
+    let frames = args.frames as i32;
+    let setup_scene = scene.clone();
+    let (setup_hao, taa) = (hao.clone(), args.taa);
+    let mut app = harness::headless_app(move |app| {
+        app.add_plugins(MotionScriptPlugin);
+        app.insert_resource(setup_scene.clone());
+        app.insert_resource(bevy::light::GlobalAmbientLight { brightness: 300.0, ..default() });
+        app.add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>,
+                  mut images: ResMut<Assets<Image>>| {
+                setup_scene.spawn(&mut commands, &mut meshes, &mut materials);
+                let mut outputs = Vec::new();
+                for k in 0..2 {
+                    let debug = HaoDebugImages::new(&mut images, size);
+                    outputs.push(debug.clone());
+                    let target = harness::target_image(&mut images, size);
+                    let mut cam = commands.spawn((
+                        Camera3d::default(),
+                        Camera { order: k as isize, ..default() },
+                        RenderTarget::Image(target.into()),
+                        Tonemapping::None,
+                        setup_scene.camera,
+                        ScriptedCamera,
+                        debug,
+                    ));
+                    if k == 0 {
+                        cam.insert((setup_hao.clone(), msaa));
+                    } else {
+                        cam.insert((bevy::pbr::ScreenSpaceAmbientOcclusion::default(), Msaa::Off));
+                    }
+                    if taa {
+                        cam.insert(TemporalAntiAliasing::default());
+                    }
+                }
+                commands.insert_resource(Outputs(outputs));
+            },
+        );
+    });
+    // Until the static scene is voxelized, then four times HAO's history in motion, ending just before the
+    // first frame measured.
+    let warmup = 4 + 4 * sanitized.accumulation_frames as i32 * sanitized.frames_per_trace() as i32;
+    let first = -frames / 2;
+    app.insert_resource(MotionScript { frame: first - warmup, running: false });
+    for _ in 0..30 {
+        app.update();
+    }
+    app.world_mut().resource_mut::<MotionScript>().running = true;
+    harness::run(&mut app, warmup as usize - 1);
+    let outputs = app.world().resource::<Outputs>().0.clone();
+    let images: Vec<Handle<Image>> =
+        outputs.iter().flat_map(|o| [o.ao.clone(), o.depth.clone(), o.normal.clone()]).collect();
+    let mut script_frames = Vec::new();
+    let recorded = harness::read_frames(&mut app, &images, frames as usize, |app, k| {
+        let mut script = app.world_mut().resource_mut::<MotionScript>();
+        script_frames.push(script.frame);
+        // The last frame's readbacks arrive in the frames after it: the script stays at the last frame.
+        script.running = k + 1 < frames as usize;
+    });
+    assert_eq!(script_frames[0], first, "the frames measured are centred on the nominal pose");
+    // The last frame, still and converged.
+    harness::run(&mut app, warmup as usize);
+    let still_ao = harness::read_image_f32(&mut app, outputs[0].ao.clone(), 2).2;
+    let errors = harness::take_render_errors();
+    if !errors.is_empty() {
+        eprintln!("error: wgpu errors: {errors:?}");
+        std::process::exit(1);
+    }
+    let failed = harness::failed_pipelines(&app);
+    if !failed.is_empty() {
+        eprintln!("error: pipelines failed to compile, so their passes did not run: {failed:?}");
+        std::process::exit(1);
+    }
+    let clip_from_view = {
+        let mut q = app.world_mut().query::<&Camera>();
+        q.iter(app.world()).next().unwrap().clip_from_view()
+    };
+
+    // The reference, frame by frame, from each camera's own prepass.
+    let n = (size.x * size.y) as usize;
+    let bar = harness::progress_bar(frames as u64, "reference frames");
+    let mut measured = [Errors::default(); 2];
+    let mut near_still = [Mean::default(); 3]; // still HAO in the last frame: near, contact band, view
+    let mut near_moving = [Mean::default(); 3];
+    let mut last: [Option<(View, Vec<f32>)>; 2] = [None, None];
+    let mut strip: [Vec<(Vec<f32>, Vec<f32>, Vec<f32>)>; 2] = [Vec::new(), Vec::new()];
+    let mut cache: [Option<((TriangleMesh, Mat4, Vec<f32>), (Vec<f32>, Vec<Vec3>))>; 2] = [None, None];
+    let threshold = if args.motion.is_some() { 0.01 } else { 0.002 };
+    for (f, &frame) in script_frames.iter().enumerate() {
+        let frame_triangles = scene.triangles_at(frame);
+        let triangles = ReferenceScene::new(&frame_triangles);
+        let world_from_clip = scene.camera_at(frame).to_matrix() * clip_from_view.inverse();
+        let props = scene.prop_bounds_at(frame);
+        for k in 0..2 {
+            let view = View::new(&recorded[3 * k][f], &recorded[3 * k + 1][f], &recorded[3 * k + 2][f]);
+            // A still scene seen from a still camera has the same reference every frame: traced once.
+            let key = (frame_triangles.clone(), world_from_clip, view.depth.clone());
+            let (reference, positions) = match &cache[k] {
+                Some((cached_key, r)) if *cached_key == key => r.clone(),
+                _ => {
+                    let r = reference(
+                        &triangles,
+                        &view,
+                        world_from_clip,
+                        size,
+                        sample_zero(if k == 0 { msaa.samples() } else { 1 }),
+                        args.rays,
+                        hao.max_distance,
+                        hao.falloff,
+                    );
+                    cache[k] = Some((key, r.clone()));
+                    r
+                }
+            };
+            let near = |i: usize| props.iter().any(|b| box_distance(positions[i], *b) <= NEAR);
+            let m = &mut measured[k];
+            for i in (0..n).filter(|&i| view.shows(i)) {
+                let e = (view.ao[i] - reference[i]).abs();
+                m.view.add(e);
+                if reference[i] < CONTACT_BAND {
+                    m.contact.add(e);
+                }
+                if near(i) {
+                    m.near.add(e);
+                }
+            }
+            if let Some((prev, prev_ref)) = &last[k] {
+                for i in (0..n).filter(|&i| view.shows(i) && prev.shows(i)) {
+                    if (reference[i] - prev_ref[i]).abs() <= threshold {
+                        let change = (view.ao[i] - prev.ao[i]).abs();
+                        if near(i) { m.noise_near.add(change) } else { m.noise_away.add(change) }
+                    }
+                }
+            }
+            if k == 0 && f + 1 == script_frames.len() {
+                for i in (0..n).filter(|&i| view.shows(i)) {
+                    let (e_still, e_moving) = ((still_ao[i] - reference[i]).abs(), (view.ao[i] - reference[i]).abs());
+                    let sets = [near(i), reference[i] < CONTACT_BAND, true];
+                    for (s, inside) in sets.into_iter().enumerate() {
+                        if inside {
+                            near_still[s].add(e_still);
+                            near_moving[s].add(e_moving);
+                        }
+                    }
+                }
+            }
+            if f + 4 >= script_frames.len() {
+                let shown = |img: &[f32]| (0..n).map(|i| if view.shows(i) { img[i] } else { 1.0 }).collect();
+                strip[k].push((shown(&view.ao), shown(&reference), if k == 0 { shown(&still_ao) } else { vec![] }));
+            }
+            last[k] = Some((view, reference));
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+
+    let stats = harness::stats(&app);
+    println!(
+        "scene: {} ({}), {}x{}, {} frames measured (script frames {}..={}), camera {}; HAO {:?} with {} MSAA \
+         samples{}; reference: {} rays per pixel; {} dynamic occluders",
+        args.scene,
+        if args.scene == "contacts" { format!("sphere {:?}", args.marker) } else { "props moving".into() },
+        size.x,
+        size.y,
+        frames,
+        script_frames[0],
+        script_frames[script_frames.len() - 1],
+        args.motion.map_or("still".into(), |d| format!("swinging at up to {d} degrees a frame")),
+        hao.quality,
+        if args.taa { 1 } else { args.msaa },
+        if args.taa { ", TAA on both cameras" } else { "" },
+        args.rays,
+        stats.dynamic_instances,
+    );
+    println!(
+        "\n| AO | error, view | error, contact band (reference < {CONTACT_BAND}) | error, within {NEAR} m of the props | \
+         noise near the props | noise away from them |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|");
+    for (k, name) in ["HAO", "Bevy SSAO (High)"].iter().enumerate() {
+        let m = measured[k];
+        println!(
+            "| {name} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} |",
+            m.view.get(),
+            m.contact.get(),
+            m.near.get(),
+            m.noise_near.get(),
+            m.noise_away.get()
+        );
+    }
+    println!(
+        "\nHAO in the last frame: in motion / the same frame still and converged: within {NEAR} m of the props \
+         {:.4} / {:.4} ({:.2}x), contact band {:.4} / {:.4}, view {:.4} / {:.4}",
+        near_moving[0].get(),
+        near_still[0].get(),
+        near_moving[0].get() / near_still[0].get().max(1e-9),
+        near_moving[1].get(),
+        near_still[1].get(),
+        near_moving[2].get(),
+        near_still[2].get(),
+    );
+    println!(
+        "(pixels: noise near {} and away {} frame pairs x pixels for HAO; contact band {} pixel-frames)",
+        measured[0].noise_near.n, measured[0].noise_away.n, measured[0].contact.n
+    );
+
+    // The PNG: rows HAO, SSAO, reference (HAO's camera); the last four frames; HAO still and converged last.
+    let (w, h) = (size.x, size.y);
+    let columns = strip[0].len() as u32 + 1;
+    let mut png = image::GrayImage::from_pixel(columns * (w + 4), 3 * (h + 4), image::Luma([255]));
+    let mut put = |col: u32, row: u32, img: &[f32]| {
+        for y in 0..h {
+            for x in 0..w {
+                let v = (img[(y * w + x) as usize].clamp(0.0, 1.0) * 255.0).round() as u8;
+                png.put_pixel(col * (w + 4) + x, row * (h + 4) + y, image::Luma([v]));
+            }
+        }
+    };
+    for (c, ((hao_ao, reference, _), (ssao_ao, _, _))) in strip[0].iter().zip(&strip[1]).enumerate() {
+        put(c as u32, 0, hao_ao);
+        put(c as u32, 1, ssao_ao);
+        put(c as u32, 2, reference);
+    }
+    if let Some((_, reference, still)) = strip[0].last() {
+        put(columns - 1, 0, still);
+        put(columns - 1, 2, reference);
+    }
+    if let Err(e) = png.save(&args.out) {
+        eprintln!("error: writing {}: {e}", args.out);
+        std::process::exit(1);
+    }
+    if let (Some([x0, y0, cw, ch]), Some((hao_ao, reference, still)), Some((ssao_ao, _, _))) =
+        (args.zoom, strip[0].last(), strip[1].last())
+    {
+        const SCALE: u32 = 4;
+        let (cw, ch) = (cw.min(w.saturating_sub(x0)), ch.min(h.saturating_sub(y0)));
+        let panels = [hao_ao, still, ssao_ao, reference];
+        let mut zoom = image::GrayImage::from_pixel(4 * (cw * SCALE + 4), ch * SCALE, image::Luma([255]));
+        for (k, img) in panels.iter().enumerate() {
+            for y in 0..ch * SCALE {
+                for x in 0..cw * SCALE {
+                    let v = img[((y0 + y / SCALE) * w + x0 + x / SCALE) as usize];
+                    let v = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+                    zoom.put_pixel(k as u32 * (cw * SCALE + 4) + x, y, image::Luma([v]));
+                }
+            }
+        }
+        let out = args.out.strip_suffix(".png").unwrap_or(&args.out).to_string() + "-zoom.png";
+        if let Err(e) = zoom.save(&out) {
+            eprintln!("error: writing {out}: {e}");
+            std::process::exit(1);
+        }
+        eprintln!("wrote {out} (HAO, HAO still and converged, Bevy SSAO, reference)");
+    }
+    eprintln!(
+        "wrote {} (rows: HAO, Bevy SSAO, reference; columns: the last {} frames, then HAO still and converged in the \
+         last frame's pose)",
+        args.out,
+        columns - 1
+    );
+}
+
+#[derive(Resource, Clone)]
+struct Outputs(Vec<HaoDebugImages>);
