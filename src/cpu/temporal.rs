@@ -16,8 +16,8 @@
 //!    neighbourhood now escapes, the window closes around 1 and the shadow it left is clamped away in one
 //!    frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
-//!    two rays. The voxel grid knows where it may have changed: the boxes of the dynamic occluders, this
-//!    frame and last (`VoxelGrid::changed`). A pixel within `max_distance` of one keeps at most
+//!    two rays. The voxel grid knows where it may have changed: the boxes of the dynamic occluders that moved
+//!    (turned, deformed, appeared or went) since last frame, this frame and last (`VoxelGrid::changed`). A pixel within `max_distance` of one keeps at most
 //!    [`CHANGED_COUNT`] frames of history, so a moving character's shadow follows it within a few frames
 //!    while the still scene around it converges.
 //! 4. **Filter** ([`prefilter`]): the pixel's own trace is averaged with the trace's 3x3 texels around it

@@ -67,8 +67,8 @@ pub struct GpuVoxelGrid {
     pub changed_count: u32,
     /// 1 where the albedo and normal textures hold the voxels' attributes ([`crate::VoxelVolume::attributes`]).
     pub attributes: u32,
-    /// Where the voxels may have changed since last frame (dynamic occluders now and last frame): temporal
-    /// passes keep less history near them.
+    /// Where the voxels may have changed since last frame (the dynamic occluders that moved, now and last
+    /// frame): temporal passes keep less history near them.
     pub changed: [GpuWorldBox; MAX_CHANGED_BOXES],
 }
 
@@ -209,7 +209,7 @@ pub fn prepare_voxel_grid_bindings(
     let empty = &layout.empty_texture;
     let (grid, view, [albedo, normal]) = match texture {
         Some((assets, image)) if !state.levels().is_empty() => {
-            let mut grid = GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.changed_world_boxes());
+            let mut grid = GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.moved().iter().map(|m| m.bounds));
             let attributes = assets.attributes.as_ref().and_then(|[a, n]| Some([images.get(a)?, images.get(n)?]));
             grid.attributes = attributes.is_some() as u32;
             let views = attributes.map_or([empty, empty], |[a, n]| [&a.texture_view, &n.texture_view]);

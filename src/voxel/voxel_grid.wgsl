@@ -39,7 +39,8 @@ struct VoxelGrid {
     // 0 while there is no grid.
     level_count: u32,
     mip_levels: u32,
-    // Where the voxels may have changed since last frame (dynamic occluders now and last frame).
+    // Where the voxels may have changed since last frame (the dynamic occluders that moved, now and last
+    // frame).
     changed_count: u32,
     // 1 where `voxel_albedo` and `voxel_normal` hold the voxels' attributes (VoxelVolume::attributes).
     attributes: u32,

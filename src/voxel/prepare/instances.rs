@@ -6,6 +6,7 @@
 
 use super::super::extract::{ExtractedOccluder, ExtractedOccluders};
 use super::super::pipelines::*;
+use super::moved::{MovedOccluder, Pose, moved};
 use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
 use bevy::mesh::VertexFormat;
 use bevy::pbr::SkinUniforms;
@@ -263,6 +264,33 @@ pub(super) fn resolve_occluder(
     })
 }
 
+/// What a resolved dynamic occluder's voxels are made from this frame besides its mesh (see [`Pose`]).
+fn pose(o: &ExtractedOccluder, r: &ResolvedInstance, skins: &Skins) -> Pose {
+    let g = &r.gpu;
+    let transforms = if g.skin_index == NO_SKIN {
+        vec![Mat4::from(o.world_from_local)]
+    } else {
+        // The skin's joint matrices this frame (world space), as the classify pass reads them.
+        let start = g.skin_index as usize;
+        skins
+            .uniforms
+            .and_then(|u| u.current_staging_buffer.get(start..start + g.joint_count as usize))
+            .map_or_else(Vec::new, <[Mat4]>::to_vec)
+    };
+    #[cfg(feature = "morph")]
+    let weights = skins
+        .morphs
+        .filter(|_| g.morph_weight_count > 0)
+        .and_then(|(_, u)| {
+            let start = g.morph_weights_offset as usize;
+            u.current_buffer.values().get(start..start + g.morph_weight_count as usize)
+        })
+        .map_or_else(Vec::new, <[f32]>::to_vec);
+    #[cfg(not(feature = "morph"))]
+    let weights = Vec::new();
+    Pose { transforms, weights, mesh: (o.mesh, r.ranges), bounds: o.world_bounds }
+}
+
 /// An occluder as extracted, and as resolved to the mesh slabs (`None`: waiting, or skipped).
 struct TrackedInstance {
     occluder: ExtractedOccluder,
@@ -335,6 +363,10 @@ pub(crate) struct ResolvedOccluders {
     solid: EntityHashSet,
     /// Occluders resolved in the last frame.
     pub resolved_last_frame: u64,
+    /// The poses of the resolved dynamic occluders, as voxelized last.
+    poses: EntityHashMap<Pose>,
+    /// The dynamic occluders whose voxels changed this frame.
+    moved: Vec<MovedOccluder>,
     warned_meshes: HashSet<(AssetId<Mesh>, WarnedFor)>,
     warned_moved: EntityHashSet,
 }
@@ -412,6 +444,11 @@ impl ResolvedOccluders {
         })
     }
 
+    /// The dynamic occluders whose voxels changed this frame: moved, turned, deformed, appeared or went.
+    pub fn moved(&self) -> &[MovedOccluder] {
+        &self.moved
+    }
+
     /// Whether any occluder is filled solid.
     pub fn any_solid(&self) -> bool {
         !self.solid.is_empty()
@@ -452,6 +489,7 @@ impl ResolvedOccluders {
         work.extend(self.pending.iter().copied());
         work.extend(self.per_frame.iter().copied());
         self.resolved_last_frame = 0;
+        self.moved.clear();
         for entity in work {
             let now = extracted.occluders.get(&entity).map(|o| {
                 self.resolved_last_frame += 1;
@@ -463,6 +501,16 @@ impl ResolvedOccluders {
                 TrackedInstance { occluder: o.clone(), resolved, skipped }
             });
             self.replace(entity, now, remeshed.contains(&entity), &mut changes);
+            // Only the entities looked at this frame can have moved: the others were not extracted.
+            let now = self.instances.get(&entity).filter(|t| t.occluder.dynamic).and_then(|t| {
+                let r = t.resolved.as_ref()?;
+                Some(pose(&t.occluder, r, skins))
+            });
+            let prev = match &now {
+                Some(p) => self.poses.insert(entity, p.clone()),
+                None => self.poses.remove(&entity),
+            };
+            self.moved.extend(moved(prev.as_ref(), now.as_ref()));
         }
         changes
     }

@@ -12,10 +12,12 @@
 
 mod instances;
 mod levels;
+mod moved;
 mod resolve;
 mod upload;
 
 pub(crate) use levels::{CellBox, LevelLayout, place_levels};
+pub use moved::MovedOccluder;
 
 use super::extract::{ExtractedOccluders, ExtractedVoxelGrid};
 use super::pipelines::*;
@@ -54,10 +56,6 @@ pub struct VoxelizeState {
     /// Per level, the bricks the dynamic occluders touched last frame (`None`: too many, `prev_dynamic`).
     prev_dynamic_bricks: Vec<Option<HashSet<IVec3>>>,
     had_dynamic: bool,
-    /// World boxes of the dynamic occluders this frame (`None`: one without bounds, anywhere).
-    dynamic_world: Vec<Option<(Vec3, Vec3)>>,
-    /// The same last frame.
-    prev_dynamic_world: Vec<Option<(Vec3, Vec3)>>,
     rebuild_requests: u64,
     big: Option<BigBuffers>,
     warned_capacity: bool,
@@ -72,10 +70,10 @@ impl VoxelizeState {
         &self.levels
     }
 
-    /// Where the voxels may have changed since last frame: the world boxes of the dynamic occluders now and
-    /// last frame (`None` for one without bounds: anywhere). Temporal passes keep less history there.
-    pub(crate) fn changed_world_boxes(&self) -> impl Iterator<Item = Option<(Vec3, Vec3)>> + '_ {
-        self.dynamic_world.iter().chain(&self.prev_dynamic_world).copied()
+    /// The dynamic occluders whose voxels changed since last frame (temporal passes keep less history
+    /// around them).
+    pub(crate) fn moved(&self) -> &[MovedOccluder] {
+        self.occluders.moved()
     }
 }
 
@@ -189,8 +187,6 @@ pub fn prepare_voxelize(
         state.levels.clear();
         state.prev_dynamic.clear();
         state.prev_dynamic_bricks.clear();
-        state.dynamic_world.clear();
-        state.prev_dynamic_world.clear();
     };
     // Resolve the occluders that changed to slabs: every frame, whatever follows, since a change is
     // extracted once.
@@ -317,8 +313,6 @@ pub fn prepare_voxelize(
         }
     }
 
-    state.prev_dynamic_world = std::mem::take(&mut state.dynamic_world);
-    state.dynamic_world = state.occluders.dynamics().map(|(o, _)| o.world_bounds).collect();
     // Per level: where dynamic geometry is now (the box around it, and its bricks: `None` where it touches too
     // many), and where it was last frame.
     let (dynamic_boxes, dynamic_bricks): (Vec<Option<CellBox>>, Vec<Option<HashSet<IVec3>>>) =
