@@ -13,6 +13,7 @@ const MODULES: &[&str] = &[
     "src/voxel/voxelize_vertices.wgsl",
     "src/voxel/voxel_grid.wgsl",
     "src/ao/hao_common.wgsl",
+    "src/ao/hao_change.wgsl",
 ];
 
 /// Bevy's modules our shaders import, relative to the `bevy_render` crate's root.
@@ -382,17 +383,22 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 22] = [
+    let pairs: [(&str, &str, f64); 27] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
-        ("src/voxel/voxel_grid.wgsl", "MAX_CHANGED_BOXES", bindings::MAX_CHANGED_BOXES as f64),
+        ("src/voxel/voxel_grid.wgsl", "MAX_MOVED_OCCLUDERS", bindings::MAX_MOVED_OCCLUDERS as f64),
+        ("src/voxel/voxel_grid.wgsl", "UNKNOWN_MOTION", bindings::UNKNOWN_MOTION as f64),
         (hao, "DEPTH_TOLERANCE", temporal::DEPTH_TOLERANCE as f64),
         (hao, "NORMAL_TOLERANCE", temporal::NORMAL_TOLERANCE as f64),
         (hao, "CLAMP_MARGIN", temporal::CLAMP_MARGIN as f64),
         (hao, "CLAMPED_COUNT", temporal::CLAMPED_COUNT as f64),
         (hao, "CHANGED_COUNT", temporal::CHANGED_COUNT as f64),
         (hao, "STAND_IN_COUNT", temporal::STAND_IN_COUNT as f64),
+        ("src/ao/hao_change.wgsl", "CHANGE_NOISE_FLOOR", temporal::CHANGE_NOISE_FLOOR as f64),
+        ("src/ao/hao_change.wgsl", "CHANGE_NOISE_SAMPLES", temporal::CHANGE_NOISE_SAMPLES as f64),
+        ("src/ao/hao_change.wgsl", "CHANGE_RAYS_SCALE", temporal::CHANGE_RAYS_SCALE as f64),
+        ("src/ao/hao_change.wgsl", "CHANGE_RAYS_FROM", temporal::CHANGE_RAYS_FROM as f64),
         (common, "MAX_PN_GAMMA_SCALE", crate::cpu::pn::MAX_PN_GAMMA_SCALE as f64),
         (common, "ALBEDO_SCALE", crate::cpu::attributes::ALBEDO_SCALE as f64),
         (common, "NORMAL_SCALE", crate::cpu::attributes::NORMAL_SCALE as f64),

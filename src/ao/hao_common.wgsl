@@ -222,10 +222,10 @@ const CHANGED_COUNT: f32 = 2.0;
 const STAND_IN_COUNT: f32 = 3.0;
 
 // cpu/temporal.rs: uses_stand_in. Whether a pixel without its own trace this frame blends its stand-in: where
-// its history holds fewer than STAND_IN_COUNT frames (or the cap, if lower), its voxels may have changed or
-// nothing is accumulated.
-fn uses_stand_in(history_count: f32, max_count: f32, near_change: bool) -> bool {
-    return history_count < min(STAND_IN_COUNT, max_count) || near_change || max_count <= 1.0;
+// its history holds fewer than STAND_IN_COUNT frames (or the cap, if lower), the voxels near it changed enough
+// to cap its history (`change_cap`) under max_count, or nothing is accumulated.
+fn uses_stand_in(history_count: f32, max_count: f32, cap: f32) -> bool {
+    return history_count < min(STAND_IN_COUNT, max_count) || cap < max_count || max_count <= 1.0;
 }
 
 // cpu/temporal.rs: history_accepts. Whether a texel of view depth `history_depth` and normal along `direction`
@@ -244,13 +244,11 @@ fn neighborhood_window(sum: f32, sum_squares: f32, count: f32) -> vec2<f32> {
     return vec2<f32>(mean - 2.0 * sigma - CLAMP_MARGIN, mean + 2.0 * sigma + CLAMP_MARGIN);
 }
 
-// cpu/temporal.rs: temporal_blend; returns (ao, frames of weight)
-fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: f32, max_count: f32, near_change: bool) -> vec2<f32> {
+// cpu/temporal.rs: temporal_blend; returns (ao, frames of weight). `cap`: the frames the history keeps near
+// voxels that changed (`change_cap`).
+fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: f32, max_count: f32, cap: f32) -> vec2<f32> {
     var h = history;
-    var c = history_count;
-    if near_change {
-        c = min(c, CHANGED_COUNT);
-    }
+    var c = min(history_count, cap);
     if h < window.x || h > window.y {
         h = clamp(h, window.x, window.y);
         c = min(c, CLAMPED_COUNT);
@@ -265,9 +263,9 @@ fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: 
 // cpu/temporal.rs: temporal_update; returns (ao, frames of weight). `own`: the pixel was traced this frame
 // and `current` is its AO; else `current` is its stand-in, blended only where `uses_stand_in` (else the
 // history stays as it is).
-fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, near_change: bool) -> vec2<f32> {
-    if own || uses_stand_in(history_count, max_count, near_change) {
-        return temporal_blend(history, history_count, window, current, max_count, near_change);
+fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, cap: f32) -> vec2<f32> {
+    if own || uses_stand_in(history_count, max_count, cap) {
+        return temporal_blend(history, history_count, window, current, max_count, cap);
     }
     return vec2<f32>(history, history_count);
 }

@@ -9,8 +9,8 @@
 // buffer of the view's pixels row by row), which the next frame reprojects, and its AO into the texture PBR
 // reads (at target_pixel(p): the texture is the target's size); with the near field, into the plugin's result
 // texture with the minimum of Bevy's screen-space AO, which the apply pass then copies (Bevy's SSAO texture
-// cannot be read and written in one pass). Near voxels that may have changed (moving occluders) the history
-// is kept short.
+// cannot be read and written in one pass). Near voxels that changed (moving occluders) the history is kept
+// as short as the change there calls for (`change_cap`).
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
@@ -18,7 +18,7 @@
     temporal_update, trace_index, uses_stand_in, traced_pixel, texel_traced, trace_turn, unpack_direction,
     unpack_history,
 }
-#import bevy_hao::voxel_grid::near_changed_voxels
+#import bevy_hao::hao_change::{occlusion_change, change_cap}
 
 // bevy_core_pipeline::prepass::PreviousViewData
 struct PreviousViewData {
@@ -171,15 +171,19 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
             history_count = count / weight * f32(min(settings.history_valid, 1u));
         }
     }
-    let near_change = history_count > 0.0 && near_changed_voxels(world, settings.max_distance);
+    // Near voxels that changed, as much history as the change there allows.
+    var cap = 1.0e30;
+    if history_count > 0.0 {
+        cap = change_cap(occlusion_change(world, normal, settings.max_distance, settings.falloff), window);
+    }
     // Its own trace, filtered; or where its block traced another pixel, the traced neighbours on its surface
     // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
-    let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), near_change);
+    let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), cap);
     var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
     if traced {
         current = filtered[trace_index(settings, block)];
     }
-    let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), near_change);
+    let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), cap);
     history_out[history_index(settings, pixel)] =
         pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
     store_ao(pixel, blended.x);

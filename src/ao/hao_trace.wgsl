@@ -6,7 +6,9 @@
 // which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`, with no
 // frames). In the checkerboard (`Low`) it runs on half the texels, alternating
 // (`checkerboard_texel`), and the others keep their last frame's.
-// CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion_counted` (the contacts: `bevy_hao::cpu::contacts`).
+// Where occluders moved near the pixel, `change_rays` times the rays (`hao_change.wgsl`).
+// CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion_counted` (the contacts: `bevy_hao::cpu::contacts`;
+// the rays: `bevy_hao::cpu::temporal::change_rays`).
 // The voxel levels are bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
@@ -18,6 +20,7 @@
 #import bevy_hao::voxel_grid::{
     voxel_grid, ray_start_level, march_cascades, level_position, voxel_normal_at, safe_inverse, ray_box,
 }
+#import bevy_hao::hao_change::{occlusion_change, change_rays}
 
 // The prepasses, the target's size: the view's pixel p is at target_pixel(p). With MSAA, sample 0.
 #ifdef MULTISAMPLED
@@ -209,8 +212,10 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let jitter = contact_jitter(pf, noise_frame(turn, half));
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
-    for (var i = 0u; i < settings.rays; i++) {
-        let dir = hemisphere_direction(basis, i, settings.rays, rotation);
+    // More rays where occluders moved near the pixel: its history is short there.
+    let rays = change_rays(settings.rays, occlusion_change(world, normal, settings.max_distance, settings.falloff));
+    for (var i = 0u; i < rays; i++) {
+        let dir = hemisphere_direction(basis, i, rays, rotation);
         // The finest level that holds the surface (blended across its border), then coarser ones.
         let start = ray_start_level(world, i, rotation);
         let cell = voxel_grid.levels[start].cell_size;
@@ -256,6 +261,6 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
             occlusion += ao_falloff(d, settings.max_distance, settings.falloff);
         }
     }
-    let ao = clamp(1.0 - settings.intensity * occlusion / f32(settings.rays), 0.0, 1.0);
+    let ao = clamp(1.0 - settings.intensity * occlusion / f32(rays), 0.0, 1.0);
     noisy[at] = pack_history(vec4<f32>(ao, view_depth, packed_normal, 0.0));
 }

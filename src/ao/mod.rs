@@ -56,6 +56,7 @@ pub struct HybridAmbientOcclusionPlugin;
 impl Plugin for HybridAmbientOcclusionPlugin {
     fn build(&self, app: &mut App) {
         load_shader_library!(app, "hao_common.wgsl");
+        load_shader_library!(app, "hao_change.wgsl");
         embedded_asset!(app, "hao_trace.wgsl");
         embedded_asset!(app, "hao_neighborhood.wgsl");
         embedded_asset!(app, "hao_temporal.wgsl");

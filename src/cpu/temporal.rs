@@ -16,10 +16,15 @@
 //!    neighbourhood now escapes, the window closes around 1 and the shadow it left is clamped away in one
 //!    frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
-//!    two rays. The voxel grid knows where it may have changed: the boxes of the dynamic occluders that moved
-//!    (turned, deformed, appeared or went) since last frame, this frame and last (`VoxelGrid::changed`). A pixel within `max_distance` of one keeps at most
-//!    [`CHANGED_COUNT`] frames of history, so a moving character's shadow follows it within a few frames
-//!    while the still scene around it converges.
+//!    one or two rays. The voxel grid lists the dynamic occluders whose voxels changed since last frame:
+//!    the box around each now and last frame, and how far its points moved ([`MovedVoxels`]). From them
+//!    [`occlusion_change`] estimates how much the pixel's occlusion can have changed since last frame (the
+//!    occlusion of a sphere the size of the box, times the share of its distance the occluder moved), and
+//!    [`change_cap`] keeps the history that balances the lag it costs against the noise it removes: a
+//!    history of `n` frames lags a change of `c` a frame by about `c (n - 1) / 2`, and leaves a variance
+//!    of `s^2 / n` of the current frame's `s^2`; their sum is least near `n^3 = 2 s^2 / c^2`. So next to a
+//!    moving prop the history keeps [`CHANGED_COUNT`] frames and follows the shadow within a frame or two,
+//!    a metre away it keeps several, and far away, or around one that stands still, all of them.
 //! 4. **Filter** ([`prefilter`]): the pixel's own trace is averaged with the trace's 3x3 texels around it
 //!    that show its surface, weighed by a bilateral weight (a Gaussian in distance over
 //!    `HybridAmbientOcclusion::denoise_radius` texels of the trace, and the depth and normal against the
@@ -50,8 +55,85 @@ use glam::{IVec2, UVec2, Vec2, Vec3};
 /// The most frames of weight a history keeps after it was clamped.
 pub const CLAMPED_COUNT: f32 = 2.0;
 
-/// The most frames of weight a history keeps near voxels that may have changed.
+/// The fewest frames of weight [`change_cap`] leaves a history near voxels that changed (the most it keeps
+/// where the change is largest or unknown).
 pub const CHANGED_COUNT: f32 = 2.0;
+
+/// A dynamic occluder whose voxels changed since last frame (WGSL: `MovedOccluder` in `voxel_grid.wgsl`):
+/// the box around it now and last frame, and the farthest any of its points moved (world units).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MovedVoxels {
+    /// The box's min corner.
+    pub min: Vec3,
+    /// The box's max corner.
+    pub max: Vec3,
+    /// How far its points moved since last frame (world units; huge where unknown).
+    pub motion: f32,
+}
+
+/// How much the occlusion at a surface point (`p`, unit normal `n`) can have changed since last frame
+/// because of the occluders that moved (WGSL: `occlusion_change` in `hao_common.wgsl`), with the trace's
+/// `max_distance` and `falloff`. Each counts as a sphere of its box's mean half-extent `r` at the box's
+/// centre, `d` away: the share of the cosine-weighted hemisphere it covers, about `(r / d)^2` times how
+/// far above the horizon it stands (`n . (c - p) / d + r / d`, within [0, 1]), weighed by the falloff at
+/// its nearest point, times the share of that distance it moved (`motion / max(d, r)`, at most 1). A point
+/// inside the box (on the occluder itself, or under it) counts it as covering its whole hemisphere: its
+/// surroundings move past it. The sum over the occluders, at most 1. Not a bound: a scale of the change,
+/// 0 where nothing moved.
+pub fn occlusion_change(p: Vec3, n: Vec3, moved: &[MovedVoxels], max_distance: f32, falloff: f32) -> f32 {
+    let mut change = 0.0;
+    for m in moved {
+        let center = (m.min + m.max) * 0.5;
+        let half = (m.max - m.min) * 0.5;
+        let r = ((half.x + half.y + half.z) / 3.0).max(1.0e-4);
+        let d = center.distance(p).max(1.0e-4);
+        let s = (r / d).min(1.0);
+        let inside = p.cmpge(m.min).all() && p.cmple(m.max).all();
+        let above = if inside { 1.0 } else { (n.dot(center - p) / d + s).clamp(0.0, 1.0) };
+        let weight = super::ao::ao_falloff((d - r).max(0.0), max_distance, falloff);
+        change += s * s * above * weight * (m.motion / d.max(r)).min(1.0);
+    }
+    change.min(1.0)
+}
+
+/// How many times its rays a trace texel traces where the occlusion can have changed by at least
+/// [`CHANGE_RAYS_FROM`] ([`change_rays`]).
+pub const CHANGE_RAYS_SCALE: u32 = 4;
+
+/// The occlusion change ([`occlusion_change`]) from which a trace texel traces [`CHANGE_RAYS_SCALE`] times
+/// its rays: where [`change_cap`] leaves a history of under about 8 frames (2 to 12 with the
+/// neighbourhood's deviation), too short for a ray or two a frame to converge in.
+pub const CHANGE_RAYS_FROM: f32 = 0.005;
+
+/// The rays a trace texel traces (WGSL: `change_rays` in `hao_change.wgsl`): `rays`, or
+/// [`CHANGE_RAYS_SCALE`] times as many where the occlusion at its pixel can have changed by at least
+/// [`CHANGE_RAYS_FROM`] since last frame ([`occlusion_change`]). Near a moving prop the history is short,
+/// and more rays there are what keeps its AO smooth; the cost follows the share of the view near movers.
+pub fn change_rays(rays: u32, change: f32) -> u32 {
+    if change >= CHANGE_RAYS_FROM { rays * CHANGE_RAYS_SCALE } else { rays }
+}
+
+/// The least deviation [`change_cap`] takes a pixel's current AO to have: a few rays are never exact.
+pub const CHANGE_NOISE_FLOOR: f32 = 0.1;
+
+/// The texels the blended current AO averages, for its variance in [`change_cap`]: the filter's 3x3 texels
+/// weigh about this many.
+pub const CHANGE_NOISE_SAMPLES: f32 = 4.0;
+
+/// The most frames of history a pixel keeps where its occlusion can have changed by `change` since last
+/// frame ([`occlusion_change`]; WGSL: `change_cap`), given the window of its neighbourhood's traced AO
+/// ([`neighborhood_window`], whose half-width is two deviations and [`CLAMP_MARGIN`]): the `n` that
+/// balances lag and noise, `n^3 = 2 s^2 / c^2` with `s^2` the variance of the blended current AO (the
+/// deviation, at least [`CHANGE_NOISE_FLOOR`], squared over [`CHANGE_NOISE_SAMPLES`]), at least
+/// [`CHANGED_COUNT`]. Infinite where nothing changed.
+pub fn change_cap(change: f32, window: (f32, f32)) -> f32 {
+    if !(change > 0.0) {
+        return f32::INFINITY;
+    }
+    let sigma = ((window.1 - window.0) * 0.25 - CLAMP_MARGIN * 0.5).max(CHANGE_NOISE_FLOOR);
+    let variance = sigma * sigma / CHANGE_NOISE_SAMPLES;
+    (2.0 * variance / (change * change)).cbrt().max(CHANGED_COUNT)
+}
 
 /// A pixel whose history holds fewer frames than this (or than the cap, if lower) blends its stand-in in the
 /// frames without its own trace ([`uses_stand_in`]): a new history is noisier than its neighbourhood's traces,
@@ -61,10 +143,10 @@ pub const CHANGED_COUNT: f32 = 2.0;
 pub const STAND_IN_COUNT: f32 = CLAMPED_COUNT + 1.0;
 
 /// Whether a pixel without its own trace this frame blends its [`stand_in`] (WGSL: `uses_stand_in`): where
-/// its history holds fewer than [`STAND_IN_COUNT`] frames (or `max_count`, if lower), the voxels near it may
-/// have changed or there is no accumulation.
-pub fn uses_stand_in(count: f32, max_count: f32, near_change: bool) -> bool {
-    count < STAND_IN_COUNT.min(max_count) || near_change || max_count <= 1.0
+/// its history holds fewer than [`STAND_IN_COUNT`] frames (or `max_count`, if lower), the voxels near it
+/// changed enough to cap its history under `max_count` ([`change_cap`]), or there is no accumulation.
+pub fn uses_stand_in(count: f32, max_count: f32, cap: f32) -> bool {
+    count < STAND_IN_COUNT.min(max_count) || cap < max_count || max_count <= 1.0
 }
 
 /// The relative view-depth tolerance of [`history_accepts`].
@@ -96,8 +178,8 @@ pub fn neighborhood_window(sum: f32, sum_squares: f32, count: f32) -> (f32, f32)
 }
 
 /// One pixel's blend (WGSL: `temporal_blend`): the history AO and its frames of weight (0: none), the
-/// window, the current AO, the cap, and whether the voxels near the pixel may have changed. Returns the new
-/// AO and its frames of weight.
+/// window, the current AO, the cap, and the frames the history keeps where the voxels near the pixel
+/// changed ([`change_cap`]; infinite where none did). Returns the new AO and its frames of weight.
 #[inline]
 pub fn temporal_blend(
     history: f32,
@@ -105,10 +187,10 @@ pub fn temporal_blend(
     window: (f32, f32),
     current: f32,
     max_count: f32,
-    near_change: bool,
+    cap: f32,
 ) -> (f32, f32) {
     let mut h = history;
-    let mut c = if near_change { history_count.min(CHANGED_COUNT) } else { history_count };
+    let mut c = history_count.min(cap);
     if h < window.0 || h > window.1 {
         h = h.clamp(window.0, window.1);
         c = c.min(CLAMPED_COUNT);
@@ -213,9 +295,10 @@ pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2,
 
 /// One pixel's new history and frames of weight (WGSL: the end of `temporal`), from its reprojected history
 /// (`count` 0: none), the window, its own trace this frame (`None` where its block traced another pixel),
-/// its stand-in ([`stand_in`]), the cap and whether the voxels near it may have changed. A frame
-/// without its own trace keeps the history as it is, unless the history is short, the voxels near it may
-/// have changed or there is no accumulation ([`uses_stand_in`]): then the stand-in is blended as a trace.
+/// its stand-in ([`stand_in`]), the cap and the frames it keeps where the voxels near it changed
+/// ([`change_cap`]). A frame without its own trace keeps the history as it is, unless the history is
+/// short, the voxels near it changed or there is no accumulation ([`uses_stand_in`]): then the stand-in is
+/// blended as a trace.
 pub fn temporal_update(
     history: f32,
     count: f32,
@@ -223,12 +306,12 @@ pub fn temporal_update(
     own: Option<f32>,
     stand_in: f32,
     max_count: f32,
-    near_change: bool,
+    cap: f32,
 ) -> (f32, f32) {
     match own {
-        Some(current) => temporal_blend(history, count, window, current, max_count, near_change),
-        None if uses_stand_in(count, max_count, near_change) => {
-            temporal_blend(history, count, window, stand_in, max_count, near_change)
+        Some(current) => temporal_blend(history, count, window, current, max_count, cap),
+        None if uses_stand_in(count, max_count, cap) => {
+            temporal_blend(history, count, window, stand_in, max_count, cap)
         }
         None => (history, count),
     }
@@ -301,7 +384,7 @@ pub fn accumulate_still(
             let window = trace_window(&frame.texels, trace_size, texel);
             // (The GPU reads the stand-in only where `temporal_update` uses it.)
             let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal);
-            let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, false);
+            let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, f32::INFINITY);
             // As the GPU stores it (`HistoryTexel::stored`).
             let stored = HistoryTexel { ao: a, depth, normal, frames: c }.stored();
             (ao[i], count[i]) = (stored.ao, stored.frames);
@@ -314,21 +397,24 @@ pub fn accumulate_still(
 mod tests {
     use super::*;
 
+    /// No change near the pixel: no cap.
+    const NONE: f32 = f32::INFINITY;
+
     #[test]
     fn a_still_pixel_averages_its_frames_up_to_the_cap() {
         let window = (-10.0, 10.0);
         let (mut ao, mut c) = (0.0, 0.0);
         for (k, x) in [0.2f32, 0.4, 0.9, 0.5].into_iter().enumerate() {
-            (ao, c) = temporal_blend(ao, c, window, x, 16.0, false);
+            (ao, c) = temporal_blend(ao, c, window, x, 16.0, NONE);
             assert_eq!(c, k as f32 + 1.0);
         }
         assert!((ao - 0.5).abs() < 1e-6, "{ao}");
         // At the cap, an exponential average with weight 1/cap.
-        let (a, c) = temporal_blend(0.5, 4.0, window, 1.0, 4.0, false);
+        let (a, c) = temporal_blend(0.5, 4.0, window, 1.0, 4.0, NONE);
         assert_eq!((a, c), (0.625, 4.0));
         // A cap of 1 keeps no history, whatever the window (the GPU does not compute it then).
-        assert_eq!(temporal_blend(0.5, 9.0, window, 0.1, 1.0, false), (0.1, 1.0));
-        assert_eq!(temporal_blend(0.5, 9.0, (0.0, 0.0), 0.1, 1.0, true), (0.1, 1.0));
+        assert_eq!(temporal_blend(0.5, 9.0, window, 0.1, 1.0, NONE), (0.1, 1.0));
+        assert_eq!(temporal_blend(0.5, 9.0, (0.0, 0.0), 0.1, 1.0, CHANGED_COUNT), (0.1, 1.0));
     }
 
     #[test]
@@ -337,7 +423,7 @@ mod tests {
         // 0.9 and weighs two frames.
         let window = neighborhood_window(9.0, 9.0, 9.0);
         assert_eq!(window, (0.9, 1.1));
-        let (ao, c) = temporal_blend(0.4, 16.0, window, 1.0, 16.0, false);
+        let (ao, c) = temporal_blend(0.4, 16.0, window, 1.0, 16.0, NONE);
         assert!((ao - (0.9 + 0.1 / 3.0)).abs() < 1e-6 && c == 3.0, "{ao} {c}");
     }
 
@@ -346,9 +432,52 @@ mod tests {
         // A shadow arrives (the clamp cannot see it in two-ray noise): far from any change the pixel moves
         // 1/16 of the way, near one a third.
         let window = (0.0, 1.2);
-        assert_eq!(temporal_blend(1.0, 16.0, window, 0.52, 16.0, false).0, 0.97);
-        let (ao, c) = temporal_blend(1.0, 16.0, window, 0.52, 16.0, true);
+        assert_eq!(temporal_blend(1.0, 16.0, window, 0.52, 16.0, NONE).0, 0.97);
+        let (ao, c) = temporal_blend(1.0, 16.0, window, 0.52, 16.0, CHANGED_COUNT);
         assert!((ao - 0.84).abs() < 1e-6 && c == 3.0, "{ao} {c}");
+    }
+
+    #[test]
+    fn the_occlusion_change_falls_with_distance_and_stops_behind_the_surface_and_past_reach() {
+        // A ball of radius 0.5 rolled 2.5 cm; points on a floor (normal +y) at 0.5, 1, 2 m from its contact.
+        let ball = |x: f32| MovedVoxels {
+            min: Vec3::new(x - 0.5, 0.0, -0.5),
+            max: Vec3::new(x + 0.5, 1.0, 0.5),
+            motion: 0.025,
+        };
+        let change = |p: Vec3, n: Vec3| occlusion_change(p, n, &[ball(0.0)], 3.0, 1.0);
+        let at = [0.5, 1.0, 2.0].map(|x| change(Vec3::new(x, 0.0, 0.0), Vec3::Y));
+        assert!(at[0] > at[1] && at[1] > at[2] && at[2] > 0.0, "{at:?}");
+        // Under 0.05 a frame next to it, a few thousandths two metres away.
+        assert!(at[0] < 0.05 && at[2] < 0.005, "{at:?}");
+        // Facing away (under a floor), beyond the reach, or with nothing moving: no change.
+        assert_eq!(change(Vec3::new(1.0, -0.2, 0.0), -Vec3::Y), 0.0);
+        assert_eq!(change(Vec3::new(5.0, 0.0, 0.0), Vec3::Y), 0.0);
+        assert_eq!(occlusion_change(Vec3::ZERO, Vec3::Y, &[], 3.0, 1.0), 0.0);
+        // On the ball itself (in its box), a change as large as its motion's share of its size; an unknown
+        // motion, all.
+        let own = change(Vec3::new(0.0, 1.0, 0.0), Vec3::Y);
+        assert!((own - 0.05).abs() < 1e-6, "{own}");
+        let unknown = MovedVoxels { motion: 1.0e30, ..ball(0.0) };
+        assert_eq!(occlusion_change(Vec3::new(0.0, 1.0, 0.0), Vec3::Y, &[unknown], 3.0, 1.0), 1.0);
+    }
+
+    #[test]
+    fn the_change_cap_balances_lag_against_noise() {
+        let window = neighborhood_window(4.5, 4.5 * 0.5 + 2.25 * 0.25, 9.0);
+        // No change: no cap. The largest change: CHANGED_COUNT.
+        assert_eq!(change_cap(0.0, window), f32::INFINITY);
+        assert_eq!(change_cap(f32::NAN, window), f32::INFINITY);
+        assert_eq!(change_cap(1.0, window), CHANGED_COUNT);
+        // Between, n^3 = 2 s^2 / c^2: a tenth of the change, about 4.6 times the frames.
+        let (a, b) = (change_cap(0.01, window), change_cap(0.001, window));
+        assert!((b / a - 100f32.cbrt()).abs() < 1e-3, "{a} {b}");
+        let sigma = (window.1 - window.0) * 0.25 - CLAMP_MARGIN * 0.5;
+        assert!((a.powi(3) - 2.0 * sigma * sigma / CHANGE_NOISE_SAMPLES / 1.0e-4).abs() < 0.01 * a.powi(3));
+        // A neighbourhood that agrees (no deviation) still counts a few rays' noise: a finite cap.
+        let quiet = change_cap(0.001, (0.8 - CLAMP_MARGIN, 0.8 + CLAMP_MARGIN));
+        let floor = (2.0 * CHANGE_NOISE_FLOOR * CHANGE_NOISE_FLOOR / CHANGE_NOISE_SAMPLES / 1.0e-6).cbrt();
+        assert!((quiet - floor).abs() < 1e-3 * floor, "{quiet} {floor}");
     }
 
     #[test]
@@ -505,23 +634,23 @@ mod tests {
     #[test]
     fn a_frame_without_the_pixels_own_trace_keeps_its_history() {
         let window = (0.0, 1.2);
-        assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, false), (0.4, 6.0));
+        assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, NONE), (0.4, 6.0));
         // Its own trace is blended; with no history, or near a change, the stand-in is.
-        assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, false), (0.5, 4.0));
-        assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, false), (0.9, 1.0));
+        assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, NONE), (0.5, 4.0));
+        assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, NONE), (0.9, 1.0));
         // A short history (under STAND_IN_COUNT frames) blends the stand-in until the pixel's own trace
         // comes; not where the cap is that short itself.
-        let (ao, c) = temporal_update(0.4, 2.0, window, None, 0.9, 16.0, false);
+        let (ao, c) = temporal_update(0.4, 2.0, window, None, 0.9, 16.0, NONE);
         assert!((ao - (0.4 + 0.5 / 3.0)).abs() < 1e-6 && c == 3.0, "{ao} {c}");
-        assert_eq!(temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, false), (0.4, STAND_IN_COUNT));
+        assert_eq!(temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, NONE), (0.4, STAND_IN_COUNT));
         // A history the window clamped keeps its own (CLAMPED_COUNT + 1 frames are not a short history).
-        let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, false);
-        assert!(!uses_stand_in(clamped, 16.0, false));
-        assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, false), (0.4, 2.0));
-        let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, true);
+        let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, NONE);
+        assert!(!uses_stand_in(clamped, 16.0, NONE));
+        assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, NONE), (0.4, 2.0));
+        let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, CHANGED_COUNT);
         assert!((ao - 0.6).abs() < 1e-6 && c == 3.0, "{ao} {c}");
         // No accumulation: the stand-in is the frame's AO.
-        assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, false), (0.9, 1.0));
+        assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, NONE), (0.9, 1.0));
     }
 
     #[test]

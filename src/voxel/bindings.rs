@@ -3,7 +3,7 @@
 //! views, and any pass of the user's) to bind at [`VOXEL_GRID_GROUP`].
 
 use super::extract::ExtractedVoxelGrid;
-use super::prepare::{LevelLayout, VoxelizeState};
+use super::prepare::{LevelLayout, MovedOccluder, VoxelizeState};
 use bevy::prelude::*;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::binding_types::{texture_3d, uniform_buffer};
@@ -42,16 +42,27 @@ pub struct GpuVoxelLevel {
     pub _pad2: u32,
 }
 
-/// Most boxes of changed voxels the uniform lists (WGSL `MAX_CHANGED_BOXES`); more are merged into one.
-pub const MAX_CHANGED_BOXES: usize = 8;
+/// Most moved occluders the uniform lists (WGSL `MAX_MOVED_OCCLUDERS`); more are merged with their
+/// neighbours.
+pub const MAX_MOVED_OCCLUDERS: usize = 8;
 
-/// A world-space box (WGSL `WorldBox`).
+/// The motion a moved occluder is listed with where it is not known (WGSL reads it as "all of it moved").
+pub const UNKNOWN_MOTION: f32 = 1.0e30;
+
+/// A dynamic occluder whose voxels changed since last frame (WGSL `MovedOccluder`; CPU twin
+/// [`crate::cpu::temporal::MovedVoxels`]): the world box around it now and last frame, and how far its
+/// points moved.
 #[derive(ShaderType, Clone, Copy, Default, Debug)]
-pub struct GpuWorldBox {
+pub struct GpuMovedOccluder {
     /// Min corner.
     pub min: Vec3,
+    /// The farthest any of its points moved since last frame (world units; [`UNKNOWN_MOTION`] where not
+    /// known).
+    pub motion: f32,
     /// Max corner.
     pub max: Vec3,
+    #[doc(hidden)]
+    pub _pad: f32,
 }
 
 /// The levels (WGSL `VoxelGrid`).
@@ -63,27 +74,21 @@ pub struct GpuVoxelGrid {
     pub level_count: u32,
     /// Mip levels of the texture.
     pub mip_levels: u32,
-    /// How many of `changed` are valid.
-    pub changed_count: u32,
+    /// How many of `moved` are valid.
+    pub moved_count: u32,
     /// 1 where the albedo and normal textures hold the voxels' attributes ([`crate::VoxelVolume::attributes`]).
     pub attributes: u32,
-    /// Where the voxels may have changed since last frame (the dynamic occluders that moved, now and last
-    /// frame): temporal passes keep less history near them.
-    pub changed: [GpuWorldBox; MAX_CHANGED_BOXES],
+    /// Where the voxels changed since last frame: the dynamic occluders that moved (turned, deformed,
+    /// appeared or went). Temporal passes keep less history near them.
+    pub moved: [GpuMovedOccluder; MAX_MOVED_OCCLUDERS],
 }
 
 impl GpuVoxelGrid {
-    pub(crate) fn new(
-        levels: &[LevelLayout],
-        mip_levels: u32,
-        changed: impl Iterator<Item = Option<(Vec3, Vec3)>>,
-    ) -> Self {
+    pub(crate) fn new(levels: &[LevelLayout], mip_levels: u32, moved: &[MovedOccluder]) -> Self {
         let mut g = GpuVoxelGrid { level_count: levels.len() as u32, mip_levels, ..default() };
-        let boxes = merge_changed_boxes(changed.collect());
-        g.changed_count = boxes.len() as u32;
-        for (dst, (lo, hi)) in g.changed.iter_mut().zip(boxes) {
-            *dst = GpuWorldBox { min: lo, max: hi };
-        }
+        let moved = merge_moved(moved);
+        g.moved_count = moved.len() as u32;
+        g.moved[..moved.len()].copy_from_slice(&moved);
         for (dst, l) in g.levels.iter_mut().zip(levels) {
             *dst = GpuVoxelLevel {
                 origin: l.origin,
@@ -100,35 +105,44 @@ impl GpuVoxelGrid {
     }
 }
 
-/// At most [`MAX_CHANGED_BOXES`] boxes covering `boxes` (`None`: everywhere). Past the slots, the boxes are
-/// sorted along the axis their centres spread most on and merged in runs cut at the widest gaps, so that
-/// groups of occluders far apart stay apart.
-fn merge_changed_boxes(boxes: Vec<Option<(Vec3, Vec3)>>) -> Vec<(Vec3, Vec3)> {
-    let everywhere = (Vec3::splat(-f32::MAX), Vec3::splat(f32::MAX));
-    if boxes.iter().any(Option::is_none) {
-        return vec![everywhere];
+/// At most [`MAX_MOVED_OCCLUDERS`] entries covering `moved`. Past the slots, the boxes are sorted along the
+/// axis their centres spread most on and merged in runs cut at the widest gaps, so that groups of occluders
+/// far apart stay apart; a merged entry moved as far as the farthest of its occluders. One without bounds is
+/// everywhere, moved by an unknown amount.
+fn merge_moved(moved: &[MovedOccluder]) -> Vec<GpuMovedOccluder> {
+    let entry = |(lo, hi): (Vec3, Vec3), motion: f32| GpuMovedOccluder {
+        min: lo,
+        max: hi,
+        motion: if motion.is_finite() { motion.min(UNKNOWN_MOTION) } else { UNKNOWN_MOTION },
+        _pad: 0.0,
+    };
+    if moved.iter().any(|m| m.bounds.is_none()) {
+        return vec![entry((Vec3::splat(-UNKNOWN_MOTION), Vec3::splat(UNKNOWN_MOTION)), f32::INFINITY)];
     }
-    let mut boxes: Vec<(Vec3, Vec3)> = boxes.into_iter().flatten().collect();
-    if boxes.len() <= MAX_CHANGED_BOXES {
-        return boxes;
+    let mut boxes: Vec<((Vec3, Vec3), f32)> = moved.iter().filter_map(|m| Some((m.bounds?, m.motion))).collect();
+    if boxes.len() <= MAX_MOVED_OCCLUDERS {
+        return boxes.into_iter().map(|(b, m)| entry(b, m)).collect();
     }
-    let centers = boxes.iter().map(|(lo, hi)| (*lo + *hi) * 0.5);
+    let centers = boxes.iter().map(|((lo, hi), _)| (*lo + *hi) * 0.5);
     let (lo, hi) = centers.fold((Vec3::MAX, Vec3::MIN), |(a, b), c| (a.min(c), b.max(c)));
     let axis = (hi - lo).max_position();
-    let center = |b: &(Vec3, Vec3)| b.0[axis] + b.1[axis];
+    let center = |b: &((Vec3, Vec3), f32)| b.0.0[axis] + b.0.1[axis];
     boxes.sort_by(|a, b| center(a).total_cmp(&center(b)));
     // Cut at the widest gaps between neighbours.
     let mut gaps: Vec<usize> = (1..boxes.len()).collect();
     gaps.sort_by(|&i, &j| {
         (center(&boxes[j]) - center(&boxes[j - 1])).total_cmp(&(center(&boxes[i]) - center(&boxes[i - 1])))
     });
-    let mut cuts: Vec<usize> = gaps.into_iter().take(MAX_CHANGED_BOXES - 1).collect();
+    let mut cuts: Vec<usize> = gaps.into_iter().take(MAX_MOVED_OCCLUDERS - 1).collect();
     cuts.sort_unstable();
-    let mut merged = Vec::with_capacity(MAX_CHANGED_BOXES);
+    let mut merged = Vec::with_capacity(MAX_MOVED_OCCLUDERS);
     let mut start = 0;
     for end in cuts.into_iter().chain([boxes.len()]) {
         let run = &boxes[start..end];
-        merged.push(run.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), (a, b)| (lo.min(*a), hi.max(*b))));
+        let (b, m) = run
+            .iter()
+            .fold(((Vec3::MAX, Vec3::MIN), 0.0f32), |((lo, hi), m), ((a, b), n)| ((lo.min(*a), hi.max(*b)), m.max(*n)));
+        merged.push(entry(b, m));
         start = end;
     }
     merged
@@ -209,7 +223,7 @@ pub fn prepare_voxel_grid_bindings(
     let empty = &layout.empty_texture;
     let (grid, view, [albedo, normal]) = match texture {
         Some((assets, image)) if !state.levels().is_empty() => {
-            let mut grid = GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.moved().iter().map(|m| m.bounds));
+            let mut grid = GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.moved());
             let attributes = assets.attributes.as_ref().and_then(|[a, n]| Some([images.get(a)?, images.get(n)?]));
             grid.attributes = attributes.is_some() as u32;
             let views = attributes.map_or([empty, empty], |[a, n]| [&a.texture_view, &n.texture_view]);
@@ -234,19 +248,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn changed_boxes_past_the_slots_are_merged_with_their_neighbours() {
-        // 20 occluders in two rows far apart along x: merged into at most 8 boxes, none spanning the gap.
-        let b = |x: f32, z: f32| Some((Vec3::new(x, 0.0, z), Vec3::new(x + 1.0, 1.0, z + 1.0)));
-        let boxes: Vec<_> =
-            (0..10).map(|k| b(k as f32 * 2.0, 0.0)).chain((0..10).map(|k| b(500.0 + k as f32 * 2.0, 0.0))).collect();
-        let merged = merge_changed_boxes(boxes.clone());
-        assert!(merged.len() <= MAX_CHANGED_BOXES);
-        assert!(merged.iter().all(|(lo, hi)| hi.x - lo.x < 100.0), "{merged:?}");
-        for (lo, hi) in boxes.into_iter().flatten() {
-            assert!(merged.iter().any(|(a, b)| a.cmple(lo).all() && b.cmpge(hi).all()));
+    fn moved_occluders_past_the_slots_are_merged_with_their_neighbours() {
+        // 20 occluders in two rows far apart along x: merged into at most 8 entries, none spanning the gap,
+        // each moved as far as the farthest of its own.
+        let b = |x: f32, motion: f32| MovedOccluder {
+            bounds: Some((Vec3::new(x, 0.0, 0.0), Vec3::new(x + 1.0, 1.0, 1.0))),
+            motion,
+        };
+        let moved: Vec<_> =
+            (0..10).map(|k| b(k as f32 * 2.0, 0.01)).chain((0..10).map(|k| b(500.0 + k as f32 * 2.0, 0.5))).collect();
+        let merged = merge_moved(&moved);
+        assert!(merged.len() <= MAX_MOVED_OCCLUDERS);
+        assert!(merged.iter().all(|m| m.max.x - m.min.x < 100.0), "{merged:?}");
+        for o in &moved {
+            let (lo, hi) = o.bounds.unwrap();
+            assert!(merged.iter().any(|m| m.min.cmple(lo).all() && m.max.cmpge(hi).all() && m.motion >= o.motion));
         }
-        // Few boxes stay as they are; one without bounds is everywhere.
-        assert_eq!(merge_changed_boxes(vec![b(0.0, 0.0)]).len(), 1);
-        assert_eq!(merge_changed_boxes(vec![b(0.0, 0.0), None])[0].1, Vec3::splat(f32::MAX));
+        assert!(merged.iter().any(|m| m.motion == 0.01) && merged.iter().any(|m| m.motion == 0.5));
+        // Few stay as they are; one without bounds is everywhere, by an unknown motion (finite for WGSL).
+        assert_eq!(merge_moved(&[b(0.0, 0.1)]).len(), 1);
+        let everywhere = merge_moved(&[b(0.0, 0.1), MovedOccluder { bounds: None, motion: 0.1 }]);
+        assert_eq!(
+            (everywhere.len(), everywhere[0].max, everywhere[0].motion),
+            (1, Vec3::splat(UNKNOWN_MOTION), UNKNOWN_MOTION)
+        );
+        assert_eq!(merge_moved(&[b(0.0, f32::INFINITY)])[0].motion, UNKNOWN_MOTION);
     }
 }

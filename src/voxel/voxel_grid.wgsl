@@ -24,14 +24,19 @@ struct VoxelLevel {
     pad_c: u32,
 }
 
-// src/voxel/bindings.rs: `GpuWorldBox`.
-struct WorldBox {
+// src/voxel/bindings.rs: `GpuMovedOccluder` (CPU twin: `cpu::temporal::MovedVoxels`). A dynamic occluder
+// whose voxels changed since last frame: the box around it now and last frame, and how far its points moved
+// (world units; UNKNOWN_MOTION where not known).
+struct MovedOccluder {
     min: vec3<f32>,
+    motion: f32,
     max: vec3<f32>,
+    pad: f32,
 }
 
-// src/voxel/bindings.rs: `MAX_CHANGED_BOXES`
-const MAX_CHANGED_BOXES: u32 = 8u;
+// src/voxel/bindings.rs: `MAX_MOVED_OCCLUDERS`, `UNKNOWN_MOTION`
+const MAX_MOVED_OCCLUDERS: u32 = 8u;
+const UNKNOWN_MOTION: f32 = 1.0e30;
 
 // src/voxel/bindings.rs: `GpuVoxelGrid`.
 struct VoxelGrid {
@@ -39,12 +44,13 @@ struct VoxelGrid {
     // 0 while there is no grid.
     level_count: u32,
     mip_levels: u32,
-    // Where the voxels may have changed since last frame (the dynamic occluders that moved, now and last
-    // frame).
-    changed_count: u32,
+    // How many of `moved` are valid.
+    moved_count: u32,
     // 1 where `voxel_albedo` and `voxel_normal` hold the voxels' attributes (VoxelVolume::attributes).
     attributes: u32,
-    changed: array<WorldBox, MAX_CHANGED_BOXES>,
+    // Where the voxels changed since last frame: the dynamic occluders that moved (turned, deformed, appeared
+    // or went).
+    moved: array<MovedOccluder, MAX_MOVED_OCCLUDERS>,
 }
 
 @group(2) @binding(0) var voxel_texture: texture_3d<f32>;
@@ -265,15 +271,4 @@ fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t
         level += 1u;
     }
     return vec2<f32>(-1.0, 0.0);
-}
-
-// Whether the voxels within `reach` of `p` may have changed since last frame (see `VoxelGrid::changed`).
-fn near_changed_voxels(p: vec3<f32>, reach: f32) -> bool {
-    for (var i = 0u; i < min(voxel_grid.changed_count, MAX_CHANGED_BOXES); i++) {
-        let b = voxel_grid.changed[i];
-        if all(p >= b.min - vec3<f32>(reach)) && all(p <= b.max + vec3<f32>(reach)) {
-            return true;
-        }
-    }
-    return false;
 }

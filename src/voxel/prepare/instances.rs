@@ -291,6 +291,12 @@ fn pose(o: &ExtractedOccluder, r: &ResolvedInstance, skins: &Skins) -> Pose {
     Pose { transforms, weights, mesh: (o.mesh, r.ranges), bounds: o.world_bounds }
 }
 
+/// Frames a dynamic occluder whose voxels changed stays listed as moved (`ResolvedOccluders::moved`), with
+/// its last motion: where it stopped, the AO keeps the short history of its last move until every pixel
+/// has traced its own rays again (every fourth frame at half resolution, every eighth in `Low`'s
+/// checkerboard), rather than blend them slowly into the history from before it came.
+pub(super) const MOVED_FRAMES: u32 = 8;
+
 /// An occluder as extracted, and as resolved to the mesh slabs (`None`: waiting, or skipped).
 struct TrackedInstance {
     occluder: ExtractedOccluder,
@@ -365,7 +371,10 @@ pub(crate) struct ResolvedOccluders {
     pub resolved_last_frame: u64,
     /// The poses of the resolved dynamic occluders, as voxelized last.
     poses: EntityHashMap<Pose>,
-    /// The dynamic occluders whose voxels changed this frame.
+    /// The dynamic occluders whose voxels changed in the last [`MOVED_FRAMES`] frames, with the frames
+    /// they stay listed.
+    recent: EntityHashMap<(MovedOccluder, u32)>,
+    /// The same, as listed this frame.
     moved: Vec<MovedOccluder>,
     warned_meshes: HashSet<(AssetId<Mesh>, WarnedFor)>,
     warned_moved: EntityHashSet,
@@ -444,7 +453,8 @@ impl ResolvedOccluders {
         })
     }
 
-    /// The dynamic occluders whose voxels changed this frame: moved, turned, deformed, appeared or went.
+    /// The dynamic occluders whose voxels changed in the last [`MOVED_FRAMES`] frames: moved, turned,
+    /// deformed, appeared or went.
     pub fn moved(&self) -> &[MovedOccluder] {
         &self.moved
     }
@@ -489,7 +499,11 @@ impl ResolvedOccluders {
         work.extend(self.pending.iter().copied());
         work.extend(self.per_frame.iter().copied());
         self.resolved_last_frame = 0;
-        self.moved.clear();
+        // The occluders listed as moved stay listed a few frames after they stop.
+        self.recent.retain(|_, (_, frames)| {
+            *frames -= 1;
+            *frames > 0
+        });
         for entity in work {
             let now = extracted.occluders.get(&entity).map(|o| {
                 self.resolved_last_frame += 1;
@@ -510,8 +524,12 @@ impl ResolvedOccluders {
                 Some(p) => self.poses.insert(entity, p.clone()),
                 None => self.poses.remove(&entity),
             };
-            self.moved.extend(moved(prev.as_ref(), now.as_ref()));
+            if let Some(m) = moved(prev.as_ref(), now.as_ref()) {
+                self.recent.insert(entity, (m, MOVED_FRAMES));
+            }
         }
+        self.moved.clear();
+        self.moved.extend(self.recent.values().map(|(m, _)| *m));
         changes
     }
 

@@ -146,6 +146,24 @@ fn sample_zero(samples: u32) -> Vec2 {
     }
 }
 
+/// Where a pixel's sample lies (from its top left corner, in the unjittered projection) in render frame
+/// `frame` under Bevy's TAA: its centre plus the frame's jitter (`bevy_anti_alias`'s Halton (2, 3) sequence
+/// of 8 offsets, by the frame count; found by reconstructing the floor of `roll` from the depth, which lies
+/// on it to 1e-5 with this sample and 2-14 mm off with the others).
+fn taa_sample(frame: u32) -> Vec2 {
+    const HALTON: [Vec2; 8] = [
+        Vec2::new(0.0, 0.0),
+        Vec2::new(0.0, -0.16666666),
+        Vec2::new(-0.25, 0.16666669),
+        Vec2::new(0.25, -0.3888889),
+        Vec2::new(-0.375, -0.055555552),
+        Vec2::new(0.125, 0.2777778),
+        Vec2::new(-0.125, -0.2777778),
+        Vec2::new(0.375, 0.055555582),
+    ];
+    Vec2::splat(0.5) + HALTON[frame as usize % HALTON.len()]
+}
+
 /// The reference at each pixel of `view` that shows geometry (1 elsewhere), and each pixel's world position
 /// (at `sample`, where in the pixel its depth was taken).
 fn reference(
@@ -292,7 +310,10 @@ fn main() {
     let images: Vec<Handle<Image>> =
         outputs.iter().flat_map(|o| [o.ao.clone(), o.depth.clone(), o.normal.clone()]).collect();
     let mut script_frames = Vec::new();
+    let mut render_frames = Vec::new();
     let recorded = harness::read_frames(&mut app, &images, frames as usize, |app, k| {
+        // The frame number the render world drew it with (it picks TAA's jitter).
+        render_frames.push(app.world().resource::<bevy::diagnostic::FrameCount>().0);
         let mut script = app.world_mut().resource_mut::<MotionScript>();
         script_frames.push(script.frame);
         // The last frame's readbacks arrive in the frames after it: the script stays at the last frame.
@@ -344,7 +365,11 @@ fn main() {
                         &view,
                         world_from_clip,
                         size,
-                        sample_zero(if k == 0 { msaa.samples() } else { 1 }),
+                        if args.taa {
+                            taa_sample(render_frames[f])
+                        } else {
+                            sample_zero(if k == 0 { msaa.samples() } else { 1 })
+                        },
                         args.rays,
                         hao.max_distance,
                         hao.falloff,
