@@ -15,6 +15,12 @@ struct TheCamera;
 struct Roof;
 #[derive(Component)]
 struct Mover;
+/// Turned a quarter turn about the vertical every frame.
+#[derive(Component)]
+struct Spinner;
+
+/// The radius of a `Spinner` sphere.
+const SPINNER_RADIUS: f32 = 0.5;
 
 #[derive(Resource, Clone)]
 struct Targets {
@@ -444,6 +450,19 @@ fn cpu_trace(
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
 ) -> (Vec<f32>, Vec<usize>) {
+    cpu_trace_near_change(samples, view, settings, levels, frame, &vec![0.0; samples.len()])
+}
+
+/// [`cpu_trace`] where each pixel's occlusion can have changed by `change` since last frame
+/// (`cpu::temporal::occlusion_change`): it traces `cpu::temporal::change_rays` rays.
+fn cpu_trace_near_change(
+    samples: &[Option<(Vec3, Vec3)>],
+    view: &bevy_hao::cpu::contacts::ViewDepth,
+    settings: &HybridAmbientOcclusion,
+    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    frame: u32,
+    change: &[f32],
+) -> (Vec<f32>, Vec<usize>) {
     use bevy_hao::cpu::ao::{TraceWork, ray_rotation, ray_start_level, voxel_ambient_occlusion_counted};
     use bevy_hao::cpu::contacts::contact_jitter;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
@@ -456,13 +475,14 @@ fn cpu_trace(
         let rotation = ray_rotation(pf, frame);
         start[i] = ray_start_level(levels, world, 0, rotation);
         let contacts = Some(bevy_hao::cpu::ao::DepthContacts { view, jitter: contact_jitter(pf, frame) });
+        let rays = bevy_hao::cpu::temporal::change_rays(trace.rays, change[i]);
         ao[i] = voxel_ambient_occlusion_counted(
             levels,
             contacts,
             world,
             normal,
             rotation,
-            &trace,
+            &bevy_hao::cpu::ao::TraceSettings { rays, ..trace },
             &mut TraceWork::default(),
         );
     }
@@ -509,8 +529,37 @@ fn walls_app_and_voxels(
     settings: &HybridAmbientOcclusion,
     frames: usize,
 ) -> (App, bevy_hao::cpu::ao::VoxelMips, bevy_hao::cpu::VoxelGrid) {
+    walls_app_and_voxels_with(settings, frames, None)
+}
+
+/// [`walls_app_and_voxels`], with a `Spinner` at `spinner` (a dynamic sphere turned a quarter turn a
+/// frame) where given.
+fn walls_app_and_voxels_with(
+    settings: &HybridAmbientOcclusion,
+    frames: usize,
+    spinner: Option<Vec3>,
+) -> (App, bevy_hao::cpu::ao::VoxelMips, bevy_hao::cpu::VoxelGrid) {
     let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
-    let mut app = scene_app(camera, Ao::Hao(settings.clone()), walls);
+    let mut app = scene_app(camera, Ao::Hao(settings.clone()), move |c, m, mat| {
+        walls(c, m, mat.clone());
+        if let Some(at) = spinner {
+            // A UV sphere of 32 segments: a quarter turn maps its triangles onto each other, so its voxels stay
+            // the same while it moves a metre (its box's corners) a frame.
+            let sphere = Sphere::new(SPINNER_RADIUS).mesh().uv(32, 16);
+            c.spawn((
+                Mesh3d(m.add(sphere)),
+                MeshMaterial3d(mat),
+                Transform::from_translation(at),
+                DynamicOccluder,
+                Spinner,
+            ));
+        }
+    });
+    app.add_systems(Update, |mut q: Query<&mut Transform, With<Spinner>>| {
+        for mut t in &mut q {
+            t.rotate_y(std::f32::consts::FRAC_PI_2);
+        }
+    });
     run(&mut app, frames);
     let occupancy = read_occupancy(&mut app);
     let assets = grid_assets(&app).unwrap();
@@ -528,6 +577,7 @@ fn cpu_trace_frame(
     levels: &[bevy_hao::cpu::ao::TraceLevel],
     frame: u32,
     previous: Option<&bevy_hao::cpu::temporal::TraceFrame>,
+    change: &[f32],
 ) -> bevy_hao::cpu::temporal::TraceFrame {
     use bevy_hao::cpu::ao::{noise_frame, texel_traced, trace_turn, traced_pixel};
     use bevy_hao::cpu::temporal::{TraceFrame, TracedTexel};
@@ -547,7 +597,7 @@ fn cpu_trace_frame(
             sparse[pixel_of(t)] = samples[pixel_of(t)];
         }
     }
-    let (ao, _) = cpu_trace(&sparse, view, settings, levels, noise_frame(turn, half_resolution));
+    let (ao, _) = cpu_trace_near_change(&sparse, view, settings, levels, noise_frame(turn, half_resolution), change);
     TraceFrame::traced(frame, checkerboard, trace_size, previous, |t| {
         let pixel = pixel_of(t);
         samples[pixel].map(|(world, normal)| {
@@ -559,8 +609,16 @@ fn cpu_trace_frame(
 /// Holds the GPU's temporal accumulation over a still camera, at full or half resolution, to the CPU
 /// twin's: the trace of every frame (`cpu_trace_frame`) through `bevy_hao::cpu::temporal::accumulate_still`.
 fn assert_accumulation_matches_cpu(quality: HaoQuality) {
+    assert_accumulation_matches_cpu_with(quality, None);
+}
+
+/// [`assert_accumulation_matches_cpu`], with a `Spinner` at `spinner` where given: a dynamic occluder that moves
+/// every frame and leaves the voxels as they are, so that the twin's trace of the last voxels still holds,
+/// while the history near it is capped (`cpu::temporal::change_cap`) and the trace traces more rays there
+/// (`change_rays`), as the twin must.
+fn assert_accumulation_matches_cpu_with(quality: HaoQuality, spinner: Option<Vec3>) {
     use bevy_hao::cpu::ao::TraceLevel;
-    use bevy_hao::cpu::temporal::accumulate_still;
+    use bevy_hao::cpu::temporal::{MovedVoxels, accumulate_still, occlusion_change};
     let _gpu = gpu_lock();
     // With the filter (`cpu::temporal::prefilter`), wider than its default.
     let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 8, quality, ..hao_settings() };
@@ -569,8 +627,14 @@ fn assert_accumulation_matches_cpu(quality: HaoQuality) {
     // Long enough for the first frames, traced while the grid was still being built, to have left the
     // history (their weight is (7/8)^50 by the end).
     let frames_run = 20 + 50 * frames_per_trace;
-    let (mut app, mips, grid) = walls_app_and_voxels(&settings, frames_run);
+    let (mut app, mips, grid) = walls_app_and_voxels_with(&settings, frames_run, spinner);
     let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
+    // The spinner as the voxel grid lists it: its box, whose corners a quarter turn moves by its diagonal's
+    // side (2 r).
+    let moved: Vec<MovedVoxels> = spinner
+        .map(|c| MovedVoxels { min: c - SPINNER_RADIUS, max: c + SPINNER_RADIUS, motion: 2.0 * SPINNER_RADIUS })
+        .into_iter()
+        .collect();
     let targets = app.world().resource::<Targets>().clone();
     let (_, _, gpu) = read_image_f32(&mut app, targets.debug.ao.clone(), 2);
     let rendered = app.world().resource::<bevy::diagnostic::FrameCount>().0 as usize;
@@ -580,15 +644,26 @@ fn assert_accumulation_matches_cpu(quality: HaoQuality) {
     let mut q = app.world_mut().query_filtered::<&GlobalTransform, With<TheCamera>>();
     let view_from_world = q.single(app.world()).unwrap().to_matrix().inverse();
     let view = view_depth(&mut app);
+    let change: Vec<f32> = samples
+        .iter()
+        .map(|s| s.map_or(0.0, |(p, n)| occlusion_change(p, n, &moved, settings.max_distance, settings.falloff)))
+        .collect();
+    let near = change.iter().filter(|&&c| c > 0.0).count();
+    let more_rays = change.iter().filter(|&&c| c >= bevy_hao::cpu::temporal::CHANGE_RAYS_FROM).count();
+    if spinner.is_some() {
+        println!("{near} pixels near the spinner, {more_rays} of them with more rays");
+        assert!(more_rays > 200 && near > more_rays, "{near} {more_rays}");
+    }
     let mut frames: Vec<bevy_hao::cpu::temporal::TraceFrame> = Vec::new();
     for f in 0..rendered + 2 {
-        let frame = cpu_trace_frame(&samples, &view, &settings, &levels, f as u32, frames.last());
+        let frame = cpu_trace_frame(&samples, &view, &settings, &levels, f as u32, frames.last(), &change);
         frames.push(frame);
     }
     let pixels: Vec<Option<(f32, Vec3)>> =
         samples.iter().map(|s| s.map(|(p, n)| (-view_from_world.transform_point3(p).z, n))).collect();
-    let accumulate =
-        |frames| accumulate_still(frames, &pixels, UVec2::new(w, h), half_resolution, 8.0, settings.denoise_radius);
+    let accumulate = |frames| {
+        accumulate_still(frames, &pixels, &change, UVec2::new(w, h), half_resolution, 8.0, settings.denoise_radius)
+    };
     let error = |cpu: &[f32]| {
         let (mut sum, mut n) = (0.0f64, 0);
         for (i, g) in gpu.iter().enumerate() {
@@ -622,6 +697,16 @@ fn assert_accumulation_matches_cpu(quality: HaoQuality) {
 #[test]
 fn temporal_accumulation_matches_its_cpu_twin() {
     assert_accumulation_matches_cpu(HaoQuality::Custom { rays: 4, steps: 48, half_resolution: false });
+}
+
+/// Near an occluder that moves, the history is capped by how much the occlusion can have changed and the
+/// trace traces more rays: the twin must cap and trace the same pixels alike.
+#[test]
+fn accumulation_near_a_moving_occluder_matches_its_cpu_twin() {
+    assert_accumulation_matches_cpu_with(
+        HaoQuality::Custom { rays: 2, steps: 48, half_resolution: true },
+        Some(Vec3::new(1.0, SPINNER_RADIUS, 0.5)),
+    );
 }
 
 /// At half resolution each block traces one of its pixels a frame, in turn, and each pixel accumulates its

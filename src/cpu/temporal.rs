@@ -357,12 +357,15 @@ impl TraceFrame {
 
 /// The accumulation over a still camera (reprojection is the identity), frame by frame: the twin that the
 /// GPU test holds the temporal pass to. `pixels` are the view's (`view_size`), each with its view depth and
-/// normal (`None`: background); `frames` the trace of each frame, at half resolution or not. The result is
-/// each pixel's AO after the last frame (NaN for the background). Each pixel's own trace is filtered
-/// ([`prefilter`]) with the filter's `radius` (`HybridAmbientOcclusion::denoise_radius`).
+/// normal (`None`: background), and how much its occlusion can have changed each frame (`change`,
+/// [`occlusion_change`]: the voxels are the same, the occluders near it move); `frames` the trace of each
+/// frame, at half resolution or not. The result is each pixel's AO after the last frame (NaN for the
+/// background). Each pixel's own trace is filtered ([`prefilter`]) with the filter's `radius`
+/// (`HybridAmbientOcclusion::denoise_radius`).
 pub fn accumulate_still(
     frames: &[TraceFrame],
     pixels: &[Option<(f32, Vec3)>],
+    change: &[f32],
     view_size: UVec2,
     half_resolution: bool,
     max_count: f32,
@@ -384,7 +387,9 @@ pub fn accumulate_still(
             let window = trace_window(&frame.texels, trace_size, texel);
             // (The GPU reads the stand-in only where `temporal_update` uses it.)
             let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal);
-            let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, f32::INFINITY);
+            // (The GPU caps only a pixel with history.)
+            let cap = if count[i] > 0.0 { change_cap(change[i], window) } else { f32::INFINITY };
+            let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, cap);
             // As the GPU stores it (`HistoryTexel::stored`).
             let stored = HistoryTexel { ao: a, depth, normal, frames: c }.stored();
             (ao[i], count[i]) = (stored.ao, stored.frames);
@@ -517,10 +522,10 @@ mod tests {
             })
             .collect();
         let size = UVec2::new(w, h);
-        let ao = accumulate_still(&frames, &flat(w, h), size, false, 32.0, 0);
+        let ao = accumulate_still(&frames, &flat(w, h), &vec![0.0; flat(w, h).len()], size, false, 32.0, 0);
         assert!(ao.iter().all(|a| (a - 0.75).abs() < 0.02), "{ao:?}");
         // After one frame, the frame's AO as the history stores it (to 1/8191).
-        let one = accumulate_still(&frames[..1], &flat(w, h), size, false, 32.0, 0);
+        let one = accumulate_still(&frames[..1], &flat(w, h), &vec![0.0; flat(w, h).len()], size, false, 32.0, 0);
         assert!(one.iter().zip(&frames[0].texels).all(|(a, t)| (a - t.unwrap().ao).abs() <= 0.5 / 8191.0), "{one:?}");
     }
 
@@ -539,14 +544,14 @@ mod tests {
                     .collect(),
             })
             .collect();
-        let ao = accumulate_still(&frames, &flat(4, 4), size, true, 4.0, 0);
+        let ao = accumulate_still(&frames, &flat(4, 4), &vec![0.0; flat(4, 4).len()], size, true, 4.0, 0);
         for (i, a) in ao.iter().enumerate() {
             let p = UVec2::new(i as u32 % 4, i as u32 / 4);
             // 16 traces of its own: the stand-in of the first frame (the block's traced pixel) weighs under 1 %.
             assert!((a - truth(p)).abs() < 0.02, "pixel {p}: {a}, not {}", truth(p));
         }
         // After the first frame alone the untraced pixels hold their neighbourhood's traces.
-        let first = accumulate_still(&frames[..1], &flat(4, 4), size, true, 4.0, 0);
+        let first = accumulate_still(&frames[..1], &flat(4, 4), &vec![0.0; flat(4, 4).len()], size, true, 4.0, 0);
         // (As the history stores them, to 1/8191.)
         assert!((first[0] - 0.2).abs() <= 0.5 / 8191.0, "traced: {}", first[0]);
         assert!((first[1] - 0.2).abs() <= 0.5 / 8191.0, "its block's traced pixel stands in: {}", first[1]);
@@ -570,7 +575,7 @@ mod tests {
         // Each frame after the first keeps half the texels as they were.
         let kept = (0..16).filter(|&i| frames[9].texels[i].unwrap().ao == frames[8].texels[i].unwrap().ao).count();
         assert_eq!(kept, 8);
-        let ao = accumulate_still(&frames, &flat(8, 8), size, true, 4.0, 0);
+        let ao = accumulate_still(&frames, &flat(8, 8), &vec![0.0; flat(8, 8).len()], size, true, 4.0, 0);
         for (i, a) in ao.iter().enumerate() {
             let p = UVec2::new(i as u32 % 8, i as u32 / 8);
             // 20 traces of its own, one every eighth frame: the first frames' stand-ins weigh under 1 %.
@@ -602,7 +607,15 @@ mod tests {
                 });
                 traces.push(traced);
             }
-            let ao = accumulate_still(&traces, &flat(size.x, size.y), size, true, 16.0, 1);
+            let ao = accumulate_still(
+                &traces,
+                &flat(size.x, size.y),
+                &vec![0.0; flat(size.x, size.y).len()],
+                size,
+                true,
+                16.0,
+                1,
+            );
             let pixel = |i: usize| UVec2::new(i as u32 % size.x, i as u32 / size.x);
             total += ao.iter().enumerate().map(|(i, a)| (a - truth(pixel(i))).abs()).sum::<f32>() / ao.len() as f32;
         }
