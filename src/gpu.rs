@@ -43,7 +43,7 @@ pub(crate) fn shader_defs() -> Vec<ShaderDefVal> {
 /// shader defs (to which [`shader_defs`] are added).
 pub(crate) fn queue_compute(
     cache: &PipelineCache,
-    label: &'static str,
+    label: impl Into<std::borrow::Cow<'static, str>>,
     layout: Vec<BindGroupLayoutDescriptor>,
     shader: Handle<Shader>,
     entry: &'static str,

@@ -172,10 +172,14 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     // Near voxels that changed, as much history as the change there allows.
+    // (A variant of its own, `MOVED_OCCLUDERS`, chosen while any moved: on devices that run every loop until
+    // all its lanes are done, such as lavapipe, the loop over them would cost every pixel every frame.)
     var cap = 1.0e30;
+#ifdef MOVED_OCCLUDERS
     if history_count > 0.0 {
         cap = change_cap(occlusion_change(world, normal, settings.max_distance, settings.falloff), window);
     }
+#endif
     // Its own trace, filtered; or where its block traced another pixel, the traced neighbours on its surface
     // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
     let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), cap);

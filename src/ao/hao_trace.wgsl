@@ -212,8 +212,13 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let jitter = contact_jitter(pf, noise_frame(turn, half));
     var occlusion = 0.0;
     let basis = orthonormal_basis(normal);
-    // More rays where occluders moved near the pixel: its history is short there.
+    // More rays where occluders moved near the pixel: its history is short there (a variant of its own,
+    // `MOVED_OCCLUDERS`, chosen while any moved).
+#ifdef MOVED_OCCLUDERS
     let rays = change_rays(settings.rays, occlusion_change(world, normal, settings.max_distance, settings.falloff));
+#else
+    let rays = settings.rays;
+#endif
     for (var i = 0u; i < rays; i++) {
         let dir = hemisphere_direction(basis, i, rays, rotation);
         // The finest level that holds the surface (blended across its border), then coarser ones.

@@ -34,21 +34,25 @@ pub(crate) const FILTERED_TEXEL_BYTES: u64 = 4;
 /// frames: `pack_history` in hao_common.wgsl), in a storage buffer of its texels row by row, as the history.
 pub(crate) const TRACE_TEXEL_BYTES: u64 = 8;
 
-/// Which loops a view's trace runs after its march, each in a pipeline of its own: on devices that run every
-/// branch and every loop until all its lanes are done, such as lavapipe, a loop compiled in costs a march
-/// per ray whether taken or not.
+/// Which loops a view's trace runs after its march, and whether its trace and temporal pass look for the
+/// occluders that moved, each in a pipeline of its own: on devices that run every branch and every loop
+/// until all its lanes are done, such as lavapipe, a loop compiled in costs a march per ray (or a pass over
+/// the moved occluders per pixel) whether taken or not.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct TraceVariant {
     /// Through the backs of surfaces (`ignore_back_hits`, with multi-valued voxels): `BACK_HITS`.
     pub back_hits: bool,
     /// Past the voxel hits the view shows in free space (`depth_free_space`): `FREE_SPACE`.
     pub free_space: bool,
+    /// Near the occluders that moved since last frame, more rays and less history (`MOVED_OCCLUDERS`, in the
+    /// trace and the temporal pass): chosen on the frames the grid lists any.
+    pub moved: bool,
 }
 
 impl TraceVariant {
     /// The loops `settings` ask for (`ignore_back_hits`, `depth_free_space`).
     pub fn requested(settings: &super::HybridAmbientOcclusion) -> Self {
-        Self { back_hits: settings.ignore_back_hits, free_space: settings.uses_depth_free_space() }
+        Self { back_hits: settings.ignore_back_hits, free_space: settings.uses_depth_free_space(), moved: false }
     }
 
     /// The trace these loops need on a grid that keeps the voxels' normals (`attributes`) or not: through
@@ -57,9 +61,31 @@ impl TraceVariant {
         Self { back_hits: self.back_hits && attributes, ..self }
     }
 
+    /// The same, with or without the moved occluders.
+    pub fn with_moved(self, moved: bool) -> Self {
+        Self { moved, ..self }
+    }
+
     /// Its slot in [`PrepassReaders`]'s traces.
     fn index(self) -> usize {
-        self.back_hits as usize + 2 * self.free_space as usize
+        self.back_hits as usize + 2 * self.free_space as usize + 4 * self.moved as usize
+    }
+
+    /// The trace's shader defs.
+    fn shader_defs(self) -> impl Iterator<Item = ShaderDefVal> {
+        let defs = [(self.back_hits, "BACK_HITS"), (self.free_space, "FREE_SPACE"), (self.moved, "MOVED_OCCLUDERS")];
+        defs.into_iter().filter(|(on, _)| *on).map(|(_, def)| def.into())
+    }
+
+    /// The trace's pipeline label.
+    fn label(self, multisampled: bool) -> String {
+        let mut label = String::from(if multisampled { "hao_trace_multisampled" } else { "hao_trace" });
+        for (on, part) in [(self.back_hits, "_back_hits"), (self.free_space, "_free_space"), (self.moved, "_moved")] {
+            if on {
+                label.push_str(part);
+            }
+        }
+        label
     }
 }
 
@@ -74,12 +100,13 @@ pub struct PrepassReaders {
     pub temporal_near_field_layout: BindGroupLayoutDescriptor,
     /// Rays through the voxels, stopping in the first run of occupied ones they go far enough through: each
     /// [`TraceVariant`] (by `TraceVariant::index`), the plain one queued at once, the others when a view
-    /// first needs them.
-    pub traces: [Option<CachedComputePipelineId>; 4],
-    /// Temporal accumulation and the filter, into the texture PBR reads.
-    pub temporal: CachedComputePipelineId,
+    /// first needs them (with their twin near moved occluders, which a view may need on any frame).
+    pub traces: [Option<CachedComputePipelineId>; 8],
+    /// Temporal accumulation and the filter, into the texture PBR reads: without and with the moved
+    /// occluders ([`TraceVariant::moved`]).
+    pub temporal: [CachedComputePipelineId; 2],
     /// The same and the near field, into the result texture.
-    pub temporal_near_field: CachedComputePipelineId,
+    pub temporal_near_field: [CachedComputePipelineId; 2],
     multisampled: bool,
 }
 
@@ -115,7 +142,7 @@ impl HaoPipelines {
     }
 
     /// Queues what a view with `samples` MSAA samples needs, once: the multisampled prepass readers where
-    /// `samples` > 1, and the trace of its `variant`.
+    /// `samples` > 1, and the traces of its `variant` without and with the moved occluders.
     pub fn queue_view(&mut self, cache: &PipelineCache, samples: u32, variant: TraceVariant) {
         if samples > 1 && self.multisampled.is_none() {
             self.multisampled = Some(prepass_readers(
@@ -127,18 +154,22 @@ impl HaoPipelines {
                 true,
             ));
         }
-        let readers = if samples > 1 { self.multisampled.as_mut() } else { Some(&mut self.single) };
-        if let Some(r) = readers.filter(|r| r.traces[variant.index()].is_none()) {
-            let (layout, multisampled) = (&r.trace_layout, r.multisampled);
-            r.traces[variant.index()] =
-                Some(queue_trace(cache, &self.shaders[0], layout, &self.view_layout, multisampled, variant));
+        let Some(r) = (if samples > 1 { self.multisampled.as_mut() } else { Some(&mut self.single) }) else { return };
+        for variant in [variant.with_moved(false), variant.with_moved(true)] {
+            if r.traces[variant.index()].is_none() {
+                let (layout, multisampled) = (&r.trace_layout, r.multisampled);
+                r.traces[variant.index()] =
+                    Some(queue_trace(cache, &self.shaders[0], layout, &self.view_layout, multisampled, variant));
+            }
         }
     }
 
     /// Every pipeline a view with `samples` MSAA samples may run, in pass order (trace, neighborhood,
     /// temporal, and with the near field temporal_near_field and apply instead of temporal), once all are
     /// compiled. The trace is `variant`'s once that is compiled (until then, or if it failed to compile,
-    /// which the pipeline cache logs, the plain trace: its rays stop at the first voxels they hit).
+    /// which the pipeline cache logs, the same without the moved occluders, or else the plain trace: its
+    /// rays stop at the first voxels they hit); the temporal passes are those with the moved occluders where
+    /// `variant` has them and they are compiled.
     pub fn view_pipelines<'a>(
         &self,
         cache: &'a PipelineCache,
@@ -146,14 +177,19 @@ impl HaoPipelines {
         variant: TraceVariant,
     ) -> Option<[&'a ComputePipeline; 5]> {
         let r = self.readers(samples)?;
-        let plain = r.traces[0]?;
-        let chosen = r.traces[variant.index()].and_then(|id| cache.get_compute_pipeline(id));
-        let ids = [plain, self.neighborhood, r.temporal, r.temporal_near_field, self.apply];
-        let mut pipelines = ids.map(|id| cache.get_compute_pipeline(id));
-        if chosen.is_some() {
-            pipelines[0] = chosen;
-        }
-        pipelines.iter().all(Option::is_some).then(|| pipelines.map(Option::unwrap))
+        let get = |id: Option<CachedComputePipelineId>| id.and_then(|id| cache.get_compute_pipeline(id));
+        let trace = [variant, variant.with_moved(false), TraceVariant::default()]
+            .into_iter()
+            .find_map(|v| get(r.traces[v.index()]))?;
+        // The temporal passes of `variant`, or the ones without the moved occluders until those compile.
+        let temporal = |ids: [CachedComputePipelineId; 2]| get(Some(ids[variant.moved as usize])).or(get(Some(ids[0])));
+        Some([
+            trace,
+            get(Some(self.neighborhood))?,
+            temporal(r.temporal)?,
+            temporal(r.temporal_near_field)?,
+            get(Some(self.apply))?,
+        ])
     }
 }
 
@@ -171,26 +207,10 @@ fn queue_trace(
     if multisampled {
         defs.push("MULTISAMPLED".into());
     }
-    if variant.back_hits {
-        defs.push("BACK_HITS".into());
-    }
-    if variant.free_space {
-        defs.push("FREE_SPACE".into());
-    }
-    const LABELS: [&str; 8] = [
-        "hao_trace",
-        "hao_trace_back_hits",
-        "hao_trace_free_space",
-        "hao_trace_back_hits_free_space",
-        "hao_trace_multisampled",
-        "hao_trace_multisampled_back_hits",
-        "hao_trace_multisampled_free_space",
-        "hao_trace_multisampled_back_hits_free_space",
-    ];
-    let label = LABELS[variant.index() + 4 * multisampled as usize];
+    defs.extend(variant.shader_defs());
     queue_compute(
         cache,
-        label,
+        variant.label(multisampled),
         vec![trace_layout.clone(), view_layout.clone(), voxel_grid_layout()],
         shader.clone(),
         "trace",
@@ -255,12 +275,20 @@ fn prepass_readers(
             texture_storage_2d(TextureFormat::R32Float, StorageTextureAccess::WriteOnly),
         ]),
     );
-    // The temporal pass writing the texture PBR reads (in its format), or with the near field the result.
-    let queue_temporal = |name, layout: &BindGroupLayoutDescriptor, def: Option<&str>| {
-        let mut defs = defs.clone();
-        defs.extend(def.map(Into::into));
-        let layouts = vec![layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()];
-        queue_compute(cache, name, layouts, temporal_shader.clone(), "temporal", defs)
+    // The temporal pass writing the texture PBR reads (in its format), or with the near field the result;
+    // without and with the moved occluders.
+    let queue_temporal = |name: &'static str, layout: &BindGroupLayoutDescriptor, def: Option<&str>| {
+        [false, true].map(|moved| {
+            let mut defs = defs.clone();
+            defs.extend(def.map(Into::into));
+            let mut name = name.to_string();
+            if moved {
+                defs.push("MOVED_OCCLUDERS".into());
+                name.push_str("_moved");
+            }
+            let layouts = vec![layout.clone(), temporal_view_layout.clone(), voxel_grid_layout()];
+            queue_compute(cache, name, layouts, temporal_shader.clone(), "temporal", defs)
+        })
     };
     let temporal = queue_temporal(
         label("hao_temporal", "hao_temporal_multisampled"),
@@ -273,11 +301,13 @@ fn prepass_readers(
         Some("NEAR_FIELD"),
     );
     let trace = queue_trace(cache, trace_shader, &trace_layout, view_layout, multisampled, TraceVariant::default());
+    let mut traces = [None; 8];
+    traces[0] = Some(trace);
     PrepassReaders {
         trace_layout,
         temporal_layout,
         temporal_near_field_layout,
-        traces: [Some(trace), None, None, None],
+        traces,
         temporal,
         temporal_near_field,
         multisampled,

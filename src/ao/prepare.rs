@@ -156,9 +156,10 @@ pub struct HaoViewResources {
 impl HaoViewResources {
     /// The view's trace on `grid`: through the backs of surfaces where asked for and the grid keeps the
     /// voxels' normals, past the voxel hits the view shows in free space where asked for (the trace
-    /// pipeline with the `BACK_HITS` or `FREE_SPACE` loop; `HaoPipelines::view_pipelines`).
+    /// pipeline with the `BACK_HITS` or `FREE_SPACE` loop; `HaoPipelines::view_pipelines`), near the
+    /// occluders that moved where the grid lists any (the trace and temporal pass with `MOVED_OCCLUDERS`).
     pub fn trace_variant(&self, grid: &GpuVoxelGrid) -> TraceVariant {
-        self.requested_trace.on_grid(grid.attributes != 0)
+        self.requested_trace.on_grid(grid.attributes != 0).with_moved(grid.moved_count > 0)
     }
 }
 
