@@ -75,7 +75,8 @@ struct Args {
     #[arg(long, default_value = "ao_motion.png")]
     out: String,
     /// Also write the last frame's crop X,Y,W,H (pixels), four times enlarged, beside the PNG (`-zoom.png`):
-    /// HAO, HAO still and converged, Bevy's SSAO, the reference.
+    /// HAO, HAO still and converged, Bevy's SSAO, the reference, and HAO less the reference (mid-grey where
+    /// they agree, lighter where HAO is lighter).
     #[arg(long, value_parser = crop)]
     zoom: Option<[u32; 4]>,
 }
@@ -114,6 +115,8 @@ impl View {
 struct Errors {
     view: Mean,
     contact: Mean,
+    /// The mean of AO - reference in the contact band (positive: lighter than the reference).
+    contact_bias: Mean,
     near: Mean,
     noise_near: Mean,
     noise_away: Mean,
@@ -385,6 +388,7 @@ fn main() {
                 m.view.add(e);
                 if reference[i] < CONTACT_BAND {
                     m.contact.add(e);
+                    m.contact_bias.add(view.ao[i] - reference[i]);
                 }
                 if near(i) {
                     m.near.add(e);
@@ -466,6 +470,11 @@ fn main() {
         near_still[2].get(),
     );
     println!(
+        "In the contact band, the mean of AO - reference (positive: lighter): HAO {:+.4}, Bevy SSAO {:+.4}",
+        measured[0].contact_bias.get(),
+        measured[1].contact_bias.get()
+    );
+    println!(
         "(pixels: noise near {} and away {} frame pairs x pixels for HAO; contact band {} pixel-frames)",
         measured[0].noise_near.n, measured[0].noise_away.n, measured[0].contact.n
     );
@@ -500,8 +509,11 @@ fn main() {
     {
         const SCALE: u32 = 4;
         let (cw, ch) = (cw.min(w.saturating_sub(x0)), ch.min(h.saturating_sub(y0)));
-        let panels = [hao_ao, still, ssao_ao, reference];
-        let mut zoom = image::GrayImage::from_pixel(4 * (cw * SCALE + 4), ch * SCALE, image::Luma([255]));
+        // The last panel: HAO - reference, mid-grey where they agree, lighter where HAO is lighter.
+        let difference: Vec<f32> = hao_ao.iter().zip(reference).map(|(a, r)| 0.5 + (a - r)).collect();
+        let panels = [hao_ao, still, ssao_ao, reference, &difference];
+        let mut zoom =
+            image::GrayImage::from_pixel(panels.len() as u32 * (cw * SCALE + 4), ch * SCALE, image::Luma([255]));
         for (k, img) in panels.iter().enumerate() {
             for y in 0..ch * SCALE {
                 for x in 0..cw * SCALE {
@@ -516,7 +528,7 @@ fn main() {
             eprintln!("error: writing {out}: {e}");
             std::process::exit(1);
         }
-        eprintln!("wrote {out} (HAO, HAO still and converged, Bevy SSAO, reference)");
+        eprintln!("wrote {out} (HAO, HAO still and converged, Bevy SSAO, reference, 0.5 + HAO - reference)");
     }
     eprintln!(
         "wrote {} (rows: HAO, Bevy SSAO, reference; columns: the last {} frames, then HAO still and converged in the \

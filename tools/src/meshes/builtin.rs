@@ -1,7 +1,8 @@
 //! Meshes the project makes itself: the shapes of Fei et al.'s Figure 8 (windmill, pyramid, chamfer box,
 //! star), a tetrahedron, a sphere, a torus, a procedural cathedral interior (the default scene of the
-//! examples), and two furnished interiors of boxes, an apartment and an office hall, on which nothing was
-//! tuned. All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
+//! examples), two furnished interiors of boxes, an apartment and an office hall, on which nothing was
+//! tuned, and `ao_motion`'s room of contacts (a crate in a corner, a step, a leaning pole, a resting
+//! sphere). All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
 //! tests check it).
 
 use bevy_hao::cpu::TriangleMesh;
@@ -9,7 +10,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 
 /// Names accepted by [`builtin`] (and by the examples as `builtin:NAME`).
-pub const BUILTIN_NAMES: [&str; 11] = [
+pub const BUILTIN_NAMES: [&str; 12] = [
     "windmill",
     "pyramid",
     "chamfer-box",
@@ -21,6 +22,7 @@ pub const BUILTIN_NAMES: [&str; 11] = [
     "cathedral",
     "apartment",
     "office",
+    "contacts",
 ];
 
 /// The names of the closed shapes among [`BUILTIN_NAMES`] (all but the windmill, whose blades are open
@@ -42,6 +44,8 @@ pub fn builtin(name: &str) -> Option<TriangleMesh> {
         "cathedral" => cathedral(),
         "apartment" => apartment(),
         "office" => office(),
+        // `ao_motion`'s room of contacts, still (`crate::motion`).
+        "contacts" => crate::motion::MotionScene::named("contacts", crate::motion::Marker::Static)?.triangles_at(0),
         _ => return None,
     })
 }
