@@ -49,7 +49,7 @@ pub const MAX_MOVED_OCCLUDERS: usize = 8;
 /// The motion a moved occluder is listed with where it is not known (WGSL reads it as "all of it moved").
 pub const UNKNOWN_MOTION: f32 = 1.0e30;
 
-/// A dynamic occluder whose voxels changed since last frame (WGSL `MovedOccluder`; CPU twin
+/// An occluder whose voxels changed in the last few frames (WGSL `MovedOccluder`; CPU twin
 /// [`crate::cpu::temporal::MovedVoxels`]): the world box around it now and last frame, and how far its
 /// points moved.
 #[derive(ShaderType, Clone, Copy, Default, Debug)]
@@ -78,8 +78,9 @@ pub struct GpuVoxelGrid {
     pub moved_count: u32,
     /// 1 where the albedo and normal textures hold the voxels' attributes ([`crate::VoxelVolume::attributes`]).
     pub attributes: u32,
-    /// Where the voxels changed since last frame: the dynamic occluders that moved (turned, deformed,
-    /// appeared or went). Temporal passes keep less history near them.
+    /// Where the voxels changed in the last few frames: the dynamic occluders that moved (turned, deformed,
+    /// appeared or went), the static ones added, changed or taken out. Temporal passes keep less history
+    /// near them.
     pub moved: [GpuMovedOccluder; MAX_MOVED_OCCLUDERS],
 }
 
@@ -223,7 +224,7 @@ pub fn prepare_voxel_grid_bindings(
     let empty = &layout.empty_texture;
     let (grid, view, [albedo, normal]) = match texture {
         Some((assets, image)) if !state.levels().is_empty() => {
-            let mut grid = GpuVoxelGrid::new(state.levels(), assets.mip_levels, state.moved());
+            let mut grid = GpuVoxelGrid::new(state.levels(), assets.mip_levels, &state.moved());
             let attributes = assets.attributes.as_ref().and_then(|[a, n]| Some([images.get(a)?, images.get(n)?]));
             grid.attributes = attributes.is_some() as u32;
             let views = attributes.map_or([empty, empty], |[a, n]| [&a.texture_view, &n.texture_view]);

@@ -24,8 +24,8 @@ struct VoxelLevel {
     pad_c: u32,
 }
 
-// src/voxel/bindings.rs: `GpuMovedOccluder` (CPU twin: `cpu::temporal::MovedVoxels`). A dynamic occluder
-// whose voxels changed since last frame: the box around it now and last frame, and how far its points moved
+// src/voxel/bindings.rs: `GpuMovedOccluder` (CPU twin: `cpu::temporal::MovedVoxels`). An occluder whose
+// voxels changed in the last few frames: the box around it now and last frame, and how far its points moved
 // (world units; UNKNOWN_MOTION where not known).
 struct MovedOccluder {
     min: vec3<f32>,
@@ -48,8 +48,8 @@ struct VoxelGrid {
     moved_count: u32,
     // 1 where `voxel_albedo` and `voxel_normal` hold the voxels' attributes (VoxelVolume::attributes).
     attributes: u32,
-    // Where the voxels changed since last frame: the dynamic occluders that moved (turned, deformed, appeared
-    // or went).
+    // Where the voxels changed in the last few frames: the dynamic occluders that moved (turned, deformed,
+    // appeared or went), the static ones added, changed or taken out.
     moved: array<MovedOccluder, MAX_MOVED_OCCLUDERS>,
 }
 

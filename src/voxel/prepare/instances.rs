@@ -371,11 +371,9 @@ pub(crate) struct ResolvedOccluders {
     pub resolved_last_frame: u64,
     /// The poses of the resolved dynamic occluders, as voxelized last.
     poses: EntityHashMap<Pose>,
-    /// The dynamic occluders whose voxels changed in the last [`MOVED_FRAMES`] frames, with the frames
-    /// they stay listed.
+    /// The occluders whose voxels changed in the last [`MOVED_FRAMES`] frames, with the frames they stay
+    /// listed: dynamic ones that moved, static ones added to the static grid, changed or taken out of it.
     recent: EntityHashMap<(MovedOccluder, u32)>,
-    /// The same, as listed this frame.
-    moved: Vec<MovedOccluder>,
     warned_meshes: HashSet<(AssetId<Mesh>, WarnedFor)>,
     warned_moved: EntityHashSet,
 }
@@ -441,6 +439,9 @@ impl ResolvedOccluders {
             triangles += n;
             taken.insert(e);
             self.queued.remove(&e);
+            // Its voxels appear in the static grid now.
+            let bounds = self.instances.get(&e).and_then(|t| t.occluder.world_bounds);
+            self.recent.insert(e, (MovedOccluder { bounds, motion: f32::INFINITY }, MOVED_FRAMES));
         }
         taken
     }
@@ -453,10 +454,10 @@ impl ResolvedOccluders {
         })
     }
 
-    /// The dynamic occluders whose voxels changed in the last [`MOVED_FRAMES`] frames: moved, turned,
-    /// deformed, appeared or went.
-    pub fn moved(&self) -> &[MovedOccluder] {
-        &self.moved
+    /// The occluders whose voxels changed in the last [`MOVED_FRAMES`] frames: dynamic ones that moved,
+    /// turned, deformed, appeared or went; static ones added to the static grid, changed or taken out of it.
+    pub fn moved(&self) -> Vec<MovedOccluder> {
+        self.recent.values().map(|(m, _)| *m).collect()
     }
 
     /// Whether any occluder is filled solid.
@@ -514,7 +515,7 @@ impl ResolvedOccluders {
                 };
                 TrackedInstance { occluder: o.clone(), resolved, skipped }
             });
-            self.replace(entity, now, remeshed.contains(&entity), &mut changes);
+            let static_change = self.replace(entity, now, remeshed.contains(&entity), &mut changes);
             // Only the entities looked at this frame can have moved: the others were not extracted.
             let now = self.instances.get(&entity).filter(|t| t.occluder.dynamic).and_then(|t| {
                 let r = t.resolved.as_ref()?;
@@ -524,17 +525,24 @@ impl ResolvedOccluders {
                 Some(p) => self.poses.insert(entity, p.clone()),
                 None => self.poses.remove(&entity),
             };
-            if let Some(m) = moved(prev.as_ref(), now.as_ref()) {
+            let dynamic_change = moved(prev.as_ref(), now.as_ref());
+            if let Some(m) = MovedOccluder::either(static_change, dynamic_change) {
                 self.recent.insert(entity, (m, MOVED_FRAMES));
             }
         }
-        self.moved.clear();
-        self.moved.extend(self.recent.values().map(|(m, _)| *m));
         changes
     }
 
-    /// Puts an occluder's new state in place of its old one, noting what that does to the static voxels.
-    fn replace(&mut self, entity: Entity, now: Option<TrackedInstance>, remeshed: bool, changes: &mut StaticChanges) {
+    /// Puts an occluder's new state in place of its old one, noting what that does to the static voxels;
+    /// returns where they changed at once (a static occluder in the static grid changed or taken out of it;
+    /// one new to it changes them when it is taken from the queue).
+    fn replace(
+        &mut self,
+        entity: Entity,
+        now: Option<TrackedInstance>,
+        remeshed: bool,
+        changes: &mut StaticChanges,
+    ) -> Option<MovedOccluder> {
         let old = self.instances.remove(&entity);
         if let Some(old) = &old
             && let Some(set) = self.by_mesh.get_mut(&old.occluder.mesh)
@@ -557,21 +565,27 @@ impl ResolvedOccluders {
             (Some(o), Some(n)) => was_static && is_static && !remeshed && n.same_static_voxels(o),
             _ => false,
         };
+        let mut changed = None;
         if !same {
             // Where it was is rebuilt; an occluder new to the static grid (or one still waiting) is queued and
             // added without a rebuild.
             if was_static {
-                changes.touch(old.as_ref().and_then(|o| o.occluder.world_bounds));
+                let before = old.as_ref().and_then(|o| o.occluder.world_bounds);
+                changes.touch(before);
+                changed = Some(MovedOccluder { bounds: before, motion: f32::INFINITY });
             }
             if is_static {
                 if was_static {
-                    changes.touch(now.as_ref().and_then(|n| n.occluder.world_bounds));
+                    let after = now.as_ref().and_then(|n| n.occluder.world_bounds);
+                    changes.touch(after);
+                    changed =
+                        MovedOccluder::either(changed, Some(MovedOccluder { bounds: after, motion: f32::INFINITY }));
                 } else {
                     self.queued.insert(entity);
                 }
             }
         }
-        let Some(now) = now else { return };
+        let Some(now) = now else { return changed };
         let o = &now.occluder;
         if o.marked_static
             && old.as_ref().is_some_and(|p| p.occluder.world_from_local != o.world_from_local)
@@ -602,5 +616,6 @@ impl ResolvedOccluders {
         }
         self.by_mesh.entry(o.mesh).or_default().insert(entity);
         self.instances.insert(entity, now);
+        changed
     }
 }

@@ -70,9 +70,9 @@ impl VoxelizeState {
         &self.levels
     }
 
-    /// The dynamic occluders whose voxels changed since last frame (temporal passes keep less history
-    /// around them).
-    pub(crate) fn moved(&self) -> &[MovedOccluder] {
+    /// The occluders whose voxels changed in the last few frames (temporal passes keep less history around
+    /// them).
+    pub(crate) fn moved(&self) -> Vec<MovedOccluder> {
         self.occluders.moved()
     }
 }

@@ -1,7 +1,8 @@
 //! Which dynamic occluders' voxels changed this frame, and how far they moved. A dynamic occluder is
 //! voxelized every frame, but only one that moved, turned, deformed, appeared or went changes the voxels:
 //! the temporal passes keep a shorter history only around those (`VoxelGrid::moved`), so that a dynamic
-//! occluder standing still converges as a static one does.
+//! occluder standing still converges as a static one does. (Static occluders added to the static grid,
+//! changed or taken out of it are listed beside them, by `ResolvedOccluders`, with an unknown motion.)
 
 use bevy::prelude::*;
 
@@ -19,7 +20,7 @@ pub(super) struct Pose {
     pub bounds: Option<(Vec3, Vec3)>,
 }
 
-/// A dynamic occluder whose voxels changed since last frame.
+/// An occluder whose voxels changed since last frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MovedOccluder {
     /// The box around it now and last frame (`None`: unknown, anywhere).
@@ -27,6 +28,19 @@ pub struct MovedOccluder {
     /// The farthest any point of it moved since last frame, in world units: infinite where that is not known
     /// (it appeared, went, or changed its mesh or bounds-less shape).
     pub motion: f32,
+}
+
+impl MovedOccluder {
+    /// One change where `a`, `b` or both happened (both: the box around both, the larger motion).
+    pub(super) fn either(a: Option<Self>, b: Option<Self>) -> Option<Self> {
+        match (a, b) {
+            (Some(a), Some(b)) => Some(MovedOccluder {
+                bounds: a.bounds.zip(b.bounds).map(|((a0, a1), (b0, b1))| (a0.min(b0), a1.max(b1))),
+                motion: a.motion.max(b.motion),
+            }),
+            (a, b) => a.or(b),
+        }
+    }
 }
 
 /// How a dynamic occluder's voxels changed from last frame's pose to this frame's (`None`: not dynamic or
@@ -149,5 +163,19 @@ mod tests {
         b.weights[1] = 0.6;
         let m = moved(Some(&a), Some(&b)).unwrap();
         assert!((m.motion - 0.1 * 3.0f32.sqrt()).abs() < 1e-4, "{}", m.motion);
+    }
+
+    #[test]
+    fn two_changes_of_one_occluder_cover_both_boxes_with_the_larger_motion() {
+        let m = |lo: f32, motion: f32| MovedOccluder { bounds: Some((Vec3::splat(lo), Vec3::splat(lo + 1.0))), motion };
+        assert_eq!(MovedOccluder::either(None, None), None);
+        assert_eq!(MovedOccluder::either(Some(m(0.0, 0.1)), None), Some(m(0.0, 0.1)));
+        assert_eq!(MovedOccluder::either(None, Some(m(2.0, 0.3))), Some(m(2.0, 0.3)));
+        let both = MovedOccluder::either(Some(m(0.0, 0.1)), Some(m(2.0, f32::INFINITY))).unwrap();
+        assert_eq!(both.bounds, Some((Vec3::ZERO, Vec3::splat(3.0))));
+        assert!(both.motion.is_infinite());
+        // Either without bounds: anywhere.
+        let anywhere = MovedOccluder { bounds: None, motion: 0.2 };
+        assert_eq!(MovedOccluder::either(Some(m(0.0, 0.1)), Some(anywhere)).unwrap().bounds, None);
     }
 }
