@@ -1,7 +1,8 @@
 //! Scenes of contacts and moving props, scripted frame by frame, for measuring ambient occlusion where a
 //! player looks first (`ao_motion`, the motion tests): a room corner with a floor, two walls, a crate in the
 //! corner, a pole leaning on a wall, a step, and a sphere resting on the floor; or the same room with the
-//! sphere rolling across the floor and a box sliding along the wall.
+//! sphere rolling across the floor and a box sliding along the wall; or a skinned glTF character walking
+//! across it ([`Character`], [`MotionScene::walk`]).
 //!
 //! Everything is a function of the script's frame number ([`MotionScript`]): the props' poses, and the
 //! camera's when it swings, so that the Bevy app and the CPU reference ([`MotionScene::triangles_at`]) see
@@ -13,6 +14,8 @@ use crate::meshes::builtin::{cuboid, cylinder, sphere};
 use bevy::prelude::*;
 use bevy_hao::cpu::TriangleMesh;
 use std::f32::consts::TAU;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// How a prop is voxelized.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -92,6 +95,82 @@ pub struct MotionScene {
     pub camera_center: Vec3,
     /// Degrees a frame at the fastest of the camera's swing (0: the camera stands still).
     pub camera_speed: f32,
+    /// A skinned character walking through it, if any.
+    pub character: Option<Character>,
+}
+
+/// Frames a second of the script: a character's clip plays at this rate.
+pub const SCRIPT_FPS: f32 = 60.0;
+
+/// A skinned glTF character: posed by one of its clips at the script's time (looped), scaled to a height,
+/// standing on the floor, carried along a path. Bevy's `AnimationPlayer` is sought to the same time each
+/// frame (paused), and the reference is posed by the lab's own sampler and skinning of the file
+/// (`meshes::gltf_file::read_gltf_posed`, held voxel for voxel against the GPU's by `voxelize --animation`).
+#[derive(Clone, Debug)]
+pub struct Character {
+    /// The file, absolute.
+    pub file: PathBuf,
+    /// The clip's index in the file.
+    pub clip: usize,
+    /// The clip's length in seconds.
+    pub duration: f32,
+    /// The scene of the file spawned (its default, else the first).
+    pub scene: usize,
+    /// How its root moves (its feet on the floor at y = 0, its bounds centred on the path).
+    pub path: PropPath,
+    /// Its scale.
+    pub scale: f32,
+    /// Added to its root's translation: its feet on the floor, centred on the path.
+    offset: Vec3,
+    bytes: Arc<Vec<u8>>,
+}
+
+impl Character {
+    /// Loads `file` to walk along `path` by the clip named (or numbered) `clip`, scaled to `height` world
+    /// units tall (in its pose at time 0).
+    pub fn load(file: &Path, clip: &str, height: f32, path: PropPath) -> Result<Self, String> {
+        use crate::meshes::gltf_file;
+        let file = std::fs::canonicalize(file).map_err(|e| format!("{}: {e}", file.display()))?;
+        let (mesh, clip, _) = gltf_file::load_gltf_posed(&file, clip, 0.0)?;
+        let duration = gltf_file::gltf_animations(&file)?.iter().find(|a| a.index == clip).map_or(0.0, |a| a.duration);
+        let scene = gltf_file::gltf_scene_index(&file)?.unwrap_or(0);
+        let (lo, hi) = mesh.bounds().ok_or_else(|| format!("{}: no triangles", file.display()))?;
+        if !(hi.y - lo.y > 0.0) || !(height > 0.0) {
+            return Err(format!(
+                "{}: a character of height {} cannot be scaled to {height}",
+                file.display(),
+                hi.y - lo.y
+            ));
+        }
+        let scale = height / (hi.y - lo.y);
+        let center = (lo + hi) * 0.5;
+        let offset = Vec3::new(-center.x, -lo.y, -center.z) * scale;
+        let bytes = Arc::new(std::fs::read(&file).map_err(|e| format!("{}: {e}", file.display()))?);
+        Ok(Self { file, clip, duration, scene, path, scale, offset, bytes })
+    }
+
+    /// The clip's time at script frame `frame`, looped.
+    pub fn time_at(&self, frame: i32) -> f32 {
+        let t = frame as f32 / SCRIPT_FPS;
+        if self.duration > 0.0 { t.rem_euclid(self.duration) } else { 0.0 }
+    }
+
+    /// Its root's transform at script frame `frame`.
+    pub fn root_at(&self, frame: i32) -> Transform {
+        let mut t = self.path.pose(frame);
+        t.translation += self.offset;
+        t.scale = Vec3::splat(self.scale);
+        t
+    }
+
+    /// Its triangles in world space as posed at script frame `frame`.
+    pub fn triangles_at(&self, frame: i32) -> TriangleMesh {
+        let dir = self.file.parent().unwrap_or(Path::new("."));
+        match crate::meshes::gltf_file::read_gltf_posed(&self.bytes, dir, Some((self.clip, self.time_at(frame)))) {
+            Ok((mesh, _)) => mesh.transformed(self.root_at(frame).compute_affine()),
+            Err(_) => TriangleMesh::default(),
+        }
+    }
 }
 
 /// The scenes by name: `contacts` (everything still) and `roll` (a sphere rolling, a box sliding).
@@ -170,7 +249,27 @@ impl MotionScene {
             ],
             _ => return None,
         };
-        Some(Self { statics: room(), props, camera, camera_center, camera_speed: 0.0 })
+        Some(Self { statics: room(), props, camera, camera_center, camera_speed: 0.0, character: None })
+    }
+
+    /// The room with `character` walking across the floor in front of the step at 1 m/s (and no props),
+    /// seen from the same camera.
+    pub fn walk(character: Character) -> Self {
+        let mut scene = Self::named("contacts", Marker::Dynamic).expect("a known scene");
+        scene.props.clear();
+        scene.character = Some(character);
+        scene
+    }
+
+    /// The path [`MotionScene::walk`]'s character takes: along x through the middle of the floor, 1 m/s.
+    pub fn walk_path() -> PropPath {
+        PropPath::Shuttle {
+            center: Vec3::new(0.2, 0.0, -0.4),
+            direction: Vec3::X,
+            half_length: 1.8,
+            speed: 1.0 / SCRIPT_FPS,
+            roll_radius: None,
+        }
     }
 
     /// The camera's pose at script frame `frame`: swung about the vertical through `camera_center` by a
@@ -195,18 +294,24 @@ impl MotionScene {
         for prop in &self.props {
             out.append(&prop.mesh, prop.path.pose(frame).compute_affine());
         }
+        if let Some(c) = &self.character {
+            out.append(&c.triangles_at(frame), bevy::math::Affine3A::IDENTITY);
+        }
         out
     }
 
     /// The world bounds of the props at script frame `frame`: of those that move, or of every prop where
     /// none does.
     pub fn prop_bounds_at(&self, frame: i32) -> Vec<(Vec3, Vec3)> {
-        let any_moves = self.props.iter().any(|p| p.path.moves());
-        self.props
+        let any_moves = self.character.is_some() || self.props.iter().any(|p| p.path.moves());
+        let mut bounds: Vec<(Vec3, Vec3)> = self
+            .props
             .iter()
             .filter(|p| p.path.moves() || !any_moves)
             .filter_map(|p| p.mesh.transformed(p.path.pose(frame).compute_affine()).bounds())
-            .collect()
+            .collect();
+        bounds.extend(self.character.as_ref().and_then(|c| c.triangles_at(frame).bounds()));
+        bounds
     }
 
     /// Spawns the scene's static parts and props (the props tagged [`ScriptedProp`]); the app needs
@@ -241,6 +346,41 @@ impl MotionScene {
     }
 }
 
+impl MotionScene {
+    /// Spawns its character, if any, at script frame 0 (tagged [`ScriptedCharacter`]), its clip started
+    /// paused on the animation players its scene spawns. The app's asset root must be the file's folder
+    /// (`harness::set_asset_root`).
+    pub fn spawn_character(
+        &self,
+        commands: &mut Commands,
+        asset_server: &AssetServer,
+        graphs: &mut Assets<AnimationGraph>,
+    ) {
+        let Some(c) = &self.character else { return };
+        let file = c.file.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        let (graph, node) =
+            AnimationGraph::from_clip(asset_server.load(GltfAssetLabel::Animation(c.clip).from_asset(file.clone())));
+        commands.insert_resource(CharacterClip { graph: graphs.add(graph), node });
+        commands.spawn((
+            WorldAssetRoot(asset_server.load(GltfAssetLabel::Scene(c.scene).from_asset(file))),
+            c.root_at(0),
+            ScriptedCharacter,
+            Name::new("character"),
+        ));
+    }
+}
+
+/// The root of the [`MotionScene`]'s character.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct ScriptedCharacter;
+
+/// The character's clip, started on each animation player its scene spawns.
+#[derive(Resource, Clone)]
+struct CharacterClip {
+    graph: Handle<AnimationGraph>,
+    node: AnimationNodeIndex,
+}
+
 /// A prop of the [`MotionScene`] resource, by its index.
 #[derive(Component, Clone, Copy, Debug)]
 pub struct ScriptedProp(pub usize);
@@ -265,15 +405,31 @@ pub struct MotionScriptPlugin;
 
 impl Plugin for MotionScriptPlugin {
     fn build(&self, app: &mut App) {
-        app.add_systems(Update, play_script);
+        app.add_systems(Update, (start_character_clip, play_script).chain());
     }
 }
 
+fn start_character_clip(
+    mut commands: Commands,
+    clip: Option<Res<CharacterClip>>,
+    mut players: Query<(Entity, &mut AnimationPlayer), Added<AnimationPlayer>>,
+) {
+    let Some(clip) = clip else { return };
+    for (entity, mut player) in &mut players {
+        player.play(clip.node).pause();
+        commands.entity(entity).insert(AnimationGraphHandle(clip.graph.clone()));
+    }
+}
+
+#[allow(clippy::type_complexity)]
 fn play_script(
     scene: Option<Res<MotionScene>>,
     script: Option<ResMut<MotionScript>>,
-    mut props: Query<(&ScriptedProp, &mut Transform), Without<ScriptedCamera>>,
-    mut cameras: Query<&mut Transform, With<ScriptedCamera>>,
+    clip: Option<Res<CharacterClip>>,
+    mut props: Query<(&ScriptedProp, &mut Transform), (Without<ScriptedCamera>, Without<ScriptedCharacter>)>,
+    mut cameras: Query<&mut Transform, (With<ScriptedCamera>, Without<ScriptedCharacter>)>,
+    mut characters: Query<&mut Transform, With<ScriptedCharacter>>,
+    mut players: Query<&mut AnimationPlayer>,
 ) {
     let (Some(scene), Some(mut script)) = (scene, script) else { return };
     if script.running {
@@ -292,6 +448,23 @@ fn play_script(
     for mut t in &mut cameras {
         if *t != pose {
             *t = pose;
+        }
+    }
+    if let (Some(c), Some(clip)) = (&scene.character, clip) {
+        let root = c.root_at(frame);
+        for mut t in &mut characters {
+            if *t != root {
+                *t = root;
+            }
+        }
+        // Sought every frame (paused): the pose is the script's, whatever the app's clock.
+        let time = c.time_at(frame);
+        for mut player in &mut players {
+            if let Some(active) = player.animation_mut(clip.node)
+                && active.seek_time() != time
+            {
+                active.seek_to(time);
+            }
         }
     }
 }

@@ -2,14 +2,17 @@
 //! against a ray-traced reference on the triangles as drawn in each frame.
 //!
 //! ```text
-//! cargo run --release -p bevy_hao_tools --bin ao_motion -- [contacts|roll] [OPTIONS]   (--help lists them)
+//! cargo run --release -p bevy_hao_tools --bin ao_motion -- [contacts|roll|walk] [OPTIONS]   (--help lists them)
 //! ```
 //!
 //! The scenes are `bevy_hao_tools::motion`'s: `contacts`, a room corner with a crate, a step, a pole leaning
 //! on the wall and a sphere resting on the floor, all still (`--marker dynamic` makes the sphere a
 //! `DynamicOccluder`, as a prop that could move is); `roll`, the same room with the sphere rolling across
-//! the floor at 1.5 m/s and a box sliding along the wall at 1 m/s (both `DynamicOccluder`). `--motion DEG`
-//! swings the camera about the scene at up to DEG degrees a frame.
+//! the floor at 1.5 m/s and a box sliding along the wall at 1 m/s (both `DynamicOccluder`); `walk`, the
+//! room with a skinned glTF character (`--character FILE`, its clip `--clip`, scaled to `--height` metres)
+//! walking across the floor at 1 m/s, posed by its clip at the script's time (the reference posed by the
+//! lab's own sampler and skinning of the file). `--motion DEG` swings the camera about the scene at up to
+//! DEG degrees a frame.
 //!
 //! One headless app renders two cameras of the same view in the same frames: HAO on a camera as a user
 //! spawns it (Bevy's default MSAA, 4 samples; `--msaa 1` for none), and Bevy's SSAO (`High`, which needs
@@ -36,7 +39,7 @@ use bevy::render::view::Msaa;
 use bevy_hao::cpu::TriangleMesh;
 use bevy_hao::prelude::*;
 use bevy_hao_tools::harness::{self, args};
-use bevy_hao_tools::motion::{Marker, MotionScene, MotionScript, MotionScriptPlugin, ScriptedCamera};
+use bevy_hao_tools::motion::{Character, Marker, MotionScene, MotionScript, MotionScriptPlugin, ScriptedCamera};
 use bevy_hao_tools::reference::{ReferenceScene, hash, reference_ao};
 use clap::Parser;
 
@@ -44,9 +47,19 @@ use clap::Parser;
 #[derive(Parser)]
 #[command(version)]
 struct Args {
-    /// The scene: contacts (everything still) or roll (a sphere rolling, a box sliding).
+    /// The scene: contacts (everything still), roll (a sphere rolling, a box sliding) or walk (the
+    /// `--character` walking across the room).
     #[arg(default_value = "contacts")]
     scene: String,
+    /// In `walk`, the skinned glTF character (a .gltf or .glb file with a clip).
+    #[arg(long, value_name = "FILE")]
+    character: Option<std::path::PathBuf>,
+    /// In `walk`, the character's clip, by name or index.
+    #[arg(long, default_value = "0")]
+    clip: String,
+    /// In `walk`, the character's height in metres (in its pose at time 0).
+    #[arg(long, default_value_t = 1.7)]
+    height: f32,
     /// In `contacts`, how the sphere is voxelized.
     #[arg(long, value_enum, default_value_t = Marker::Dynamic)]
     marker: Marker,
@@ -239,9 +252,28 @@ const CONTACT_BAND: f32 = 0.5;
 
 fn main() {
     let args = Args::parse();
-    let Some(mut scene) = MotionScene::named(&args.scene, args.marker) else {
-        eprintln!("error: unknown scene {} (known: {})", args.scene, bevy_hao_tools::motion::MOTION_SCENES.join(", "));
-        std::process::exit(1)
+    let mut scene = if args.scene == "walk" {
+        let Some(file) = &args.character else {
+            eprintln!("error: walk needs --character FILE (a skinned glTF with a clip)");
+            std::process::exit(1)
+        };
+        let character = Character::load(file, &args.clip, args.height, MotionScene::walk_path()).unwrap_or_else(|e| {
+            eprintln!("error: {e}");
+            std::process::exit(1)
+        });
+        // Bevy loads the file from its folder.
+        harness::set_asset_root(character.file.parent().map(|d| d.to_string_lossy().into_owned()));
+        MotionScene::walk(character)
+    } else {
+        let Some(scene) = MotionScene::named(&args.scene, args.marker) else {
+            eprintln!(
+                "error: unknown scene {} (known: {}, walk)",
+                args.scene,
+                bevy_hao_tools::motion::MOTION_SCENES.join(", ")
+            );
+            std::process::exit(1)
+        };
+        scene
     };
     if let Some(d) = args.motion {
         if !(d > 0.0 && d <= 3.0) {
@@ -270,8 +302,11 @@ fn main() {
             move |mut commands: Commands,
                   mut meshes: ResMut<Assets<Mesh>>,
                   mut materials: ResMut<Assets<StandardMaterial>>,
-                  mut images: ResMut<Assets<Image>>| {
+                  mut images: ResMut<Assets<Image>>,
+                  asset_server: Res<AssetServer>,
+                  mut graphs: ResMut<Assets<AnimationGraph>>| {
                 setup_scene.spawn(&mut commands, &mut meshes, &mut materials);
+                setup_scene.spawn_character(&mut commands, &asset_server, &mut graphs);
                 let mut outputs = Vec::new();
                 for k in 0..2 {
                     let debug = HaoDebugImages::new(&mut images, size);
