@@ -134,3 +134,42 @@ fn the_ao_around_moving_props_stays_near_that_of_the_same_frame_still() {
     assert!(difference < 0.024, "{difference}");
     assert!(noise < 3.0 * still_noise + 0.002, "noise {noise} against {still_noise} still");
 }
+
+#[test]
+fn the_floor_darkens_toward_a_resting_balls_contact() {
+    use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
+    let _gpu = gpu_lock();
+    let hao = HybridAmbientOcclusion::default();
+    let mut scene = MotionScene::named("contacts", Marker::Dynamic).unwrap();
+    // Low and from the side: the floor beside the contact, under the ball's overhang, is in view nearly to
+    // the contact; the profile runs across the view.
+    let contact = Vec3::new(0.6, 0.0, -0.2);
+    scene.camera = Transform::from_translation(contact + Vec3::new(3.0, 0.3, 0.0)).looking_at(contact, Vec3::Y);
+    let reference = ReferenceScene::new(&scene.triangles_at(0));
+    let converged = (4 * hao.accumulation_frames * hao.frames_per_trace()) as usize + 30;
+    let (max_distance, falloff) = (hao.max_distance, hao.falloff);
+    let mut app = motion_app(scene, hao, 0);
+    run(&mut app, converged);
+    let (frames, _) = ao_frames(&mut app, 1);
+    assert!(take_render_errors().is_empty());
+    let ao = &frames[0];
+    let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
+    let (camera, transform) = q.single(app.world()).unwrap();
+    let at = |p: Vec3| {
+        let v = camera.world_to_viewport(transform, p).expect("in view");
+        let (x, y) = (v.x as u32, v.y as u32);
+        ao[(y.min(SIZE.y - 1) * SIZE.x + x.min(SIZE.x - 1)) as usize]
+    };
+    let distances = [0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.2];
+    let points = distances.map(|r| contact + Vec3::Z * r);
+    let profile = points.map(at);
+    let expected = points.map(|p| {
+        reference_ao(&reference, p, Vec3::Y, 1024, Vec2::ZERO, max_distance, falloff, 1.0, 1e-4, |_| false).ao
+    });
+    println!("floor AO at {distances:?} m from the contact: {profile:.3?} (reference {expected:.3?})");
+    // Darkest at the contact and lighter outward: no ring detached from it, no lighter band inside it.
+    for (k, w) in profile.windows(2).enumerate() {
+        assert!(w[1] >= w[0] - 0.03, "lighter at {} m than at {} m: {profile:?}", distances[k], distances[k + 1]);
+    }
+    assert!(profile[0] < profile[6] - 0.2, "{profile:?}");
+}
