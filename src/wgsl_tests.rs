@@ -58,38 +58,37 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/voxel/voxel_clear.wgsl", vec![vec![]]),
         ("src/voxel/voxel_resolve.wgsl", texture_variants.clone()),
         ("src/voxel/voxel_mip.wgsl", texture_variants),
-        (
-            "src/ao/hao_trace.wgsl",
-            vec![
-                vec![],
-                vec![("MULTISAMPLED", ShaderDefValue::Bool(true))],
-                vec![("BACK_HITS", ShaderDefValue::Bool(true))],
-                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("BACK_HITS", ShaderDefValue::Bool(true))],
-                vec![("FREE_SPACE", ShaderDefValue::Bool(true))],
-                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("FREE_SPACE", ShaderDefValue::Bool(true))],
-                vec![("BACK_HITS", ShaderDefValue::Bool(true)), ("FREE_SPACE", ShaderDefValue::Bool(true))],
-                vec![
-                    ("MULTISAMPLED", ShaderDefValue::Bool(true)),
-                    ("BACK_HITS", ShaderDefValue::Bool(true)),
-                    ("FREE_SPACE", ShaderDefValue::Bool(true)),
-                ],
-            ],
-        ),
+        // Every combination of the trace's defs (`TraceVariant`), and the temporal pass's with and without
+        // the moved occluders.
+        ("src/ao/hao_trace.wgsl", combinations(&["MULTISAMPLED", "BACK_HITS", "FREE_SPACE", "MOVED_OCCLUDERS"], &[])),
         ("src/ao/hao_neighborhood.wgsl", vec![vec![]]),
         (
             "src/ao/hao_temporal.wgsl",
-            vec![
+            [
                 vec![],
-                vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))],
-                vec![("NEAR_FIELD", ShaderDefValue::Bool(true))],
-                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("USE_R16FLOAT", ShaderDefValue::Bool(true))],
-                vec![("MULTISAMPLED", ShaderDefValue::Bool(true)), ("NEAR_FIELD", ShaderDefValue::Bool(true))],
-            ],
+                vec!["USE_R16FLOAT"],
+                vec!["NEAR_FIELD"],
+                vec!["MULTISAMPLED", "USE_R16FLOAT"],
+                vec!["MULTISAMPLED", "NEAR_FIELD"],
+            ]
+            .iter()
+            .flat_map(|defs| combinations(&["MOVED_OCCLUDERS"], defs))
+            .collect(),
         ),
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),
         ("src/debug/debug_images.wgsl", multisampled),
         ("src/debug/debug_view.wgsl", vec![vec![]]),
     ]
+}
+
+/// Every subset of `optional` (each def `true`), each with `always`.
+fn combinations(optional: &[&'static str], always: &[&'static str]) -> Vec<Vec<(&'static str, ShaderDefValue)>> {
+    (0..1u32 << optional.len())
+        .map(|mask| {
+            let chosen = optional.iter().enumerate().filter(|(k, _)| mask & (1 << k) != 0).map(|(_, d)| *d);
+            always.iter().copied().chain(chosen).map(|d| (d, ShaderDefValue::Bool(true))).collect()
+        })
+        .collect()
 }
 
 /// The shader defs every compute pipeline gets (`crate::gpu::shader_defs`), as naga_oil takes them.
