@@ -1,5 +1,5 @@
 // Hybrid ambient occlusion where voxels changed: how much a pixel's occlusion can have changed since last
-// frame because of the dynamic occluders that moved (`voxel_grid.moved`), and how much history that leaves
+// frame because of the occluders whose voxels changed (`voxel_grid.moved`), and how much history that leaves
 // it. The temporal pass caps the history with it; the trace traces more rays where the cap is short.
 // CPU twin: `bevy_hao::cpu::temporal` (`occlusion_change`, `change_cap`). The voxel grid is bound at group 2.
 #define_import_path bevy_hao::hao_change

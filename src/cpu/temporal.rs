@@ -16,8 +16,9 @@
 //!    neighbourhood now escapes, the window closes around 1 and the shadow it left is clamped away in one
 //!    frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
-//!    one or two rays. The voxel grid lists the dynamic occluders whose voxels changed since last frame:
-//!    the box around each now and last frame, and how far its points moved ([`MovedVoxels`]). From them
+//!    one or two rays. The voxel grid lists the occluders whose voxels changed in the last few frames
+//!    (dynamic ones that moved, static ones added, changed or taken out): the box around each now and last
+//!    frame, and how far its points moved ([`MovedVoxels`]; unknown for a static one). From them
 //!    [`occlusion_change`] estimates how much the pixel's occlusion can have changed since last frame (the
 //!    occlusion of a sphere the size of the box, times the share of its distance the occluder moved), and
 //!    [`change_cap`] keeps the history that balances the lag it costs against the noise it removes: a
@@ -59,7 +60,7 @@ pub const CLAMPED_COUNT: f32 = 2.0;
 /// where the change is largest or unknown).
 pub const CHANGED_COUNT: f32 = 2.0;
 
-/// A dynamic occluder whose voxels changed since last frame (WGSL: `MovedOccluder` in `voxel_grid.wgsl`):
+/// An occluder whose voxels changed in the last few frames (WGSL: `MovedOccluder` in `voxel_grid.wgsl`):
 /// the box around it now and last frame, and the farthest any of its points moved (world units).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MovedVoxels {
@@ -72,7 +73,7 @@ pub struct MovedVoxels {
 }
 
 /// How much the occlusion at a surface point (`p`, unit normal `n`) can have changed since last frame
-/// because of the occluders that moved (WGSL: `occlusion_change` in `hao_common.wgsl`), with the trace's
+/// because of the occluders that moved (WGSL: `occlusion_change` in `hao_change.wgsl`), with the trace's
 /// `max_distance` and `falloff`. Each counts as a sphere of its box's mean half-extent `r` at the box's
 /// centre, `d` away: the share of the cosine-weighted hemisphere it covers, about `(r / d)^2` times how
 /// far above the horizon it stands (`n . (c - p) / d + r / d`, within [0, 1]), weighed by the falloff at

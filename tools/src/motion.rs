@@ -168,7 +168,11 @@ impl Character {
         let dir = self.file.parent().unwrap_or(Path::new("."));
         match crate::meshes::gltf_file::read_gltf_posed(&self.bytes, dir, Some((self.clip, self.time_at(frame)))) {
             Ok((mesh, _)) => mesh.transformed(self.root_at(frame).compute_affine()),
-            Err(_) => TriangleMesh::default(),
+            // (`load` posed it once already: a file that reads then and not now changed on disk.)
+            Err(e) => {
+                eprintln!("warning: {}: the character cannot be posed at frame {frame}: {e}", self.file.display());
+                TriangleMesh::default()
+            }
         }
     }
 }
