@@ -382,7 +382,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 27] = [
+    let pairs: [(&str, &str, f64); 30] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -410,6 +410,9 @@ fn shared_constants_agree() {
         ("src/ao/hao_trace.wgsl", "CONTACT_DEPTH_EPSILON", contacts::CONTACT_DEPTH_EPSILON as f64),
         ("src/ao/hao_trace.wgsl", "FREE_SPACE_MARGIN", contacts::FREE_SPACE_MARGIN as f64),
         ("src/ao/hao_trace.wgsl", "MAX_FREE_SPACE_PASSES", contacts::MAX_FREE_SPACE_PASSES as f64),
+        ("src/ao/hao_trace.wgsl", "NEAR_FREE_SPACE_CELLS", contacts::NEAR_FREE_SPACE_CELLS as f64),
+        ("src/ao/hao_trace.wgsl", "NEAR_FREE_SPACE_PIXELS", contacts::NEAR_FREE_SPACE_PIXELS as f64),
+        ("src/ao/hao_trace.wgsl", "MAX_NEAR_FREE_SPACE_PASSES", contacts::MAX_NEAR_FREE_SPACE_PASSES as f64),
     ];
     for (path, name, rust) in pairs {
         let wgsl = wgsl_const(path, name);

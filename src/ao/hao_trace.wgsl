@@ -1,7 +1,8 @@
 // Hybrid ambient occlusion, pass 1: per pixel (or, at half resolution, per 2x2 block from its pixel whose
 // turn it is: `traced_pixel`), cosine-weighted rays from the surface (position from the depth prepass,
 // normal from the normal prepass) through the voxel texture, with empty-space skipping on its max-reduced
-// mips; each ray's first cells, which the voxels skip, are traced in the depth prepass (`depth_contact`).
+// mips; each ray's first cells, which the voxels skip, are traced in the depth prepass (`depth_contact`),
+// and its voxel hits near the surface that the depth prepass shows in empty space are passed (`near`).
 // Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral normal,
 // which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`, with no
 // frames). In the checkerboard (`Low`) it runs on half the texels, alternating
@@ -18,7 +19,7 @@
     pack_history, pack_normal,
 }
 #import bevy_hao::voxel_grid::{
-    voxel_grid, ray_start_level, march_cascades, level_position, voxel_normal_at, safe_inverse, ray_box,
+    voxel_grid, ray_start_level, march_cascades, march_cascades_left, level_position, voxel_normal_at, safe_inverse, ray_box,
 }
 #import bevy_hao::hao_change::{occlusion_change, change_rays}
 
@@ -94,6 +95,11 @@ fn shows_free_space(p: vec3<f32>, margin: f32) -> bool {
     }
     return -(view.view_from_world * vec4<f32>(p, 1.0)).z < surface_view_depth(nearest) - margin;
 }
+
+// cpu/contacts.rs: NEAR_FREE_SPACE_CELLS, NEAR_FREE_SPACE_PIXELS, MAX_NEAR_FREE_SPACE_PASSES
+const NEAR_FREE_SPACE_CELLS: f32 = 8.0;
+const NEAR_FREE_SPACE_PIXELS: f32 = 1.0;
+const MAX_NEAR_FREE_SPACE_PASSES: u32 = 8u;
 
 // cpu/contacts.rs: CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT_PIXELS, CONTACT_LIFT_CELLS,
 // CONTACT_DEPTH_EPSILON
@@ -234,20 +240,35 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
         let origin = world + normal * (settings.start_offset * cell);
-        var hit = march_cascades(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
+        var marched = march_cascades_left(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
 #ifdef BACK_HITS
         // Through the backs of surfaces, a few times at most (a variant of its own: without attributes or
         // with `ignore_back_hits` off the loop would cost a march per ray on devices that run every branch,
         // such as lavapipe, whether taken or not).
         let back_hits = settings.back_hits != 0u && voxel_grid.attributes != 0u;
-        for (var k = 0u; k < MAX_BACK_HITS && back_hits && hit.x >= 0.0; k++) {
-            let exit = back_hit_exit(origin, dir, hit);
+        for (var k = 0u; k < MAX_BACK_HITS && back_hits && marched.x >= 0.0; k++) {
+            let exit = back_hit_exit(origin, dir, marched.xy);
             if exit < 0.0 {
                 break;
             }
-            hit = march_cascades(origin, dir, u32(hit.y), exit, settings.max_distance, settings.steps);
+            marched = march_cascades_left(origin, dir, u32(marched.y), exit, settings.max_distance, settings.steps);
         }
 #endif
+        // Past the cells near the surface that the view shows empty, by a pixel, where the trace takes their
+        // surface to be (`depth_contacts`); the march goes on with the steps it has left.
+        let near = NEAR_FREE_SPACE_CELLS * cell;
+        for (var k = 0u; k < MAX_NEAR_FREE_SPACE_PASSES && settings.depth_contacts != 0u && marched.x >= 0.0 && marched.z > 0.0; k++) {
+            let surface = origin + dir * (marched.x + 0.5 * voxel_grid.levels[u32(marched.y)].cell_size);
+            if length(surface - world) > near {
+                break;
+            }
+            let margin = NEAR_FREE_SPACE_PIXELS * pixel_size((view.clip_from_world * vec4<f32>(surface, 1.0)).w);
+            if !shows_free_space(surface, margin) {
+                break;
+            }
+            marched = march_cascades_left(origin, dir, u32(marched.y), cell_exit(origin, dir, marched.xy), settings.max_distance, u32(marched.z));
+        }
+        var hit = marched.xy;
 #ifdef FREE_SPACE
         // Past the cells the view shows empty where the trace takes their surface to be, a few times at most
         // (a variant of its own, as BACK_HITS).

@@ -3,7 +3,10 @@
 //! and operations as the WGSL. The ray-traced reference that HAO is measured against (rays against the real
 //! triangles) shares [`hemisphere_direction`] and [`ao_falloff`] with it.
 
-use super::contacts::{CONTACT_LENGTH, FREE_SPACE_MARGIN, MAX_FREE_SPACE_PASSES, ViewDepth, depth_contact, ray_jitter};
+use super::contacts::{
+    CONTACT_LENGTH, FREE_SPACE_MARGIN, MAX_FREE_SPACE_PASSES, MAX_NEAR_FREE_SPACE_PASSES, NEAR_FREE_SPACE_CELLS,
+    NEAR_FREE_SPACE_PIXELS, ViewDepth, depth_contact, ray_jitter,
+};
 use super::grid::VoxelOccupancy;
 use glam::{IVec3, Mat3, UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
@@ -361,12 +364,14 @@ pub fn march_cascades(
     t_end: f32,
     steps: u32,
 ) -> Option<(f32, usize)> {
-    march_cascades_counted(levels, origin, dir, start, t_start, t_end, steps, &mut TraceWork::default())
+    march_cascades_left(levels, origin, dir, start, t_start, t_end, steps, &mut TraceWork::default()).0
 }
 
-/// [`march_cascades`], adding the texel visits it made to `work` (and whether it ran out of steps).
+/// [`march_cascades`], adding the texel visits it made to `work` (and whether it ran out of steps), and
+/// returning the steps it has left too (WGSL: `march_cascades_left`, which returns them as the hit's third
+/// component).
 #[allow(clippy::too_many_arguments)]
-fn march_cascades_counted(
+fn march_cascades_left(
     levels: &[TraceLevel],
     origin: Vec3,
     dir: Vec3,
@@ -375,7 +380,7 @@ fn march_cascades_counted(
     t_end: f32,
     steps: u32,
     work: &mut TraceWork,
-) -> Option<(f32, usize)> {
+) -> (Option<(f32, usize)>, u32) {
     let inv = safe_inverse(dir);
     let mut level = start;
     let mut t0 = t_start;
@@ -387,19 +392,19 @@ fn march_cascades_counted(
         let r = lv.mips.march_level(o, dir, t0, t1, MARCH_START_MIP, left);
         work.texel_visits += u64::from(left - r.steps_left);
         if let Some(t) = r.hit {
-            return Some((t * lv.cell_size, level));
+            return (Some((t * lv.cell_size, level)), r.steps_left);
         }
         left = r.steps_left;
         if left == 0 {
             work.out_of_steps += 1;
-            return None;
+            return (None, 0);
         }
         if level + 1 >= levels.len() {
-            return None;
+            return (None, left);
         }
         let exit = ray_box(o, inv, Vec3::ZERO, lv.mips.dims().as_vec3()).y;
         if exit >= t1 {
-            return None;
+            return (None, left);
         }
         let next = &levels[level + 1];
         t0 = exit.max(t0) * lv.cell_size / next.cell_size;
@@ -422,6 +427,11 @@ pub struct TraceWork {
     pub depth_loads: u64,
     /// Voxel hits passed because the view shows them in free space ([`TraceSettings::depth_free_space`]).
     pub free_space_passes: u64,
+    /// Voxel hits near the surface passed because the view shows them in free space
+    /// ([`TraceSettings::depth_contacts`], [`NEAR_FREE_SPACE_CELLS`]).
+    pub near_free_space_passes: u64,
+    /// Of `texel_visits`, those of the marches past the near hits passed as free space (all passes together).
+    pub near_free_space_visits: u64,
     /// Of `texel_visits`, those of the marches past the hits passed as free space, pass by pass (a SIMD
     /// device runs each pass after every lane's march before it: see `bench_ao`'s work table).
     pub free_space_visits: [u64; MAX_FREE_SPACE_PASSES as usize],
@@ -485,8 +495,9 @@ pub struct TraceSettings {
     pub start_offset: f32,
     /// Rays pass through the backs of surfaces ([`back_hit_exit`]), where the voxels have attributes.
     pub ignore_back_hits: bool,
-    /// Each ray's first cells are traced in the depth prepass ([`super::contacts`]), where a view's depth is
-    /// given.
+    /// Each ray's first cells are traced in the depth prepass ([`super::contacts`]), and its voxel hits
+    /// within [`NEAR_FREE_SPACE_CELLS`] of the surface that the view shows in free space are passed, where
+    /// a view's depth is given.
     pub depth_contacts: bool,
     /// A voxel hit the view's depth shows in free space is passed
     /// ([`super::contacts::ViewDepth::shows_free_space`]), where a view's depth is given.
@@ -570,8 +581,7 @@ pub fn ray_occluder(
             return Some(t);
         }
     }
-    let view = contact.filter(|_| s.depth_free_space).map(|c| c.view);
-    voxel_ray_occluder(levels, view, world, normal, dir, start, s, work).map(|o| o.distance)
+    voxel_ray_occluder(levels, contact.map(|c| c.view), world, normal, dir, start, s, work).map(|o| o.distance)
 }
 
 /// The occluder one ray of [`voxel_ambient_occlusion`] finds.
@@ -586,7 +596,8 @@ pub struct VoxelOccluder {
 
 /// The occluder that ray `dir` from the surface point `world` (normal `normal`), starting in level `start`,
 /// finds within `s.max_distance`, or `None` (WGSL: the body of the ray loop in `trace`). With `view`, the
-/// hits it shows in free space are passed ([`TraceSettings::depth_free_space`]).
+/// hits near the surface that it shows in free space are passed ([`TraceSettings::depth_contacts`]), and
+/// with [`TraceSettings::depth_free_space`] the others too, by a wider margin.
 #[allow(clippy::too_many_arguments)]
 pub fn voxel_ray_occluder(
     levels: &[TraceLevel],
@@ -599,16 +610,38 @@ pub fn voxel_ray_occluder(
     work: &mut TraceWork,
 ) -> Option<VoxelOccluder> {
     let origin = world + normal * (s.start_offset * levels[start].cell_size);
-    let mut hit = march_cascades_counted(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps, work);
+    let (mut hit, mut left) =
+        march_cascades_left(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps, work);
     // Through the backs of surfaces, a few times at most.
     for _ in 0..MAX_BACK_HITS {
         let Some(h) = hit.filter(|_| s.ignore_back_hits) else { break };
         work.normal_loads += 1;
         let Some(exit) = back_hit_exit(levels, origin, dir, h) else { break };
-        hit = march_cascades_counted(levels, origin, dir, h.1, exit, s.max_distance, s.steps, work);
+        (hit, left) = march_cascades_left(levels, origin, dir, h.1, exit, s.max_distance, s.steps, work);
+    }
+    // Past the cells near the surface that the view shows empty, by a pixel, where the trace takes their
+    // surface to be; the march goes on with the steps it has left.
+    if let Some(view) = view.filter(|_| s.depth_contacts) {
+        let near = NEAR_FREE_SPACE_CELLS * levels[start].cell_size;
+        for _ in 0..MAX_NEAR_FREE_SPACE_PASSES {
+            let Some((t, level)) = hit.filter(|_| left > 0) else { break };
+            let surface = origin + dir * (t + 0.5 * levels[level].cell_size);
+            if (surface - world).length() > near {
+                break;
+            }
+            let margin = NEAR_FREE_SPACE_PIXELS * view.pixel_size((view.clip_from_world * surface.extend(1.0)).w);
+            if !view.shows_free_space(surface, margin, &mut work.depth_loads) {
+                break;
+            }
+            work.near_free_space_passes += 1;
+            let exit = cell_exit(levels, origin, dir, (t, level));
+            let before = work.texel_visits;
+            (hit, left) = march_cascades_left(levels, origin, dir, level, exit, s.max_distance, left, work);
+            work.near_free_space_visits += work.texel_visits - before;
+        }
     }
     // Past the cells the view shows empty where the trace takes their surface to be, a few times at most.
-    if let Some(view) = view {
+    if let Some(view) = view.filter(|_| s.depth_free_space) {
         for pass in 0..MAX_FREE_SPACE_PASSES as usize {
             let Some((t, level)) = hit else { break };
             let cell = levels[level].cell_size;
@@ -619,7 +652,7 @@ pub fn voxel_ray_occluder(
             work.free_space_passes += 1;
             let exit = cell_exit(levels, origin, dir, (t, level));
             let before = work.texel_visits;
-            hit = march_cascades_counted(levels, origin, dir, level, exit, s.max_distance, s.steps, work);
+            hit = march_cascades_left(levels, origin, dir, level, exit, s.max_distance, s.steps, work).0;
             work.free_space_visits[pass] += work.texel_visits - before;
         }
     }

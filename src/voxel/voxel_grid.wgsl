@@ -247,6 +247,11 @@ const MARCH_START_MIP: u32 = 1u;
 // hit: (t, level), t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it
 // left.
 fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t_end: f32, steps: u32) -> vec2<f32> {
+    return march_cascades_left(origin, dir, start, t_start, t_end, steps).xy;
+}
+
+// cpu/ao.rs: march_cascades_left. `march_cascades`, with the steps it has left as the third component.
+fn march_cascades_left(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t_end: f32, steps: u32) -> vec3<f32> {
     let inv = safe_inverse(dir);
     var level = start;
     var t0 = t_start;
@@ -257,18 +262,18 @@ fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t
         let t1 = t_end / cell;
         let r = march_level(level, o, dir, t0, t1, MARCH_START_MIP, left);
         if r.t >= 0.0 {
-            return vec2<f32>(r.t * cell, f32(level));
+            return vec3<f32>(r.t * cell, f32(level), f32(r.steps_left));
         }
         left = r.steps_left;
         if left == 0u || level + 1u >= voxel_grid.level_count {
-            return vec2<f32>(-1.0, 0.0);
+            return vec3<f32>(-1.0, 0.0, f32(left));
         }
         let exit = ray_box(o, inv, vec3<f32>(0.0), vec3<f32>(voxel_grid.levels[level].dims)).y;
         if exit >= t1 {
-            return vec2<f32>(-1.0, 0.0);
+            return vec3<f32>(-1.0, 0.0, f32(left));
         }
         t0 = max(exit, t0) * cell / voxel_grid.levels[level + 1u].cell_size;
         level += 1u;
     }
-    return vec2<f32>(-1.0, 0.0);
+    return vec3<f32>(-1.0, 0.0, 0.0);
 }

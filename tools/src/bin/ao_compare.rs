@@ -639,11 +639,15 @@ fn print_bias(
     let mut work = TraceWork::default();
     // The mean absolute difference of the pixels' AO, from these rays.
     let mut pixel_error = 0.0f64;
+    // The contact band (the pixels whose reference AO from these rays is under 0.5): the sum of their
+    // absolute differences, their count, and the sum of HAO's AO less the reference's.
+    let mut band = (0.0f64, 0u64, 0.0f64);
     for &(i, world, normal) in surfaces {
         let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
         let jitter = hash(i * 2 + 3);
         let basis = orthonormal_basis(normal);
         let mut pixel_difference = 0.0f64;
+        let mut pixel_reference = 0.0f64;
         for r in 0..BIAS_RAYS {
             let dir = hemisphere_direction(basis, r, BIAS_RAYS, rotation);
             let start = ray_start_level(levels, world, r, rotation);
@@ -665,6 +669,7 @@ fn print_bias(
                 }
             };
             pixel_difference += f64::from(w_hao - w_ref);
+            pixel_reference += f64::from(w_ref);
             let ray = Row {
                 rays: 1,
                 missed: u64::from(reference.is_some() && hao.is_none()),
@@ -676,7 +681,12 @@ fn print_bias(
             by_distance[bin] += ray;
             by_level[start] += ray;
         }
-        pixel_error += (f64::from(s.intensity) * pixel_difference / f64::from(BIAS_RAYS)).abs();
+        // HAO's AO less the reference's (AO is one less the occlusion).
+        let lighter = -f64::from(s.intensity) * pixel_difference / f64::from(BIAS_RAYS);
+        pixel_error += lighter.abs();
+        if 1.0 - pixel_reference / f64::from(BIAS_RAYS) < 0.5 {
+            band = (band.0 + lighter.abs(), band.1 + 1, band.2 + lighter);
+        }
     }
     let total = (surfaces.len() as u64 * u64::from(BIAS_RAYS)).max(1) as f64;
     let print = |name: String, row: &Row| {
@@ -709,6 +719,13 @@ fn print_bias(
     println!(
         "\nThe pixels' AO from these {BIAS_RAYS} rays: mean absolute difference from the reference {:.4}",
         pixel_error / surfaces.len().max(1) as f64
+    );
+    println!(
+        "Where the reference's AO from these rays is under 0.5 (the contact band): {} pixels ({:.1} %), mean absolute difference {:.4}, mean HAO - reference {:+.4}",
+        band.1,
+        100.0 * band.1 as f64 / surfaces.len().max(1) as f64,
+        band.0 / band.1.max(1) as f64,
+        band.2 / band.1.max(1) as f64
     );
     println!(
         "\nBy the level the ray starts in:\n\n| level (cell size) {header}\n|---|---:|---:|---:|---:|---:|---:|---:|"

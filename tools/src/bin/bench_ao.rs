@@ -450,12 +450,13 @@ fn main() {
     println!(
         "| HAO quality | frames accumulated | rays per pixel | mean texel visits per ray | visits per ray, a warp's \
          slowest lane (lanes busy) | voxel texels fetched per pixel | depth samples per ray (rays stopped by a \
-         contact) | rays that hit | marches out of steps | hits passed as free space, per ray |"
+         contact) | rays that hit | marches out of steps | near hits passed as free space, per ray | other hits passed \
+         as free space, per ray |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for (settings, w) in &work {
         println!(
-            "| {} | {} | {:.2} | {:.1} | {:.1} ({:.0} %) | {:.1} | {:.1} ({:.0} %) | {:.0} % | {:.1} % | {:.1} % |",
+            "| {} | {} | {:.2} | {:.1} | {:.1} ({:.0} %) | {:.1} | {:.1} ({:.0} %) | {:.0} % | {:.1} % | {:.1} % | {:.1} % |",
             preset_name(settings),
             settings.accumulation_frames,
             w.rays_per_pixel,
@@ -467,6 +468,7 @@ fn main() {
             100.0 * w.contact_share,
             100.0 * w.hit_share,
             100.0 * w.out_of_steps_share,
+            100.0 * w.near_free_space_share,
             100.0 * w.free_space_share
         );
     }
@@ -559,6 +561,7 @@ struct Work {
     out_of_steps_share: f64,
     /// Voxel hits passed because the view shows them in free space, per ray.
     free_space_share: f64,
+    near_free_space_share: f64,
 }
 
 /// The CPU twin's trace of every `STRIDE`th pixel (at half resolution, of the blocks those pixels start)
@@ -600,6 +603,7 @@ fn trace_work(
         work.contacts += part.contacts;
         work.out_of_steps += part.out_of_steps;
         work.free_space_passes += part.free_space_passes;
+        work.near_free_space_passes += part.near_free_space_passes;
         pixels += n;
     }
     // At half resolution a traced sample serves a 2x2 block; in a checkerboard half the blocks trace a frame.
@@ -618,6 +622,7 @@ fn trace_work(
         hit_share: work.hits as f64 / rays,
         out_of_steps_share: work.out_of_steps as f64 / rays,
         free_space_share: work.free_space_passes as f64 / rays,
+        near_free_space_share: work.near_free_space_passes as f64 / rays,
     }
 }
 
@@ -630,8 +635,10 @@ const WARP_STRIDE: u32 = 4;
 /// The march visits a ray as a SIMD device pays them: every `WARP_STRIDE`th warp of the trace's invocations
 /// (its texels, or in a checkerboard every other texel of a row) along each axis is traced by the CPU twin with the rays and steps `settings` trace a frame, and each of a warp's
 /// rays costs the visits of its slowest lane (lanes that finish wait for it; lanes on the background trace
-/// nothing), in the first march and again in each pass past free space, which comes after the march before
-/// it. (The marches through the backs of surfaces, a loop of their own too, count with the first.) Returns
+/// nothing), in the first march, again in the passes past near hits in free space (all together, as one
+/// march: they share its steps), and again in each pass past other hits in free space, each of which comes
+/// after the march before it. (The marches through the backs of surfaces, a loop of their own too, count
+/// with the first.) Returns
 /// those visits per ray, and the share of them that a lane spends on its own ray (the lanes busy).
 fn warp_work(
     samples: &[Option<(Vec3, Vec3)>],
@@ -677,7 +684,9 @@ fn warp_work(
                                 let contact = Some(DepthContacts { view, jitter: ray_jitter(jitter, i) });
                                 ray_occluder(levels, contact, world, normal, dir, start, &trace, &mut work);
                                 let past = work.free_space_visits;
-                                std::iter::once(work.texel_visits - past.iter().sum::<u64>()).chain(past).collect()
+                                let near = work.near_free_space_visits;
+                                let first = work.texel_visits - near - past.iter().sum::<u64>();
+                                [first, near].into_iter().chain(past).collect()
                             })
                             .collect();
                         lanes.push(visits);
