@@ -382,12 +382,15 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 30] = [
+    let pairs: [(&str, &str, f64); 33] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_MOVED_OCCLUDERS", bindings::MAX_MOVED_OCCLUDERS as f64),
         ("src/voxel/voxel_grid.wgsl", "UNKNOWN_MOTION", bindings::UNKNOWN_MOTION as f64),
+        ("src/voxel/voxel_grid.wgsl", "MIN_OCCLUDING_CHORD", crate::cpu::march::MIN_OCCLUDING_CHORD as f64),
+        ("src/voxel/voxel_grid.wgsl", "MARCH_START_MIP", crate::cpu::march::MARCH_START_MIP as f64),
+        ("src/voxel/voxel_grid.wgsl", "CASCADE_BLEND_CELLS", crate::cpu::march::CASCADE_BLEND_CELLS as f64),
         (hao, "DEPTH_TOLERANCE", temporal::DEPTH_TOLERANCE as f64),
         (hao, "NORMAL_TOLERANCE", temporal::NORMAL_TOLERANCE as f64),
         (hao, "CLAMP_MARGIN", temporal::CLAMP_MARGIN as f64),

@@ -447,7 +447,7 @@ fn cpu_trace(
     samples: &[Option<(Vec3, Vec3)>],
     view: &bevy_hao::cpu::contacts::ViewDepth,
     settings: &HybridAmbientOcclusion,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    levels: &[bevy_hao::cpu::march::TraceLevel],
     frame: u32,
 ) -> (Vec<f32>, Vec<usize>) {
     cpu_trace_near_change(samples, view, settings, levels, frame, &vec![0.0; samples.len()])
@@ -459,11 +459,12 @@ fn cpu_trace_near_change(
     samples: &[Option<(Vec3, Vec3)>],
     view: &bevy_hao::cpu::contacts::ViewDepth,
     settings: &HybridAmbientOcclusion,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    levels: &[bevy_hao::cpu::march::TraceLevel],
     frame: u32,
     change: &[f32],
 ) -> (Vec<f32>, Vec<usize>) {
-    use bevy_hao::cpu::ao::{TraceWork, ray_rotation, ray_start_level, voxel_ambient_occlusion_counted};
+    use bevy_hao::cpu::ao::{TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
+    use bevy_hao::cpu::march::ray_start_level;
     use bevy_hao::cpu::contacts::contact_jitter;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     let w = view.size.x;
@@ -494,7 +495,7 @@ fn cpu_trace_near_change(
 fn assert_trace_matches_cpu(
     app: &mut App,
     settings: &HybridAmbientOcclusion,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    levels: &[bevy_hao::cpu::march::TraceLevel],
 ) -> std::collections::BTreeMap<usize, usize> {
     let targets = app.world().resource::<Targets>().clone();
     let (_, _, gpu_ao) = read_image_f32(app, targets.debug.ao.clone(), 2);
@@ -524,11 +525,11 @@ fn assert_trace_matches_cpu(
 }
 
 /// The walls seen from above with `settings`, after `frames` frames, and the GPU's voxels with their mips
-/// (for a [`bevy_hao::cpu::ao::TraceLevel`]).
+/// (for a [`bevy_hao::cpu::march::TraceLevel`]).
 fn walls_app_and_voxels(
     settings: &HybridAmbientOcclusion,
     frames: usize,
-) -> (App, bevy_hao::cpu::ao::VoxelMips, bevy_hao::cpu::VoxelGrid) {
+) -> (App, bevy_hao::cpu::march::VoxelMips, bevy_hao::cpu::VoxelGrid) {
     walls_app_and_voxels_with(settings, frames, None)
 }
 
@@ -538,7 +539,7 @@ fn walls_app_and_voxels_with(
     settings: &HybridAmbientOcclusion,
     frames: usize,
     spinner: Option<Vec3>,
-) -> (App, bevy_hao::cpu::ao::VoxelMips, bevy_hao::cpu::VoxelGrid) {
+) -> (App, bevy_hao::cpu::march::VoxelMips, bevy_hao::cpu::VoxelGrid) {
     let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
     let mut app = scene_app(camera, Ao::Hao(settings.clone()), move |c, m, mat| {
         walls(c, m, mat.clone());
@@ -563,7 +564,7 @@ fn walls_app_and_voxels_with(
     run(&mut app, frames);
     let occupancy = read_occupancy(&mut app);
     let assets = grid_assets(&app).unwrap();
-    (app, bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels), assets.grid)
+    (app, bevy_hao::cpu::march::VoxelMips::new(&occupancy, assets.mip_levels), assets.grid)
 }
 
 /// The CPU twin's trace of render frame `frame` as the GPU stores it: one texel per pixel, or per 2x2 block
@@ -574,7 +575,7 @@ fn cpu_trace_frame(
     samples: &[Option<(Vec3, Vec3)>],
     view: &bevy_hao::cpu::contacts::ViewDepth,
     settings: &HybridAmbientOcclusion,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    levels: &[bevy_hao::cpu::march::TraceLevel],
     frame: u32,
     previous: Option<&bevy_hao::cpu::temporal::TraceFrame>,
     change: &[f32],
@@ -617,7 +618,7 @@ fn assert_accumulation_matches_cpu(quality: HaoQuality) {
 /// while the history near it is capped (`cpu::temporal::change_cap`) and the trace traces more rays there
 /// (`change_rays`), as the twin must.
 fn assert_accumulation_matches_cpu_with(quality: HaoQuality, spinner: Option<Vec3>) {
-    use bevy_hao::cpu::ao::TraceLevel;
+    use bevy_hao::cpu::march::TraceLevel;
     use bevy_hao::cpu::temporal::{MovedVoxels, accumulate_still, occlusion_change};
     let _gpu = gpu_lock();
     // With the filter (`cpu::temporal::prefilter`), wider than its default.
@@ -727,7 +728,7 @@ fn checkerboard_accumulation_matches_its_cpu_twin() {
 
 #[test]
 fn the_gpu_trace_matches_its_cpu_twin() {
-    use bevy_hao::cpu::ao::TraceLevel;
+    use bevy_hao::cpu::march::TraceLevel;
     let _gpu = gpu_lock();
     let mut mean_ao = Vec::new();
     for depth_contacts in [false, true] {
@@ -777,13 +778,13 @@ fn traced_like_the_twin(
     scene: fn(&mut Commands, &mut Assets<Mesh>, Handle<StandardMaterial>),
     pixels: usize,
 ) -> f32 {
-    use bevy_hao::cpu::ao::TraceLevel;
+    use bevy_hao::cpu::march::TraceLevel;
     let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, ..settings };
     let mut app = scene_app(camera, Ao::Hao(settings.clone()), scene);
     run(&mut app, 8);
     let occupancy = read_occupancy(&mut app);
     let assets = grid_assets(&app).unwrap();
-    let mips = bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels);
+    let mips = bevy_hao::cpu::march::VoxelMips::new(&occupancy, assets.mip_levels);
     let grid = assets.grid;
     let levels = [TraceLevel { origin: grid.origin, cell_size: grid.cell_size, window_min: IVec3::ZERO, mips: &mips }];
     let (gpu, samples) = ao_and_samples(&mut app);
@@ -877,7 +878,7 @@ fn the_gpu_free_space_passes_match_their_cpu_twin() {
 /// filter over the twin's trace.
 #[test]
 fn the_gpu_denoiser_matches_its_cpu_twin() {
-    use bevy_hao::cpu::ao::TraceLevel;
+    use bevy_hao::cpu::march::TraceLevel;
     use bevy_hao::cpu::temporal::{TracedTexel, prefilter};
     let _gpu = gpu_lock();
     let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 1, ..hao_settings() };
@@ -926,7 +927,7 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
 /// the GPU's voxels and their normals) both ways, and the floor under the plane is lighter with it.
 #[test]
 fn rays_pass_through_the_backs_of_surfaces_on_the_gpu_as_on_its_cpu_twin() {
-    use bevy_hao::cpu::ao::{TraceLevel, VoxelMips};
+    use bevy_hao::cpu::march::{TraceLevel, VoxelMips};
     let _gpu = gpu_lock();
     let camera = Transform::from_xyz(0.0, 1.0, 5.0).looking_at(Vec3::new(0.0, 0.0, 0.0), Vec3::Y);
     let mut under = Vec::new();
@@ -1006,7 +1007,7 @@ fn walls_and_pillars(commands: &mut Commands, meshes: &mut Assets<Mesh>, materia
 
 #[test]
 fn the_gpu_trace_matches_its_cpu_twin_across_cascades() {
-    use bevy_hao::cpu::ao::{TraceLevel, VoxelMips};
+    use bevy_hao::cpu::march::{TraceLevel, VoxelMips};
     let _gpu = gpu_lock();
     let settings = HybridAmbientOcclusion { denoise_radius: 0, accumulation_frames: 1, ..hao_settings() };
     // Low over the floor, looking down the row of pillars: the view reaches from the finest cascade to the

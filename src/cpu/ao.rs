@@ -7,8 +7,8 @@ use super::contacts::{
     CONTACT_LENGTH, FREE_SPACE_MARGIN, MAX_FREE_SPACE_PASSES, MAX_NEAR_FREE_SPACE_PASSES, NEAR_FREE_SPACE_CELLS,
     NEAR_FREE_SPACE_PIXELS, ViewDepth, depth_contact, ray_jitter,
 };
-use super::grid::VoxelOccupancy;
-use glam::{IVec3, Mat3, UVec3, Vec2, Vec3};
+use super::march::{March, TraceLevel, ray_box, ray_start_level, safe_inverse};
+use glam::{Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
 
 /// The golden ratio's fractional part (WGSL: `GOLDEN`).
@@ -116,301 +116,6 @@ pub fn ao_falloff(distance: f32, max_distance: f32, falloff: f32) -> f32 {
     (1.0 - x).powf(falloff)
 }
 
-/// `1 / d` with zero components replaced by a huge value of the same sign.
-pub fn safe_inverse(d: Vec3) -> Vec3 {
-    Vec3::select(
-        d.abs().cmplt(Vec3::splat(1.0e-30)),
-        Vec3::select(d.cmpge(Vec3::ZERO), Vec3::splat(1.0e30), Vec3::splat(-1.0e30)),
-        1.0 / d,
-    )
-}
-
-/// The `(t_enter, t_exit)` of a ray in the box `[lo, hi]` (empty if `t_enter > t_exit`).
-pub fn ray_box(origin: Vec3, inv_dir: Vec3, lo: Vec3, hi: Vec3) -> Vec2 {
-    let t0 = (lo - origin) * inv_dir;
-    let t1 = (hi - origin) * inv_dir;
-    let (tmin, tmax) = (t0.min(t1), t0.max(t1));
-    Vec2::new(tmin.max_element(), tmax.min_element())
-}
-
-/// The occupancy as the voxel texture holds it: padded to a multiple of `2^(levels - 1)` per axis, with
-/// max-reduced levels (a texel of level `l` is set if any of its `2^l`-cell block is).
-pub struct VoxelMips {
-    dims: UVec3,
-    levels: Vec<(UVec3, Vec<bool>)>,
-    /// The cells' average normals as the normal texture holds them (8-bit signed), where the occupancy has
-    /// attributes.
-    normals: Option<Vec<Vec3>>,
-}
-
-impl VoxelMips {
-    /// Builds the pyramid with `levels` levels (as the plugin does: `VoxelGridAssets::mip_levels`), clamped
-    /// to 1..=8.
-    pub fn new(occ: &VoxelOccupancy, levels: u32) -> Self {
-        let levels = levels.clamp(1, 8);
-        let dims = occ.grid().dims;
-        let align = 1u32 << (levels - 1);
-        let size = (dims + UVec3::splat(align - 1)) / align * align;
-        let mut base = vec![false; (size.x * size.y * size.z) as usize];
-        occ.for_each_set_index(|i| {
-            let c = occ.grid().cell_of_index(i);
-            base[(c.x + size.x * (c.y + size.y * c.z)) as usize] = true;
-        });
-        let mut out = vec![(size, base)];
-        for _ in 1..levels {
-            let (prev_size, prev) = out.last().expect("level 0 exists");
-            let s = *prev_size / 2;
-            let mut cur = vec![false; (s.x * s.y * s.z) as usize];
-            for z in 0..s.z {
-                for y in 0..s.y {
-                    for x in 0..s.x {
-                        let mut any = false;
-                        for k in 0..8u32 {
-                            let c = UVec3::new(2 * x + (k & 1), 2 * y + ((k >> 1) & 1), 2 * z + (k >> 2));
-                            any |= prev[(c.x + prev_size.x * (c.y + prev_size.y * c.z)) as usize];
-                        }
-                        cur[(x + s.x * (y + s.y * z)) as usize] = any;
-                    }
-                }
-            }
-            out.push((s, cur));
-        }
-        // The normal texture's precision: Rgba8Snorm.
-        let snorm = |v: Vec3| (v.clamp(Vec3::NEG_ONE, Vec3::ONE) * 127.0).round() / 127.0;
-        let normals = occ.has_attributes().then(|| {
-            (0..occ.grid().voxel_count() as u32)
-                .map(|i| occ.attributes(occ.grid().cell_of_index(i)).map_or(Vec3::ZERO, |a| snorm(a.normal)))
-                .collect()
-        });
-        Self { dims, levels: out, normals }
-    }
-
-    /// The average normal of cell `cell` as the normal texture holds it (WGSL: `voxel_normal_at`): clamped
-    /// to the padded texture, zero in its padding and without attributes.
-    pub fn normal(&self, cell: IVec3) -> Vec3 {
-        let Some(n) = &self.normals else { return Vec3::ZERO };
-        let c = cell.clamp(IVec3::ZERO, self.levels[0].0.as_ivec3() - IVec3::ONE).as_uvec3();
-        if c.cmpge(self.dims).any() {
-            return Vec3::ZERO;
-        }
-        n[(c.x + self.dims.x * (c.y + self.dims.y * c.z)) as usize]
-    }
-
-    fn load(&self, texel: IVec3, level: usize) -> bool {
-        let (s, v) = &self.levels[level];
-        let c = texel.clamp(IVec3::ZERO, s.as_ivec3() - IVec3::ONE).as_uvec3();
-        v[(c.x + s.x * (c.y + s.y * c.z)) as usize]
-    }
-
-    /// The cells per axis of level 0 (the occupancy's dimensions).
-    pub fn dims(&self) -> UVec3 {
-        self.dims
-    }
-
-    /// The distance along `dir` (grid units, from `origin`) to the entry of the first run of occupied cells
-    /// within `[t_start, t_end]` that the ray goes [`MIN_OCCLUDING_CHORD`] through, if any, and how many texel
-    /// visits were left: start at mip `start_level`, step over empty texels whole, descend into occupied ones,
-    /// visiting at most `steps` texels (WGSL: `march_level`).
-    /// After a step it goes up a mip only where the step entered another texel of the mip above: within the
-    /// same one, that texel is the one it descended from (occupied: reading it again would be a wasted visit)
-    /// or one it has not read, which near a surface, where rays start, is most often occupied too (going up
-    /// into those as well measured more visits). With [`MARCH_START_MIP`], this costs 17-21 % fewer visits a
-    /// ray than going up after every step from mip 2 on the cathedral, Sibenik and Sponza (`bench_ao`'s work
-    /// table; docs/figures.md).
-    pub fn march_level(
-        &self,
-        origin: Vec3,
-        dir: Vec3,
-        t_start: f32,
-        t_end: f32,
-        start_level: usize,
-        steps: u32,
-    ) -> MarchResult {
-        let inv = safe_inverse(dir);
-        let span = ray_box(origin, inv, Vec3::ZERO, self.dims.as_vec3());
-        let mut t = t_start.max(span.x);
-        let t_max = t_end.min(span.y);
-        let top = self.levels.len() - 1;
-        let mut level = start_level.min(top);
-        let mut left = steps;
-        // The texel last stepped over (unclamped), if the last visit was such a step.
-        let mut last: Option<IVec3> = None;
-        // The run of occupied cells the ray is in: where it entered it, and how far it has gone through it.
-        let mut run_start = 0.0f32;
-        let mut run_length = 0.0f32;
-        while left > 0 {
-            if t > t_max {
-                return MarchResult { hit: None, steps_left: left };
-            }
-            left -= 1;
-            let p = origin + dir * t;
-            let mut texel = (p * (1.0 / (1u32 << level) as f32)).floor().as_ivec3();
-            // After a step that entered another texel of the mip above, that one.
-            if last.is_some_and(|last| level < top && texel >> 1 != last >> 1) {
-                level += 1;
-                texel >>= 1;
-            }
-            let scale = (1u32 << level) as f32;
-            let size = self.levels[level].0.as_ivec3();
-            let clamped = texel.clamp(IVec3::ZERO, size - IVec3::ONE);
-            let lo = clamped.as_vec3() * scale;
-            let exit = ray_box(origin, inv, lo, lo + Vec3::splat(scale)).y;
-            let occupied = self.load(clamped, level);
-            // A run of occupied cells stops the ray once it has gone MIN_OCCLUDING_CHORD through it; a cell it
-            // only clips is passed, as an empty one.
-            if occupied && level == 0 {
-                if run_length == 0.0 {
-                    run_start = t;
-                }
-                run_length += exit - t;
-                if run_length >= MIN_OCCLUDING_CHORD {
-                    return MarchResult { hit: Some(run_start), steps_left: left };
-                }
-            } else if !occupied {
-                run_length = 0.0;
-            }
-            if occupied && level > 0 {
-                level -= 1;
-                last = None;
-            } else {
-                t = exit.max(t) + 1.0e-3;
-                last = Some(texel);
-            }
-        }
-        MarchResult { hit: None, steps_left: 0 }
-    }
-}
-
-/// What a march through one level found (WGSL: `MarchResult`, with `t < 0` for no hit).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MarchResult {
-    /// The distance to the entry of the run of occupied cells that stopped the ray, in the level's cells.
-    pub hit: Option<f32>,
-    /// Texel visits left.
-    pub steps_left: u32,
-}
-
-/// One level of the voxel volume as the trace reads it (WGSL: `VoxelLevel` of `voxel_grid.wgsl`): a single
-/// grid, or one cascade level with its occupancy stored relative to its window.
-#[derive(Clone, Copy)]
-pub struct TraceLevel<'a> {
-    /// World position of lattice cell 0 (the world origin for cascades, the grid's min corner otherwise).
-    pub origin: Vec3,
-    /// World-space cell size.
-    pub cell_size: f32,
-    /// The lattice cell at the window's min corner (0 for a single grid).
-    pub window_min: IVec3,
-    /// The window's occupancy pyramid.
-    pub mips: &'a VoxelMips,
-}
-
-impl TraceLevel<'_> {
-    /// World space to the window's cells (WGSL: `level_position`).
-    pub fn level_position(&self, world: Vec3) -> Vec3 {
-        (world - self.origin) / self.cell_size - self.window_min.as_vec3()
-    }
-}
-
-/// The width, in the level's cells, of the band over which rays move from one level to the next.
-pub const CASCADE_BLEND_CELLS: f32 = 8.0;
-
-/// How many of a surface point's rays may start in a level (WGSL: `level_weight`): 1 when the point lies
-/// at least [`CASCADE_BLEND_CELLS`] cells inside the window, falling to 0 at its border. `p` in the window's
-/// cells. Rays that leave the window go on in coarser levels; starting them in the finest level that holds
-/// the surface (rather than one that holds their whole reach) measured better against the ray-traced
-/// reference on the cathedral, Sibenik and Sponza.
-pub fn level_weight(p: Vec3, dims: UVec3) -> f32 {
-    let margin = p.min(dims.as_vec3() - p).min_element();
-    (margin / CASCADE_BLEND_CELLS).clamp(0.0, 1.0)
-}
-
-/// The level ray `i` starts in (WGSL: `ray_start_level`): the finest whose [`level_weight`] exceeds the
-/// ray's own number in `[0, 1)`, so that across the blend band rays move to the coarser level in proportion
-/// and no seam shows; the coarsest level takes what no finer one does.
-pub fn ray_start_level(levels: &[TraceLevel], world: Vec3, i: u32, rotation: Vec2) -> usize {
-    let u = (i as f32 * 0.754_877_7 + rotation.x + rotation.y).fract();
-    let last = levels.len() - 1;
-    for (l, level) in levels[..last].iter().enumerate() {
-        let w = level_weight(level.level_position(world), level.mips.dims());
-        if w > u {
-            return l;
-        }
-    }
-    last
-}
-
-/// How far a ray must go through a run of occupied cells (consecutive along it, in the level's cells) before
-/// they stop it, at the run's entry (WGSL: `MIN_OCCLUDING_CHORD`): `1 / sqrt(3)`, half a cell's diagonal. A
-/// cell holds some surface, not a solid cube, and a ray that only clips a corner or an edge of a lone cell most
-/// often passes that surface by: stopping at every cell a ray touches made occluders up to a cell thicker and
-/// darkened every scene measured (docs/figures.md). Through a wall or a floor one cell thick the run is at
-/// least a cell long at any angle, so it is not passed through. 0.5 measured about the same.
-pub const MIN_OCCLUDING_CHORD: f32 = 0.577_350_3;
-
-/// The mip a march starts at in each level (WGSL: `MARCH_START_MIP`). A ray starts about a cell from the
-/// surface, whose coarse texels are occupied: starting at mip 1 spares most of the descent to mip 0.
-pub const MARCH_START_MIP: usize = 1;
-
-/// The world-space distance along `dir` from `origin` to the first run of occupied voxels that stops it
-/// ([`MIN_OCCLUDING_CHORD`]) within `t_end` (world units), and the level it is in, starting in level `start`
-/// at `t_start` of its cells, or `None` (WGSL: `march_cascades`). A ray that leaves a level's window goes on
-/// in the next coarser level from where it left (so an occluder just across the border occludes).
-pub fn march_cascades(
-    levels: &[TraceLevel],
-    origin: Vec3,
-    dir: Vec3,
-    start: usize,
-    t_start: f32,
-    t_end: f32,
-    steps: u32,
-) -> Option<(f32, usize)> {
-    march_cascades_left(levels, origin, dir, start, t_start, t_end, steps, &mut TraceWork::default()).0
-}
-
-/// [`march_cascades`], adding the texel visits it made to `work` (and whether it ran out of steps), and
-/// returning the steps it has left too (WGSL: `march_cascades_left`, which returns them as the hit's third
-/// component).
-#[allow(clippy::too_many_arguments)]
-fn march_cascades_left(
-    levels: &[TraceLevel],
-    origin: Vec3,
-    dir: Vec3,
-    start: usize,
-    t_start: f32,
-    t_end: f32,
-    steps: u32,
-    work: &mut TraceWork,
-) -> (Option<(f32, usize)>, u32) {
-    let inv = safe_inverse(dir);
-    let mut level = start;
-    let mut t0 = t_start;
-    let mut left = steps;
-    loop {
-        let lv = &levels[level];
-        let o = lv.level_position(origin);
-        let t1 = t_end / lv.cell_size;
-        let r = lv.mips.march_level(o, dir, t0, t1, MARCH_START_MIP, left);
-        work.texel_visits += u64::from(left - r.steps_left);
-        if let Some(t) = r.hit {
-            return (Some((t * lv.cell_size, level)), r.steps_left);
-        }
-        left = r.steps_left;
-        if left == 0 {
-            work.out_of_steps += 1;
-            return (None, 0);
-        }
-        if level + 1 >= levels.len() {
-            return (None, left);
-        }
-        let exit = ray_box(o, inv, Vec3::ZERO, lv.mips.dims().as_vec3()).y;
-        if exit >= t1 {
-            return (None, left);
-        }
-        let next = &levels[level + 1];
-        t0 = exit.max(t0) * lv.cell_size / next.cell_size;
-        level += 1;
-    }
-}
 
 /// The work of a trace, counted by the CPU twin: a measure of its cost that does not depend on the device
 /// (the GPU does the same loads; see `bench_ao`).
@@ -610,21 +315,23 @@ pub fn voxel_ray_occluder(
     work: &mut TraceWork,
 ) -> Option<VoxelOccluder> {
     let origin = world + normal * (s.start_offset * levels[start].cell_size);
-    let (mut hit, mut left) =
-        march_cascades_left(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps, work);
-    // Through the backs of surfaces, a few times at most.
+    let mut march = March::new(levels, origin, dir, start, s.start_offset, s.max_distance, s.steps);
+    let mut hit = march.run();
+    // Through the backs of surfaces, a few times at most, each with the whole step budget.
     for _ in 0..MAX_BACK_HITS {
         let Some(h) = hit.filter(|_| s.ignore_back_hits) else { break };
         work.normal_loads += 1;
         let Some(exit) = back_hit_exit(levels, origin, dir, h) else { break };
-        (hit, left) = march_cascades_left(levels, origin, dir, h.1, exit, s.max_distance, s.steps, work);
+        march.resume(exit, s.steps);
+        hit = march.run();
     }
     // Past the cells near the surface that the view shows empty, by a pixel, where the trace takes their
     // surface to be; the march goes on with the steps it has left.
+    let first = march.visits();
     if let Some(view) = view.filter(|_| s.depth_contacts) {
         let near = NEAR_FREE_SPACE_CELLS * levels[start].cell_size;
         for _ in 0..MAX_NEAR_FREE_SPACE_PASSES {
-            let Some((t, level)) = hit.filter(|_| left > 0) else { break };
+            let Some((t, level)) = hit.filter(|_| march.steps_left() > 0) else { break };
             let surface = origin + dir * (t + 0.5 * levels[level].cell_size);
             if (surface - world).length() > near {
                 break;
@@ -634,13 +341,13 @@ pub fn voxel_ray_occluder(
                 break;
             }
             work.near_free_space_passes += 1;
-            let exit = cell_exit(levels, origin, dir, (t, level));
-            let before = work.texel_visits;
-            (hit, left) = march_cascades_left(levels, origin, dir, level, exit, s.max_distance, left, work);
-            work.near_free_space_visits += work.texel_visits - before;
+            march.resume(cell_exit(levels, origin, dir, (t, level)), march.steps_left());
+            hit = march.run();
         }
     }
-    // Past the cells the view shows empty where the trace takes their surface to be, a few times at most.
+    work.near_free_space_visits += march.visits() - first;
+    // Past the cells the view shows empty where the trace takes their surface to be, a few times at most,
+    // each with the whole step budget.
     if let Some(view) = view.filter(|_| s.depth_free_space) {
         for pass in 0..MAX_FREE_SPACE_PASSES as usize {
             let Some((t, level)) = hit else { break };
@@ -650,11 +357,15 @@ pub fn voxel_ray_occluder(
                 break;
             }
             work.free_space_passes += 1;
-            let exit = cell_exit(levels, origin, dir, (t, level));
-            let before = work.texel_visits;
-            hit = march_cascades_left(levels, origin, dir, level, exit, s.max_distance, s.steps, work).0;
-            work.free_space_visits[pass] += work.texel_visits - before;
+            let before = march.visits();
+            march.resume(cell_exit(levels, origin, dir, (t, level)), s.steps);
+            hit = march.run();
+            work.free_space_visits[pass] += march.visits() - before;
         }
+    }
+    work.texel_visits += march.visits();
+    if hit.is_none() && march.out_of_steps() {
+        work.out_of_steps += 1;
     }
     // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
     hit.map(|(t, level)| VoxelOccluder {
@@ -666,7 +377,10 @@ pub fn voxel_ray_occluder(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::grid::VoxelOccupancy;
+    use crate::cpu::march::{VoxelMips, march_cascades, ray_start_level};
     use crate::cpu::VoxelGrid;
+    use glam::{IVec3, UVec3};
 
     #[test]
     fn a_checkerboard_traces_half_the_blocks_a_frame_and_every_pixel_every_eighth() {
@@ -824,67 +538,6 @@ mod tests {
             voxel_ray_occluder(&level, None, Vec3::new(24.5, 10.5, 10.5), -Vec3::X, -Vec3::X, 0, &s, &mut work)
                 .is_none()
         );
-    }
-
-    #[test]
-    fn a_ray_that_clips_a_cell_passes_it_and_a_ray_through_a_wall_of_cells_does_not() {
-        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(32)).unwrap();
-        let lone = VoxelOccupancy::new(grid, false);
-        lone.set(UVec3::splat(16));
-        let mips = VoxelMips::new(&lone, 4);
-        // Through the middle of the lone cell (a chord of 1): stopped at its entry.
-        let through = mips.march_level(Vec3::new(2.5, 16.5, 16.5), Vec3::X, 0.0, 30.0, MARCH_START_MIP, 64);
-        assert!(through.hit.is_some_and(|t| (t - 13.5).abs() < 0.01), "{through:?}");
-        // Across its corner, a chord of about 0.28: passed.
-        let d = Vec3::new(1.0, 1.0, 0.0).normalize();
-        let corner = mips.march_level(Vec3::new(2.3, 2.3 + 14.0 - 0.2, 16.5), d, 0.0, 40.0, MARCH_START_MIP, 64);
-        assert_eq!(corner.hit, None, "{corner:?}");
-        // A wall one cell thick (x = 16) stops every ray that crosses it, at any angle, though each of the cells
-        // it goes through may hold only a short piece of it.
-        let wall = VoxelOccupancy::new(grid, false);
-        for y in 0..32 {
-            for z in 0..32 {
-                wall.set(UVec3::new(16, y, z));
-            }
-        }
-        let mips = VoxelMips::new(&wall, 4);
-        let basis = orthonormal_basis(Vec3::X);
-        let mut crossed = 0;
-        for i in 0..256 {
-            let d = hemisphere_direction(basis, i, 256, Vec2::new(0.37, 0.61));
-            let origin = Vec3::new(12.3, 16.1, 15.7);
-            // Only rays that cross the whole wall inside the grid (the others leave it through the wall's edge).
-            let inside = |x: f32| {
-                let p = origin + d * ((x - origin.x) / d.x);
-                p.y >= 0.0 && p.y <= 32.0 && p.z >= 0.0 && p.z <= 32.0
-            };
-            if !(inside(16.0) && inside(17.0)) {
-                continue;
-            }
-            let t = mips.march_level(origin, d, 0.0, 60.0, MARCH_START_MIP, 256).hit;
-            assert!(t.is_some_and(|t| ((origin + d * t).x - 16.0).abs() < 0.01), "{d} {t:?}");
-            crossed += 1;
-        }
-        assert!(crossed > 200, "{crossed}");
-    }
-
-    #[test]
-    fn a_march_along_a_surface_does_not_read_a_texel_it_has_just_left_again() {
-        // A floor (z = 0) and a ray along it one cell above (z in [1, 2]): every mip-1 texel it crosses holds
-        // floor. Going up after every step would read each mip-1 texel again after each of its two cells (2
-        // visits a cell: 58 here); going up only into a new mip-1 texel, 1.5 a cell (44).
-        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::new(32, 32, 32)).unwrap();
-        let occ = VoxelOccupancy::new(grid, false);
-        for x in 0..32 {
-            for y in 0..32 {
-                occ.set(UVec3::new(x, y, 0));
-            }
-        }
-        let mips = VoxelMips::new(&occ, 4);
-        let r = mips.march_level(Vec3::new(0.5, 10.5, 1.5), Vec3::X, 0.0, 28.0, MARCH_START_MIP, 1000);
-        assert_eq!(r.hit, None);
-        let visits = 1000 - r.steps_left;
-        assert!((40..=46).contains(&visits), "{visits}");
     }
 
     #[test]

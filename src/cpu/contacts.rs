@@ -259,7 +259,8 @@ mod tests {
     /// into the step's side, below its top, stops there; without the view all three stop.
     #[test]
     fn near_voxel_hits_the_view_shows_in_empty_space_are_passed() {
-        use crate::cpu::ao::{TraceLevel, TraceSettings, TraceWork, VoxelMips, voxel_ray_occluder};
+        use crate::cpu::march::{TraceLevel, VoxelMips};
+        use crate::cpu::ao::{TraceSettings, TraceWork, voxel_ray_occluder};
         use crate::cpu::grid::{VoxelGrid, VoxelOccupancy};
         use glam::{IVec3, UVec3};
         let view = floor_with_a_step();

@@ -13,8 +13,10 @@
 //! * [`bias_model`]: equation 3.
 //! * [`skinning`]: morph targets and linear blend skinning as Bevy renders them, applied before voxelizing.
 //! * [`cascade`]: the camera-following cascades (windows of an unbounded lattice, snapped and scrolled).
-//! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, and the march
-//!   through the voxel grid with empty-space skipping); [`contacts`]: of the rays' first cells, traced in
+//! * [`march`]: the march through the voxel volume's levels with empty-space skipping ([`march::March`],
+//!   on the occupancy's mips, [`march::VoxelMips`]).
+//! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, the hits a ray
+//!   passes on its way, and the occlusion they add up to); [`contacts`]: of the rays' first cells, traced in
 //!   the depth prepass; [`temporal`]: of its temporal accumulation and
 //!   filter; [`denoise`]: the filter's weights and the history's texel.
 //!
@@ -35,6 +37,7 @@
 //! ```
 
 pub mod ao;
+pub mod march;
 pub mod attributes;
 pub mod bias_model;
 pub mod cascade;

@@ -1,7 +1,7 @@
 // The voxel grid as every sampling pass sees it: the one bind group that `voxel/` prepares
 // (src/voxel/bindings.rs: `VoxelGridBindings`), with the levels of the volume (one for a single grid, one
 // per cascade), their 3D texture, and the march through them. Import it and add the bind group at
-// VOXEL_GRID_GROUP. CPU twin: `bevy_hao::cpu::ao` (`TraceLevel`, `march_level`, `march_cascades`).
+// VOXEL_GRID_GROUP. CPU twin: `bevy_hao::cpu::march` (`TraceLevel`, `March`, `march_cascades`).
 #define_import_path bevy_hao::voxel_grid
 
 const MAX_VOXEL_LEVELS: u32 = 8u;
@@ -61,17 +61,17 @@ struct VoxelGrid {
 @group(2) @binding(2) var voxel_albedo: texture_3d<f32>;
 @group(2) @binding(3) var voxel_normal: texture_3d<f32>;
 
-// cpu/ao.rs: CASCADE_BLEND_CELLS
+// cpu/march.rs: CASCADE_BLEND_CELLS
 const CASCADE_BLEND_CELLS: f32 = 8.0;
 
-// cpu/ao.rs: safe_inverse. 1 / d with zero components replaced by a huge value of the same sign.
+// cpu/march.rs: safe_inverse. 1 / d with zero components replaced by a huge value of the same sign.
 fn safe_inverse(d: vec3<f32>) -> vec3<f32> {
     let big = vec3<f32>(1.0e30);
     let s = select(vec3<f32>(-1.0), vec3<f32>(1.0), d >= vec3<f32>(0.0));
     return select(1.0 / d, s * big, abs(d) < vec3<f32>(1.0e-30));
 }
 
-// cpu/ao.rs: ray_box. The [t_enter, t_exit] of a ray in the box [lo, hi]; empty if t_enter > t_exit.
+// cpu/march.rs: ray_box. The [t_enter, t_exit] of a ray in the box [lo, hi]; empty if t_enter > t_exit.
 fn ray_box(origin: vec3<f32>, inv_dir: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>) -> vec2<f32> {
     let t0 = (lo - origin) * inv_dir;
     let t1 = (hi - origin) * inv_dir;
@@ -80,7 +80,7 @@ fn ray_box(origin: vec3<f32>, inv_dir: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>) 
     return vec2<f32>(max(max(tmin.x, tmin.y), tmin.z), min(min(tmax.x, tmax.y), tmax.z));
 }
 
-// cpu/ao.rs: TraceLevel::level_position. World space to the level's window, in its cells.
+// cpu/march.rs: TraceLevel::level_position. World space to the level's window, in its cells.
 fn level_position(level: u32, world: vec3<f32>) -> vec3<f32> {
     let l = voxel_grid.levels[level];
     return (world - l.origin) / l.cell_size - vec3<f32>(l.window_min);
@@ -133,21 +133,21 @@ fn voxel_normal_at(level: u32, texel: vec3<i32>) -> vec3<f32> {
     return textureLoad(voxel_normal, voxel_texel(level, texel), 0).xyz;
 }
 
-// cpu/ao.rs: MIN_OCCLUDING_CHORD
+// cpu/march.rs: MIN_OCCLUDING_CHORD
 const MIN_OCCLUDING_CHORD: f32 = 0.5773503;
 
-// cpu/ao.rs: MarchResult (t < 0: no hit).
+// cpu/march.rs: MarchResult (t < 0: no hit).
 struct MarchResult {
     t: f32,
     steps_left: u32,
 }
 
-// cpu/ao.rs: VoxelMips::march_level. The distance along `dir` (the level's cells, from `origin` in its
-// window) to the entry of the first run of occupied cells within [t_start, t_end] that the ray goes
-// MIN_OCCLUDING_CHORD through: start at mip `start_mip`, step over empty texels whole, descend into occupied
-// ones, and go up a mip after a step only where it entered another texel of the mip above (within the same
-// one, that texel is the one just descended from, or one not read, which near a surface is most often
-// occupied too); at most `steps` texel visits.
+// cpu/march.rs: VoxelMips::march_level (one level of March::run). The distance along `dir` (the level's
+// cells, from `origin` in its window) to the entry of the first run of occupied cells within [t_start, t_end]
+// that the ray goes MIN_OCCLUDING_CHORD through: start at mip `start_mip`, step over empty texels whole,
+// descend into occupied ones, and go up a mip after a step only where it entered another texel of the mip
+// above (within the same one, that texel is the one just descended from, or one not read, which near a
+// surface is most often occupied too); at most `steps` texel visits.
 fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_end: f32, start_mip: u32, steps: u32) -> MarchResult {
     // The level's record, read once.
     let l = voxel_grid.levels[level];
@@ -205,7 +205,7 @@ fn march_level(level: u32, origin: vec3<f32>, dir: vec3<f32>, t_start: f32, t_en
     return MarchResult(-1.0, 0u);
 }
 
-// cpu/ao.rs: level_weight. How many of a surface point's rays may start in a level: 1 when it lies at
+// cpu/march.rs: level_weight. How many of a surface point's rays may start in a level: 1 when it lies at
 // least CASCADE_BLEND_CELLS cells inside the window, 0 at its border.
 fn level_weight(level: u32, world: vec3<f32>) -> f32 {
     let p = level_position(level, world);
@@ -214,7 +214,7 @@ fn level_weight(level: u32, world: vec3<f32>) -> f32 {
     return clamp(margin / CASCADE_BLEND_CELLS, 0.0, 1.0);
 }
 
-// cpu/ao.rs: ray_start_level. The finest level whose weight exceeds ray i's own number; the coarsest
+// cpu/march.rs: ray_start_level. The finest level whose weight exceeds ray i's own number; the coarsest
 // takes what no finer one does.
 fn ray_start_level(world: vec3<f32>, i: u32, rotation: vec2<f32>) -> u32 {
     let u = fract(f32(i) * 0.7548777 + rotation.x + rotation.y);
@@ -239,10 +239,10 @@ fn finest_level_containing(world: vec3<f32>) -> u32 {
     return last;
 }
 
-// cpu/ao.rs: MARCH_START_MIP
+// cpu/march.rs: MARCH_START_MIP
 const MARCH_START_MIP: u32 = 1u;
 
-// cpu/ao.rs: march_cascades. The world distance along `dir` from `origin` to the first run of occupied voxels
+// cpu/march.rs: march_cascades. The world distance along `dir` from `origin` to the first run of occupied voxels
 // that stops it within `t_end` (world), starting in level `start` at `t_start` of its cells, and the level
 // hit: (t, level), t < 0 for no hit. A ray that leaves a level goes on in the next coarser one from where it
 // left.
@@ -250,7 +250,8 @@ fn march_cascades(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t
     return march_cascades_left(origin, dir, start, t_start, t_end, steps).xy;
 }
 
-// cpu/ao.rs: march_cascades_left. `march_cascades`, with the steps it has left as the third component.
+// cpu/march.rs: March::run, March::steps_left. `march_cascades`, with the steps it has left as the third
+// component (a march past a hit the caller passes: March::resume).
 fn march_cascades_left(origin: vec3<f32>, dir: vec3<f32>, start: u32, t_start: f32, t_end: f32, steps: u32) -> vec3<f32> {
     let inv = safe_inverse(dir);
     var level = start;

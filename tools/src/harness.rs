@@ -358,18 +358,18 @@ pub fn read_cascades(app: &mut App, static_only: bool) -> Vec<CascadeReadback> {
 
 /// The frame's voxels as the trace reads them, one entry per level (one for a single grid): the level's
 /// origin, cell size and window, and its occupancy pyramid. Borrow them as
-/// [`bevy_hao::cpu::ao::TraceLevel`]s with [`trace_levels`].
-pub fn read_trace_voxels(app: &mut App) -> Vec<(Vec3, f32, IVec3, bevy_hao::cpu::ao::VoxelMips)> {
+/// [`bevy_hao::cpu::march::TraceLevel`]s with [`trace_levels`].
+pub fn read_trace_voxels(app: &mut App) -> Vec<(Vec3, f32, IVec3, bevy_hao::cpu::march::VoxelMips)> {
     let assets = grid_assets(app).expect("no voxel grid");
     if assets.cascades.is_none() {
         let occupancy = read_occupancy(app);
-        let mips = bevy_hao::cpu::ao::VoxelMips::new(&occupancy, assets.mip_levels);
+        let mips = bevy_hao::cpu::march::VoxelMips::new(&occupancy, assets.mip_levels);
         return vec![(assets.grid.origin, assets.grid.cell_size, IVec3::ZERO, mips)];
     }
     read_cascades(app, false)
         .into_iter()
         .map(|c| {
-            let mips = bevy_hao::cpu::ao::VoxelMips::new(&c.occupancy, assets.mip_levels);
+            let mips = bevy_hao::cpu::march::VoxelMips::new(&c.occupancy, assets.mip_levels);
             (Vec3::ZERO, c.level.cell_size, c.level.window_min, mips)
         })
         .collect()
@@ -377,11 +377,11 @@ pub fn read_trace_voxels(app: &mut App) -> Vec<(Vec3, f32, IVec3, bevy_hao::cpu:
 
 /// The levels of [`read_trace_voxels`] as the CPU twin of the trace takes them.
 pub fn trace_levels(
-    voxels: &[(Vec3, f32, IVec3, bevy_hao::cpu::ao::VoxelMips)],
-) -> Vec<bevy_hao::cpu::ao::TraceLevel<'_>> {
+    voxels: &[(Vec3, f32, IVec3, bevy_hao::cpu::march::VoxelMips)],
+) -> Vec<bevy_hao::cpu::march::TraceLevel<'_>> {
     voxels
         .iter()
-        .map(|(origin, cell_size, window_min, mips)| bevy_hao::cpu::ao::TraceLevel {
+        .map(|(origin, cell_size, window_min, mips)| bevy_hao::cpu::march::TraceLevel {
             origin: *origin,
             cell_size: *cell_size,
             window_min: *window_min,

@@ -606,15 +606,14 @@ const BIAS_RAYS: u32 = 64;
 /// to the twin's whole difference, the trace's bias before accumulation and the denoiser.
 fn print_bias(
     scene: &ReferenceScene,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    levels: &[bevy_hao::cpu::march::TraceLevel],
     view: &bevy_hao::cpu::contacts::ViewDepth,
     surfaces: &[(u32, Vec3, Vec3)],
     s: &bevy_hao::cpu::ao::TraceSettings,
     epsilon: f32,
 ) {
-    use bevy_hao::cpu::ao::{
-        TraceWork, ao_falloff, hemisphere_direction, orthonormal_basis, ray_occluder, ray_start_level,
-    };
+    use bevy_hao::cpu::ao::{TraceWork, ao_falloff, hemisphere_direction, orthonormal_basis, ray_occluder};
+    use bevy_hao::cpu::march::ray_start_level;
     const BINS: [&str; 8] =
         ["no occluder", "0-1/4 cell", "1/4-1 cell", "1-2 cells", "2-4 cells", "4-8 cells", "8-16 cells", "16+ cells"];
     // Per row: rays, rays HAO finds no occluder on, sum of the reference's weights, sum of HAO's.

@@ -569,7 +569,7 @@ struct Work {
 fn trace_work(
     samples: &[Option<(Vec3, Vec3)>],
     view: &ViewDepth,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    levels: &[bevy_hao::cpu::march::TraceLevel],
     settings: &HybridAmbientOcclusion,
 ) -> Work {
     use bevy_hao::cpu::ao::{DepthContacts, TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
@@ -643,13 +643,14 @@ const WARP_STRIDE: u32 = 4;
 fn warp_work(
     samples: &[Option<(Vec3, Vec3)>],
     view: &ViewDepth,
-    levels: &[bevy_hao::cpu::ao::TraceLevel],
+    levels: &[bevy_hao::cpu::march::TraceLevel],
     settings: &HybridAmbientOcclusion,
 ) -> (f64, f64) {
     use bevy_hao::cpu::ao::{
         DepthContacts, TraceWork, checkerboard_texel, hemisphere_direction, orthonormal_basis, ray_occluder,
-        ray_rotation, ray_start_level, traced_pixel,
+        ray_rotation, traced_pixel,
     };
+    use bevy_hao::cpu::march::ray_start_level;
     let (w, h) = (view.size.x, view.size.y);
     let half = settings.trace_parameters().2;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
