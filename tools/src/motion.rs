@@ -97,6 +97,8 @@ pub struct MotionScene {
     pub camera_speed: f32,
     /// A skinned character walking through it, if any.
     pub character: Option<Character>,
+    /// The props are voxelized filled (`VoxelFill::Solid`: they are closed meshes), not as surfaces.
+    pub solid_props: bool,
 }
 
 /// Frames a second of the script: a character's clip plays at this rate.
@@ -253,7 +255,7 @@ impl MotionScene {
             ],
             _ => return None,
         };
-        Some(Self { statics: room(), props, camera, camera_center, camera_speed: 0.0, character: None })
+        Some(Self { statics: room(), props, camera, camera_center, camera_speed: 0.0, character: None, solid_props: false })
     }
 
     /// The room with `character` walking across the floor in front of the step at 1 m/s (and no props),
@@ -346,6 +348,9 @@ impl MotionScene {
                 Marker::Static => e.insert(bevy_hao::StaticOccluder),
                 Marker::Dynamic => e.insert(bevy_hao::DynamicOccluder),
             };
+            if self.solid_props {
+                e.insert(bevy_hao::VoxelFill::Solid);
+            }
         }
     }
 }

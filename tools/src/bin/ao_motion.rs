@@ -84,6 +84,9 @@ struct Args {
     /// Bevy's TAA on both cameras (HAO's then without MSAA).
     #[arg(long)]
     taa: bool,
+    /// The props voxelized filled (`VoxelFill::Solid`; they are closed meshes), not as surfaces.
+    #[arg(long)]
+    solid: bool,
     /// The PNG written.
     #[arg(long, default_value = "ao_motion.png")]
     out: String,
@@ -275,6 +278,7 @@ fn main() {
         };
         scene
     };
+    scene.solid_props = args.solid;
     if let Some(d) = args.motion {
         if !(d > 0.0 && d <= 3.0) {
             eprintln!("error: --motion {d}: expected above 0 and at most 3 degrees a frame");
@@ -461,10 +465,11 @@ fn main() {
 
     let stats = harness::stats(&app);
     println!(
-        "scene: {} ({}), {}x{}, {} frames measured (script frames {}..={}), camera {}; HAO {:?} with {} MSAA \
+        "scene: {} ({}{}), {}x{}, {} frames measured (script frames {}..={}), camera {}; HAO {:?} with {} MSAA \
          samples{}; reference: {} rays per pixel; {} dynamic occluders",
         args.scene,
         if args.scene == "contacts" { format!("sphere {:?}", args.marker) } else { "props moving".into() },
+        if args.solid { ", props solid" } else { "" },
         size.x,
         size.y,
         frames,
