@@ -255,7 +255,15 @@ impl MotionScene {
             ],
             _ => return None,
         };
-        Some(Self { statics: room(), props, camera, camera_center, camera_speed: 0.0, character: None, solid_props: false })
+        Some(Self {
+            statics: room(),
+            props,
+            camera,
+            camera_center,
+            camera_speed: 0.0,
+            character: None,
+            solid_props: false,
+        })
     }
 
     /// The room with `character` walking across the floor in front of the step at 1 m/s (and no props),

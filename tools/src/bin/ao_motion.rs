@@ -362,8 +362,10 @@ fn main() {
         script.running = k + 1 < frames as usize;
     });
     assert_eq!(script_frames[0], first, "the frames measured are centred on the nominal pose");
+    let moving_spans = span_medians(&app, frames as usize);
     // The last frame, still and converged.
     harness::run(&mut app, warmup as usize);
+    let still_spans = span_medians(&app, frames as usize);
     let still_ao = harness::read_image_f32(&mut app, outputs[0].ao.clone(), 2).2;
     let errors = harness::take_render_errors();
     if !errors.is_empty() {
@@ -514,6 +516,17 @@ fn main() {
         measured[0].contact_bias.get(),
         measured[1].contact_bias.get()
     );
+    let ms = |v: Option<f64>| v.map_or("not run".to_string(), |v| format!("{v:.3} ms"));
+    println!(
+        "GPU spans, medians of the last {frames} frames, in motion / still and converged: HAO trace {} / {}, HAO \
+         passes (trace, neighborhood, temporal) {} / {}; Bevy SSAO (High) {} / {}",
+        ms(moving_spans[0]),
+        ms(still_spans[0]),
+        ms(moving_spans[1]),
+        ms(still_spans[1]),
+        ms(moving_spans[2]),
+        ms(still_spans[2]),
+    );
     println!(
         "(pixels: noise near {} and away {} frame pairs x pixels for HAO; contact band {} pixel-frames)",
         measured[0].noise_near.n, measured[0].noise_away.n, measured[0].contact.n
@@ -580,3 +593,18 @@ fn main() {
 
 #[derive(Resource, Clone)]
 struct Outputs(Vec<HaoDebugImages>);
+
+/// The medians of the last `frames` GPU spans of HAO's trace, of its passes (the sum of the trace's,
+/// neighborhood's and temporal pass's medians), and of Bevy's SSAO, as the render diagnostics recorded them
+/// (`None` where a pass never ran).
+fn span_medians(app: &App, frames: usize) -> [Option<f64>; 3] {
+    let median = |span: &str| {
+        let h = harness::diagnostic_history(app, &format!("render/{span}/elapsed_gpu"));
+        harness::median(h[h.len().saturating_sub(frames)..].to_vec())
+    };
+    let trace = median("hao/trace");
+    let passes = [median("hao/neighborhood"), median("hao/temporal")]
+        .into_iter()
+        .try_fold(trace.unwrap_or(0.0), |a, b| b.map(|b| a + b));
+    [trace, passes.filter(|_| trace.is_some()), median("ssao")]
+}
