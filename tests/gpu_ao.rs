@@ -464,8 +464,8 @@ fn cpu_trace_near_change(
     change: &[f32],
 ) -> (Vec<f32>, Vec<usize>) {
     use bevy_hao::cpu::ao::{TraceWork, ray_rotation, voxel_ambient_occlusion_counted};
-    use bevy_hao::cpu::march::ray_start_level;
     use bevy_hao::cpu::contacts::contact_jitter;
+    use bevy_hao::cpu::march::ray_start_level;
     let trace = bevy_hao_tools::harness::cpu_trace_settings(settings);
     let w = view.size.x;
     let mut ao = vec![f32::NAN; samples.len()];

@@ -116,7 +116,6 @@ pub fn ao_falloff(distance: f32, max_distance: f32, falloff: f32) -> f32 {
     (1.0 - x).powf(falloff)
 }
 
-
 /// The work of a trace, counted by the CPU twin: a measure of its cost that does not depend on the device
 /// (the GPU does the same loads; see `bench_ao`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -377,9 +376,9 @@ pub fn voxel_ray_occluder(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::VoxelGrid;
     use crate::cpu::grid::VoxelOccupancy;
     use crate::cpu::march::{VoxelMips, march_cascades, ray_start_level};
-    use crate::cpu::VoxelGrid;
     use glam::{IVec3, UVec3};
 
     #[test]

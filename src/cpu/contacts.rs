@@ -259,9 +259,9 @@ mod tests {
     /// into the step's side, below its top, stops there; without the view all three stop.
     #[test]
     fn near_voxel_hits_the_view_shows_in_empty_space_are_passed() {
-        use crate::cpu::march::{TraceLevel, VoxelMips};
         use crate::cpu::ao::{TraceSettings, TraceWork, voxel_ray_occluder};
         use crate::cpu::grid::{VoxelGrid, VoxelOccupancy};
+        use crate::cpu::march::{TraceLevel, VoxelMips};
         use glam::{IVec3, UVec3};
         let view = floor_with_a_step();
         let grid = VoxelGrid::new(Vec3::new(-4.0, -4.0, -0.5), 0.25, UVec3::new(32, 32, 16)).unwrap();

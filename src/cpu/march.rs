@@ -415,12 +415,11 @@ impl<'a, 'm> March<'a, 'm> {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::ao::{hemisphere_direction, orthonormal_basis};
     use crate::cpu::VoxelGrid;
+    use crate::cpu::ao::{hemisphere_direction, orthonormal_basis};
 
     #[test]
     fn a_ray_that_clips_a_cell_passes_it_and_a_ray_through_a_wall_of_cells_does_not() {

@@ -37,13 +37,13 @@
 //! ```
 
 pub mod ao;
-pub mod march;
 pub mod attributes;
 pub mod bias_model;
 pub mod cascade;
 pub mod contacts;
 pub mod denoise;
 pub mod grid;
+pub mod march;
 pub mod mesh;
 pub mod overlap;
 pub mod pn;
