@@ -746,12 +746,46 @@ pub mod args {
         (v.len() == 3).then(|| Vec3::new(v[0], v[1], v[2])).ok_or_else(|| format!("expected X,Y,Z, got {s}"))
     }
 
-    /// `WIDTHxHEIGHT`.
+    /// `WIDTHxHEIGHT`, each from 1 to [`MAX_SIZE`] (wgpu's default limit on a texture's side): a render
+    /// target of zero pixels, or past what the device takes, is refused here rather than by the device.
     pub fn size(s: &str) -> Result<UVec2, String> {
         let (w, h) = s.split_once('x').ok_or("a size is WIDTHxHEIGHT")?;
-        Ok(UVec2::new(
+        let size = UVec2::new(
             w.parse().map_err(|_| format!("bad width {w:?}"))?,
             h.parse().map_err(|_| format!("bad height {h:?}"))?,
-        ))
+        );
+        if size.min_element() == 0 || size.max_element() > MAX_SIZE {
+            return Err(format!("{s}: width and height from 1 to {MAX_SIZE}"));
+        }
+        Ok(size)
+    }
+
+    /// The largest width or height [`size`] takes.
+    pub const MAX_SIZE: u32 = 8192;
+
+    /// `X,Y,W,H`: a crop of an image, in pixels (`--zoom`), of at least one pixel each way.
+    pub fn crop(v: &str) -> Result<[u32; 4], String> {
+        let p: Vec<u32> =
+            v.split(',').map(|x| x.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+        let c = <[u32; 4]>::try_from(p).map_err(|_| format!("expected X,Y,W,H, got {v}"))?;
+        if c[2] == 0 || c[3] == 0 {
+            return Err(format!("{v}: an empty crop"));
+        }
+        Ok(c)
+    }
+
+    #[cfg(test)]
+    mod tests {
+        #[test]
+        fn sizes_and_crops_of_zero_or_past_the_limit_are_refused() {
+            assert_eq!(super::size("320x180"), Ok(super::UVec2::new(320, 180)));
+            for bad in ["0x180", "320x0", "9000x10", "320", "axb", "-1x5"] {
+                assert!(super::size(bad).is_err(), "{bad}");
+            }
+            assert_eq!(super::crop("1, 2,3,4"), Ok([1, 2, 3, 4]));
+            for bad in ["1,2,0,4", "1,2,3", "1,2,3,4,5", "a,b,c,d"] {
+                assert!(super::crop(bad).is_err(), "{bad}");
+            }
+        }
     }
 }

@@ -93,15 +93,8 @@ struct Args {
     /// Also write the last frame's crop X,Y,W,H (pixels), four times enlarged, beside the PNG (`-zoom.png`):
     /// HAO, HAO still and converged, Bevy's SSAO, the reference, and HAO less the reference (mid-grey where
     /// they agree, lighter where HAO is lighter).
-    #[arg(long, value_parser = crop)]
+    #[arg(long, value_parser = args::crop)]
     zoom: Option<[u32; 4]>,
-}
-
-/// `X,Y,W,H`.
-fn crop(v: &str) -> Result<[u32; 4], String> {
-    let p: Vec<u32> =
-        v.split(',').map(|x| x.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
-    <[u32; 4]>::try_from(p).map_err(|_| format!("expected X,Y,W,H, got {v}"))
 }
 
 /// One camera's frame: AO, depth and world normal per pixel.
@@ -603,8 +596,6 @@ fn span_medians(app: &App, frames: usize) -> [Option<f64>; 3] {
         harness::median(h[h.len().saturating_sub(frames)..].to_vec())
     };
     let trace = median("hao/trace");
-    let passes = [median("hao/neighborhood"), median("hao/temporal")]
-        .into_iter()
-        .try_fold(trace.unwrap_or(0.0), |a, b| b.map(|b| a + b));
-    [trace, passes.filter(|_| trace.is_some()), median("ssao")]
+    let passes = trace.zip(median("hao/neighborhood")).zip(median("hao/temporal")).map(|((t, n), m)| t + n + m);
+    [trace, passes, median("ssao")]
 }

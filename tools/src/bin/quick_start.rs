@@ -47,7 +47,7 @@ struct Cli {
     #[arg(long, default_value = "quick_start.png")]
     out: String,
     /// Also write this crop X,Y,W,H (pixels), four times enlarged, beside the PNG (`-zoom.png`).
-    #[arg(long, value_parser = crop)]
+    #[arg(long, value_parser = args::crop)]
     zoom: Option<[u32; 4]>,
 }
 
@@ -57,13 +57,6 @@ enum CameraChoice {
     Readme,
     /// From (0, 0.9, 2.6), looking at the floor just in front of the sphere.
     Close,
-}
-
-/// `X,Y,W,H`.
-fn crop(v: &str) -> Result<[u32; 4], String> {
-    let p: Vec<u32> =
-        v.split(',').map(|x| x.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
-    p.try_into().map_err(|_| "a crop is X,Y,W,H".to_string())
 }
 
 #[derive(Resource)]
