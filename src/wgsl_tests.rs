@@ -382,7 +382,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 33] = [
+    let pairs: [(&str, &str, f64); 35] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -401,6 +401,8 @@ fn shared_constants_agree() {
         ("src/ao/hao_change.wgsl", "CHANGE_NOISE_SAMPLES", temporal::CHANGE_NOISE_SAMPLES as f64),
         ("src/ao/hao_change.wgsl", "CHANGE_RAYS_SCALE", temporal::CHANGE_RAYS_SCALE as f64),
         ("src/ao/hao_change.wgsl", "CHANGE_RAYS_FROM", temporal::CHANGE_RAYS_FROM as f64),
+        ("src/ao/hao_neighborhood.wgsl", "CHANGED_FILTER_REACH", temporal::CHANGED_FILTER_REACH as f64),
+        ("src/ao/hao_change.wgsl", "CHANGED_FILTER_FROM", temporal::CHANGED_FILTER_FROM as f64),
         (common, "MAX_PN_GAMMA_SCALE", crate::cpu::pn::MAX_PN_GAMMA_SCALE as f64),
         (common, "ALBEDO_SCALE", crate::cpu::attributes::ALBEDO_SCALE as f64),
         (common, "NORMAL_SCALE", crate::cpu::attributes::NORMAL_SCALE as f64),

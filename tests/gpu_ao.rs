@@ -602,7 +602,9 @@ fn cpu_trace_frame(
     TraceFrame::traced(frame, checkerboard, trace_size, previous, |t| {
         let pixel = pixel_of(t);
         samples[pixel].map(|(world, normal)| {
-            TracedTexel { ao: ao[pixel], depth: -view_from_world.transform_point3(world).z, normal }.stored()
+            // Where occluders moved near it, the texel says so and is filtered wider.
+            let changed = bevy_hao::cpu::temporal::filters_wide(change[pixel]);
+            TracedTexel { ao: ao[pixel], depth: -view_from_world.transform_point3(world).z, normal, changed }.stored()
         })
     })
 }
@@ -896,7 +898,8 @@ fn the_gpu_denoiser_matches_its_cpu_twin() {
         .zip(&noisy)
         .map(|(s, &ao)| {
             s.map(|(world, normal)| {
-                TracedTexel { ao, depth: -view_from_world.transform_point3(world).z, normal }.stored()
+                let depth = -view_from_world.transform_point3(world).z;
+                TracedTexel { ao, depth, normal, changed: false }.stored()
             })
         })
         .collect();

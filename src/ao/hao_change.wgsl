@@ -19,6 +19,15 @@ fn change_rays(rays: u32, change: f32) -> u32 {
     return select(rays, rays * CHANGE_RAYS_SCALE, change >= CHANGE_RAYS_FROM);
 }
 
+// cpu/temporal.rs: CHANGED_FILTER_FROM
+const CHANGED_FILTER_FROM: f32 = 0.001;
+
+// cpu/temporal.rs: filters_wide. Whether the filter reaches wider, and the stand-in averages filtered texels,
+// around a trace texel whose pixel's occlusion can have changed by `change` since last frame.
+fn filters_wide(change: f32) -> bool {
+    return change >= CHANGED_FILTER_FROM;
+}
+
 // cpu/temporal.rs: occlusion_change, for one occluder (`occlusion_change` sums it over `voxel_grid.moved`). How much
 // the occlusion at `p` (unit normal `n`) can have changed since last frame because of an occluder in the box
 // [lo, hi] that moved `motion`: a sphere of the box's mean half-extent at its centre, the share of the

@@ -56,13 +56,16 @@ struct PreviousViewData {
 #endif
 
 @group(1) @binding(0) var<uniform> view: View;
+
 @group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
 
 // cpu/temporal.rs: stand_in. What stands in for a pixel's own trace where its block traced another pixel:
 // the mean of the trace's 3x3 texels around `block` that show its surface (`history_accepts`), else of all
-// that show geometry, else 1. `taps`: 9, or 0 where it is not used (a loop rather than a branch: lavapipe
-// runs both sides of every branch, taken or not, but leaves a loop once none of its invocations goes on).
-fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32) -> f32 {
+// that show geometry, else 1; where occluders moved near the block's traced pixel (`wide`: the trace's flag),
+// of their filtered AO, which the neighborhood pass filtered wider there. `taps`: 9, or 0 where it is not
+// used (a loop rather than a branch: lavapipe runs both sides of every branch, taken or not, but leaves a
+// loop once none of its invocations goes on).
+fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32, wide: bool) -> f32 {
     let trace_size = vec2<i32>(i32(settings.trace_width), i32(settings.trace_height));
     var sum = 0.0;
     var n = 0.0;
@@ -73,12 +76,17 @@ fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32) -> 
         if any(t < vec2<i32>(0)) || any(t >= trace_size) {
             continue;
         }
-        let v = unpack_history(noisy[trace_index(settings, vec2<u32>(t))]);
+        let at = trace_index(settings, vec2<u32>(t));
+        let v = unpack_history(noisy[at]);
         if v.y > 0.0 {
-            sum += v.x;
+            var ao = v.x;
+            if wide {
+                ao = filtered[at];
+            }
+            sum += ao;
             n += 1.0;
             if history_accepts(view_depth, v.y, normal, unpack_direction(v.z)) {
-                same_sum += v.x;
+                same_sum += ao;
                 same_n += 1.0;
             }
         }
@@ -183,7 +191,13 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Its own trace, filtered; or where its block traced another pixel, the traced neighbours on its surface
     // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
     let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), cap);
-    var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
+#ifdef MOVED_OCCLUDERS
+    // Wider where occluders moved near the block's traced pixel (the trace's flag), as the filter is.
+    let wide = unpack_history(noisy[trace_index(settings, block)]).w > 0.5;
+#else
+    let wide = false;
+#endif
+    var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used), wide);
     if traced {
         current = filtered[trace_index(settings, block)];
     }

@@ -4,9 +4,10 @@
 // mips; each ray's first cells, which the voxels skip, are traced in the depth prepass (`depth_contact`),
 // and its voxel hits near the surface that the depth prepass shows in empty space are passed (`near`).
 // Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral normal,
-// which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`, with no
-// frames). In the checkerboard (`Low`) it runs on half the texels, alternating
-// (`checkerboard_texel`), and the others keep their last frame's.
+// which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`; in
+// place of frames, 1 where occluders moved near the pixel, whose texel the passes after it filter wider).
+// In the checkerboard (`Low`) it runs on half the texels, alternating (`checkerboard_texel`), and the others
+// keep their last frame's.
 // Where occluders moved near the pixel, `change_rays` times the rays (`hao_change.wgsl`).
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion_counted` (the contacts: `bevy_hao::cpu::contacts`;
 // the rays: `bevy_hao::cpu::temporal::change_rays`).
@@ -21,7 +22,7 @@
 #import bevy_hao::voxel_grid::{
     voxel_grid, ray_start_level, march_cascades, march_cascades_left, level_position, voxel_normal_at, safe_inverse, ray_box,
 }
-#import bevy_hao::hao_change::{occlusion_change, change_rays}
+#import bevy_hao::hao_change::{occlusion_change, change_rays, filters_wide}
 
 // The prepasses, the target's size: the view's pixel p is at target_pixel(p). With MSAA, sample 0.
 #ifdef MULTISAMPLED
@@ -221,9 +222,12 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     // More rays where occluders moved near the pixel: its history is short there (a variant of its own,
     // `MOVED_OCCLUDERS`, chosen while any moved).
 #ifdef MOVED_OCCLUDERS
-    let rays = change_rays(settings.rays, occlusion_change(world, normal, settings.max_distance, settings.falloff));
+    let change = occlusion_change(world, normal, settings.max_distance, settings.falloff);
+    let rays = change_rays(settings.rays, change);
+    let changed = filters_wide(change);
 #else
     let rays = settings.rays;
+    let changed = false;
 #endif
     for (var i = 0u; i < rays; i++) {
         let dir = hemisphere_direction(basis, i, rays, rotation);
@@ -288,5 +292,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
     }
     let ao = clamp(1.0 - settings.intensity * occlusion / f32(rays), 0.0, 1.0);
-    noisy[at] = pack_history(vec4<f32>(ao, view_depth, packed_normal, 0.0));
+    // The fourth field: 1 where occluders moved near the pixel, which the passes after this one filter wider
+    // (cpu/temporal.rs: TracedTexel::changed).
+    noisy[at] = pack_history(vec4<f32>(ao, view_depth, packed_normal, select(0.0, 1.0, changed)));
 }

@@ -29,8 +29,9 @@
 //! 4. **Filter** ([`prefilter`]): the pixel's own trace is averaged with the trace's 3x3 texels around it
 //!    that show its surface, weighed by a bilateral weight (a Gaussian in distance over
 //!    `HybridAmbientOcclusion::denoise_radius` texels of the trace, and the depth and normal against the
-//!    traced pixel's: [`bilateral_weight`](super::denoise::bilateral_weight)). The blended history is then
-//!    the AO PBR reads: there is no filter after accumulation.
+//!    traced pixel's: [`bilateral_weight`](super::denoise::bilateral_weight)); near occluders that moved,
+//!    whose history is short, over 5x5 texels at twice the width ([`CHANGED_FILTER_REACH`]). The blended
+//!    history is then the AO PBR reads: there is no filter after accumulation.
 //! 5. **Blend** ([`temporal_blend`]): with `c` frames of history, capped at
 //!    `HybridAmbientOcclusion::accumulation_frames`, the new AO is `history + (current - history) / c`: the
 //!    running mean of the last frames, an exponential average once the cap is reached.
@@ -113,6 +114,26 @@ pub const CHANGE_RAYS_FROM: f32 = 0.005;
 pub fn change_rays(rays: u32, change: f32) -> u32 {
     if change >= CHANGE_RAYS_FROM { rays * CHANGE_RAYS_SCALE } else { rays }
 }
+
+/// The occlusion change ([`occlusion_change`]) from which a trace texel is filtered wider ([`filters_wide`]):
+/// where [`change_cap`] leaves a history shorter than about 16 frames.
+pub const CHANGED_FILTER_FROM: f32 = 0.001;
+
+/// Whether the filter ([`prefilter`]) reaches [`CHANGED_FILTER_REACH`] texels, and the stand-in
+/// ([`stand_in`]) averages filtered texels, around a trace texel whose pixel's occlusion can have changed
+/// by `change` since last frame (WGSL: `filters_wide` in `hao_change.wgsl`; the trace marks the texel:
+/// [`TracedTexel::changed`]).
+pub fn filters_wide(change: f32) -> bool {
+    change >= CHANGED_FILTER_FROM
+}
+
+/// How many texels each side the filter ([`prefilter`]) reaches around a trace texel whose occlusion the
+/// occluders that moved near it can have changed ([`TracedTexel::changed`]; WGSL: `CHANGED_FILTER_REACH` in
+/// `hao_neighborhood.wgsl`), at as many times its width (`denoise_radius`); elsewhere it reaches one texel.
+/// There the history is short ([`change_cap`]) and the filter is most of what keeps the AO smooth: 5x5
+/// texels at twice the width average about three times as many texels' worth as 3x3. The stand-in
+/// ([`stand_in`]) averages the filtered texels there.
+pub const CHANGED_FILTER_REACH: i32 = 2;
 
 /// The least deviation [`change_cap`] takes a pixel's current AO to have: a few rays are never exact.
 pub const CHANGE_NOISE_FLOOR: f32 = 0.1;
@@ -209,6 +230,9 @@ pub struct TracedTexel {
     pub depth: f32,
     /// The traced pixel's normal.
     pub normal: Vec3,
+    /// Whether occluders moved near the traced pixel, enough for it to be filtered wider ([`filters_wide`],
+    /// [`CHANGED_FILTER_REACH`]; WGSL: the packed texel's fourth field, 1).
+    pub changed: bool,
 }
 
 impl TracedTexel {
@@ -216,9 +240,9 @@ impl TracedTexel {
     /// `pack_history`; [`HistoryTexel::stored`](super::denoise::HistoryTexel::stored)), the AO to 1/8191 and
     /// the view depth to 11 bits of mantissa.
     pub fn stored(self) -> Self {
-        let h =
-            super::denoise::HistoryTexel { ao: self.ao, depth: self.depth, normal: self.normal, frames: 0.0 }.stored();
-        Self { ao: h.ao, depth: h.depth, normal: h.normal }
+        let frames = if self.changed { 1.0 } else { 0.0 };
+        let h = super::denoise::HistoryTexel { ao: self.ao, depth: self.depth, normal: self.normal, frames }.stored();
+        Self { ao: h.ao, depth: h.depth, normal: h.normal, changed: h.frames > 0.5 }
     }
 }
 
@@ -229,8 +253,20 @@ fn neighbourhood(
     trace_size: UVec2,
     texel: UVec2,
 ) -> impl Iterator<Item = (IVec2, TracedTexel)> + '_ {
-    (0..9).filter_map(move |k| {
-        let d = IVec2::new(k % 3 - 1, k / 3 - 1);
+    neighbourhood_within(trace, trace_size, texel, 1)
+}
+
+/// The trace's texels within `reach` texels of `texel` each way (a square of `2 reach + 1` a side) that exist
+/// and show geometry, with their offsets from it, in the order the passes read them (rows, then columns).
+fn neighbourhood_within(
+    trace: &[Option<TracedTexel>],
+    trace_size: UVec2,
+    texel: UVec2,
+    reach: i32,
+) -> impl Iterator<Item = (IVec2, TracedTexel)> + '_ {
+    let side = 2 * reach + 1;
+    (0..side * side).filter_map(move |k| {
+        let d = IVec2::new(k % side - reach, k / side - reach);
         let t = texel.as_ivec2() + d;
         let inside = t.cmpge(IVec2::ZERO).all() && t.cmplt(trace_size.as_ivec2()).all();
         inside.then(|| trace[(t.y as u32 * trace_size.x + t.x as u32) as usize].map(|v| (d, v))).flatten()
@@ -252,14 +288,25 @@ pub fn trace_window(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVe
 
 /// What stands in for a pixel's own trace where its block traced another pixel (WGSL: `stand_in` in
 /// `hao_temporal.wgsl`): the mean of the trace's 3x3 texels around `texel` that show its surface (its view
-/// depth `depth` and normal `normal`, [`history_accepts`]), else of all that show geometry, else 1.
-pub fn stand_in(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, depth: f32, normal: Vec3) -> f32 {
+/// depth `depth` and normal `normal`, [`history_accepts`]), else of all that show geometry, else 1. Where
+/// occluders moved near its traced pixel ([`TracedTexel::changed`]), the mean of their AO filtered
+/// ([`prefilter`] with `radius`), which is wider there.
+pub fn stand_in(
+    trace: &[Option<TracedTexel>],
+    trace_size: UVec2,
+    texel: UVec2,
+    depth: f32,
+    normal: Vec3,
+    radius: u32,
+) -> f32 {
+    let wide = trace[(texel.y * trace_size.x + texel.x) as usize].is_some_and(|t| t.changed);
     let (mut sum, mut n, mut same_sum, mut same_n) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    for (_, v) in neighbourhood(trace, trace_size, texel) {
-        sum += v.ao;
+    for (d, v) in neighbourhood(trace, trace_size, texel) {
+        let ao = if wide { prefilter(trace, trace_size, (texel.as_ivec2() + d).as_uvec2(), radius) } else { v.ao };
+        sum += ao;
         n += 1.0;
         if history_accepts(depth, v.depth, normal, v.normal) {
-            same_sum += v.ao;
+            same_sum += ao;
             same_n += 1.0;
         }
     }
@@ -275,15 +322,18 @@ pub fn stand_in(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, 
 /// Trace texel `texel`'s AO filtered over its 3x3 texels (WGSL: `hao_neighborhood.wgsl`, once per texel of
 /// the trace), which the pixel it traced blends into its history: the texels that show geometry, each weighed
 /// by [`bilateral_weight`](super::denoise::bilateral_weight) (its distance in texels over `radius`,
-/// `HybridAmbientOcclusion::denoise_radius`, and its depth and normal against the traced pixel's). Radius 0,
-/// or a texel that shows no geometry: its AO as traced (1 for the background).
+/// `HybridAmbientOcclusion::denoise_radius`, and its depth and normal against the traced pixel's). Where
+/// occluders moved near it ([`TracedTexel::changed`]) over its texels within [`CHANGED_FILTER_REACH`], at
+/// that many times the width. Radius 0, or a texel that shows no geometry: its AO as traced (1 for the
+/// background).
 pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, radius: u32) -> f32 {
     let Some(center) = trace[(texel.y * trace_size.x + texel.x) as usize] else { return 1.0 };
+    let reach = if center.changed { CHANGED_FILTER_REACH } else { 1 };
     let mut sum = Vec2::ZERO;
-    for (d, v) in neighbourhood(trace, trace_size, texel) {
+    for (d, v) in neighbourhood_within(trace, trace_size, texel, reach) {
         let w = super::denoise::bilateral_weight(
             d.as_vec2().length(),
-            radius as f32,
+            (radius as i32 * reach) as f32,
             center.depth,
             v.depth,
             center.normal,
@@ -387,7 +437,7 @@ pub fn accumulate_still(
             .then(|| prefilter(&frame.texels, trace_size, texel, radius));
             let window = trace_window(&frame.texels, trace_size, texel);
             // (The GPU reads the stand-in only where `temporal_update` uses it.)
-            let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal);
+            let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal, radius);
             // (The GPU caps only a pixel with history.)
             let cap = if count[i] > 0.0 { change_cap(change[i], window) } else { f32::INFINITY };
             let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, cap);
@@ -507,7 +557,7 @@ mod tests {
     }
 
     fn texel(ao: f32) -> Option<TracedTexel> {
-        Some(TracedTexel { ao, depth: 10.0, normal: Vec3::Z })
+        Some(TracedTexel { ao, depth: 10.0, normal: Vec3::Z, changed: false })
     }
 
     #[test]
@@ -687,10 +737,10 @@ mod tests {
         assert_eq!(prefilter(&trace, size, UVec2::ONE, 0), 1.0);
         // Another surface (far behind), a crease and the background weigh nothing.
         for i in [0, 1, 2, 3] {
-            trace[i] = Some(TracedTexel { ao: 0.0, depth: 50.0, normal: Vec3::Z });
+            trace[i] = Some(TracedTexel { ao: 0.0, depth: 50.0, normal: Vec3::Z, changed: false });
         }
         for i in [5, 6, 7] {
-            trace[i] = Some(TracedTexel { ao: 0.0, depth: 10.0, normal: Vec3::X });
+            trace[i] = Some(TracedTexel { ao: 0.0, depth: 10.0, normal: Vec3::X, changed: false });
         }
         trace[8] = None;
         assert_eq!(prefilter(&trace, size, UVec2::ONE, 2), 1.0);
@@ -699,22 +749,57 @@ mod tests {
     }
 
     #[test]
+    fn where_occluders_moved_the_filter_reaches_twice_as_far_at_twice_the_width() {
+        // A 7x7 trace of one surface, in a checkerboard of 0 and 1 (two-ray noise, decorrelated between
+        // texels), with a shadow of 0 two texels to the right of the middle.
+        let size = UVec2::new(7, 7);
+        let noisy = |changed: bool| -> Vec<Option<TracedTexel>> {
+            (0..49)
+                .map(|i| {
+                    let (x, y) = (i % 7, i / 7);
+                    let ao = if x == 5 || (x + y) % 2 == 0 { 0.0 } else { 1.0 };
+                    Some(TracedTexel { ao, depth: 10.0, normal: Vec3::Z, changed })
+                })
+                .collect()
+        };
+        let middle = UVec2::new(3, 3);
+        let narrow = prefilter(&noisy(false), size, middle, 1);
+        let wide = prefilter(&noisy(true), size, middle, 1);
+        // By hand: the 5x5 texels at width 2, against the 3x3 at width 1 (which the shadow does not reach).
+        let (mut sum, mut weights) = (0.0f32, 0.0f32);
+        for dy in -2i32..=2 {
+            for dx in -2i32..=2 {
+                let (x, y) = (3 + dx, 3 + dy);
+                let ao = if x == 5 || (x + y) % 2 == 0 { 0.0 } else { 1.0 };
+                let w = (-((dx * dx + dy * dy) as f32) / 8.0).exp();
+                (sum, weights) = (sum + w * ao, weights + w);
+            }
+        }
+        assert!((wide - sum / weights).abs() < 1e-6, "{wide} against {}", sum / weights);
+        assert!(wide < narrow, "the shadow two texels away counts: {wide} {narrow}");
+        // Off, it is off either way; and the flag survives the texel's packing.
+        assert_eq!(prefilter(&noisy(true), size, middle, 0), 0.0);
+        assert!(TracedTexel { ao: 0.5, depth: 10.0, normal: Vec3::Z, changed: true }.stored().changed);
+        assert!(!TracedTexel { ao: 0.5, depth: 10.0, normal: Vec3::Z, changed: false }.stored().changed);
+    }
+
+    #[test]
     fn the_stand_in_is_taken_from_the_pixels_own_surface() {
         // A 3x3 trace: the middle row shows the pixel's surface (AO 0.5), the rows above and below a surface
         // far behind it (AO 1): the stand-in is 0.5, the window spans both.
-        let far = Some(TracedTexel { ao: 1.0, depth: 40.0, normal: Vec3::Z });
+        let far = Some(TracedTexel { ao: 1.0, depth: 40.0, normal: Vec3::Z, changed: false });
         let trace = [far, far, far, texel(0.5), texel(0.5), texel(0.5), far, far, far];
         let size = UVec2::new(3, 3);
-        assert_eq!(stand_in(&trace, size, UVec2::ONE, 10.0, Vec3::Z), 0.5);
+        assert_eq!(stand_in(&trace, size, UVec2::ONE, 10.0, Vec3::Z, 1), 0.5);
         let window = trace_window(&trace, size, UVec2::ONE);
         assert!(window.0 < 0.5 && window.1 > 1.0, "{window:?}");
         // A surface none of the texels shows: the mean of all of them.
-        assert_eq!(stand_in(&trace, size, UVec2::ONE, 20.0, Vec3::Z), (6.0 + 1.5) / 9.0);
+        assert_eq!(stand_in(&trace, size, UVec2::ONE, 20.0, Vec3::Z, 1), (6.0 + 1.5) / 9.0);
         // At the corner, the four texels inside the trace: two far (1), two on the surface (0.5).
-        assert_eq!(stand_in(&trace, size, UVec2::ZERO, 40.0, Vec3::Z), 1.0);
+        assert_eq!(stand_in(&trace, size, UVec2::ZERO, 40.0, Vec3::Z, 1), 1.0);
         assert_eq!(trace_window(&trace, size, UVec2::ZERO), neighborhood_window(3.0, 2.5, 4.0));
         // No texel shows geometry: no window, the stand-in open.
         assert_eq!(trace_window(&[None; 9], size, UVec2::ONE), (-1.0, 2.0));
-        assert_eq!(stand_in(&[None; 9], size, UVec2::ONE, 10.0, Vec3::Z), 1.0);
+        assert_eq!(stand_in(&[None; 9], size, UVec2::ONE, 10.0, Vec3::Z, 1), 1.0);
     }
 }
