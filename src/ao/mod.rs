@@ -372,7 +372,8 @@ pub struct HybridAmbientOcclusion {
     pub near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel,
     /// Width of the denoiser, in texels of the trace: each frame, before it is accumulated, a pixel's trace
     /// is averaged with the trace's 3x3 texels around it, weighed by a Gaussian of this width and by how
-    /// close their depth and normal are to the pixel's (a bilateral filter); 0 turns it off.
+    /// close their depth and normal are to the pixel's (a bilateral filter); 0 turns it off. Near occluders
+    /// that move, where the history is short, over 5x5 texels at twice the width.
     pub denoise_radius: u32,
     /// Temporal accumulation: each pixel averages its AO over at most this many frames (1: none; at most
     /// 64), with the ray noise turned every frame, so few rays per frame converge to the error of many. The
