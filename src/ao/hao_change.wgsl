@@ -20,7 +20,7 @@ fn change_rays(rays: u32, change: f32) -> u32 {
 }
 
 // cpu/temporal.rs: CHANGED_FILTER_FROM
-const CHANGED_FILTER_FROM: f32 = 0.001;
+const CHANGED_FILTER_FROM: f32 = 0.0003;
 
 // cpu/temporal.rs: filters_wide. Whether the filter reaches wider, and the stand-in averages filtered texels,
 // around a trace texel whose pixel's occlusion can have changed by `change` since last frame.

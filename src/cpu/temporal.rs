@@ -115,9 +115,11 @@ pub fn change_rays(rays: u32, change: f32) -> u32 {
     if change >= CHANGE_RAYS_FROM { rays * CHANGE_RAYS_SCALE } else { rays }
 }
 
-/// The occlusion change ([`occlusion_change`]) from which a trace texel is filtered wider ([`filters_wide`]):
-/// where [`change_cap`] leaves a history shorter than about 16 frames.
-pub const CHANGED_FILTER_FROM: f32 = 0.001;
+/// The occlusion change a frame ([`occlusion_change`]) from which a trace texel is filtered wider
+/// ([`filters_wide`]): where a full history of 16 frames would lag the change by more than about 0.002
+/// (`c (n - 1) / 2`), the frame-to-frame change a converged view keeps. Against 0.001 it lowered the noise
+/// near a rolling ball and a walking character further and the error too (docs/figures.md).
+pub const CHANGED_FILTER_FROM: f32 = 0.0003;
 
 /// Whether the filter ([`prefilter`]) reaches [`CHANGED_FILTER_REACH`] texels, and the stand-in
 /// ([`stand_in`]) averages filtered texels, around a trace texel whose pixel's occlusion can have changed
