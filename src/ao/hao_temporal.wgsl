@@ -56,7 +56,6 @@ struct PreviousViewData {
 #endif
 
 @group(1) @binding(0) var<uniform> view: View;
-
 @group(1) @binding(1) var<uniform> previous_view: PreviousViewData;
 
 // cpu/temporal.rs: stand_in. What stands in for a pixel's own trace where its block traced another pixel:
@@ -191,12 +190,9 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Its own trace, filtered; or where its block traced another pixel, the traced neighbours on its surface
     // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
     let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), cap);
-#ifdef MOVED_OCCLUDERS
-    // Wider where occluders moved near the block's traced pixel (the trace's flag), as the filter is.
+    // Wider where occluders moved near the block's traced pixel (the trace's flag), as the filter is. (Read
+    // in every variant: in the checkerboard a texel keeps its flag with its trace until traced again.)
     let wide = unpack_history(noisy[trace_index(settings, block)]).w > 0.5;
-#else
-    let wide = false;
-#endif
     var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used), wide);
     if traced {
         current = filtered[trace_index(settings, block)];
