@@ -60,12 +60,17 @@ struct PreviousViewData {
 
 // cpu/temporal.rs: stand_in. What stands in for a pixel's own trace where its block traced another pixel:
 // the mean of the trace's 3x3 texels around `block` that show its surface (`history_accepts`), else of all
-// that show geometry, else 1; where occluders moved near the block's traced pixel (`wide`: the trace's flag),
-// of their filtered AO, which the neighborhood pass filtered wider there. `taps`: 9, or 0 where it is not
-// used (a loop rather than a branch: lavapipe runs both sides of every branch, taken or not, but leaves a
-// loop once none of its invocations goes on).
-fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32, wide: bool) -> f32 {
+// that show geometry, else 1; where occluders moved near the block's traced pixel (the trace's flag, read in
+// every variant: in the checkerboard a texel keeps its flag with its trace until traced again), of their
+// filtered AO, which the neighborhood pass filtered wider there. `taps`: 9, or 0 where it is not used (a
+// loop rather than a branch: lavapipe runs both sides of every branch, taken or not, but leaves a loop once
+// none of its invocations goes on).
+fn stand_in(block: vec2<u32>, view_depth: f32, normal: vec3<f32>, taps: i32) -> f32 {
     let trace_size = vec2<i32>(i32(settings.trace_width), i32(settings.trace_height));
+    var wide = false;
+    if taps > 0 {
+        wide = unpack_history(noisy[trace_index(settings, block)]).w > 0.5;
+    }
     var sum = 0.0;
     var n = 0.0;
     var same_sum = 0.0;
@@ -190,10 +195,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Its own trace, filtered; or where its block traced another pixel, the traced neighbours on its surface
     // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
     let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), cap);
-    // Wider where occluders moved near the block's traced pixel (the trace's flag), as the filter is. (Read
-    // in every variant: in the checkerboard a texel keeps its flag with its trace until traced again.)
-    let wide = unpack_history(noisy[trace_index(settings, block)]).w > 0.5;
-    var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used), wide);
+    var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
     if traced {
         current = filtered[trace_index(settings, block)];
     }

@@ -335,7 +335,7 @@ pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2,
     for (d, v) in neighbourhood_within(trace, trace_size, texel, reach) {
         let w = super::denoise::bilateral_weight(
             d.as_vec2().length(),
-            (radius as i32 * reach) as f32,
+            radius as f32 * reach as f32,
             center.depth,
             v.depth,
             center.normal,
