@@ -1025,7 +1025,7 @@ fn the_gpu_trace_matches_its_cpu_twin_across_cascades() {
         .iter()
         .zip(&mips)
         .map(|(c, m)| TraceLevel {
-            origin: Vec3::ZERO,
+            origin: c.level.origin,
             cell_size: c.level.cell_size,
             window_min: c.level.window_min,
             mips: m,

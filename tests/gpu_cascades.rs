@@ -93,7 +93,12 @@ fn assert_levels_equal_cpu_with_solids(
     let mut counts = Vec::new();
     let mut filled = Vec::new();
     for (l, r) in levels.iter().enumerate() {
-        let level = cpu::CascadeLevel { cell_size: r.level.cell_size, cells: CELLS, window_min: r.level.window_min };
+        let level = cpu::CascadeLevel {
+            origin: r.level.origin,
+            cell_size: r.level.cell_size,
+            cells: CELLS,
+            window_min: r.level.window_min,
+        };
         let cpu = VoxelOccupancy::new(r.grid, false);
         for mesh in parts.iter().chain(solids) {
             voxelize_mesh_in_region(mesh, level.grid_from_world(), &settings, &level.region(), &cpu);
@@ -343,7 +348,12 @@ fn multi_valued_voxels_scroll_with_the_cascades() {
             }
         }
         let gpu = VoxelOccupancy::from_records(r.grid, &r.occupancy.words(), &window, SAMPLE_WORDS).unwrap();
-        let level = cpu::CascadeLevel { cell_size: r.level.cell_size, cells: CELLS, window_min: r.level.window_min };
+        let level = cpu::CascadeLevel {
+            origin: r.level.origin,
+            cell_size: r.level.cell_size,
+            cells: CELLS,
+            window_min: r.level.window_min,
+        };
         let cpu = VoxelOccupancy::with_attributes(r.grid);
         for (k, mesh) in parts.iter().enumerate() {
             let albedo = MeshAlbedo { base: pack_albedo(color(k)), vertex_colors: None };

@@ -1,8 +1,12 @@
 //! Camera-following cascades: the CPU twin of the plugin's default voxel volume.
 //!
-//! A cascade *level* is a window of `cells^3` cells of an unbounded lattice anchored at the world origin
-//! (lattice cell `c` covers `[c, c + 1] * cell_size` in world space); level `l + 1` has twice the cell size of
-//! level `l`. Each window is centred on the focus (the camera) and snapped to whole multiples of
+//! A cascade *level* is a window of `cells^3` cells of an unbounded lattice anchored half a finest cell below
+//! the world origin on every axis ([`CascadeShape::lattice_origin`]: lattice cell `c` covers
+//! `origin + [c, c + 1] * cell_size` in world space); level `l + 1` has twice the cell size of level `l`.
+//! The half cell puts the planes that scenes are built on (a floor at y = 0, walls and boxes on whole or
+//! eighth metres) in the middle of the finest cells rather than on their faces: a surface on a face fills
+//! the whole cell on one side of it, a cell thicker toward that side, while in the middle it stands half a
+//! cell out on each side, as the march's estimate (half a cell into the first occupied cell) takes it. Each window is centred on the focus (the camera) and snapped to whole multiples of
 //! [`SCROLL_STEP`] cells of its own level, so a voxel never moves relative to the world (no swimming) and
 //! the windows nest: level `l` always lies inside level `l + 1`.
 //!
@@ -26,6 +30,10 @@ pub const CASCADE_MIP_LEVELS: u32 = 4;
 
 /// The windows move in steps of this many cells of their own level (the coarsest mip texel).
 pub const SCROLL_STEP: u32 = 1 << (CASCADE_MIP_LEVELS - 1);
+
+/// Where the lattice is anchored, in finest cells below the world origin on each axis
+/// ([`CascadeShape::lattice_origin`]).
+pub const LATTICE_OFFSET_CELLS: f32 = 0.5;
 
 /// Most cascade levels.
 pub const MAX_CASCADES: u32 = 8;
@@ -98,6 +106,13 @@ impl CascadeShape {
         Ok(())
     }
 
+    /// The world position of every level's lattice cell 0 (its min corner): half a finest cell below the
+    /// world origin on each axis, so that planes at whole multiples of the finest cell lie in the middle of
+    /// their cells (see the module's documentation). The levels share it, so their lattices nest.
+    pub fn lattice_origin(&self) -> Vec3 {
+        Vec3::splat(-LATTICE_OFFSET_CELLS * self.finest_cell_size)
+    }
+
     /// The world-space cell size of level `level`.
     pub fn cell_size(&self, level: u32) -> f32 {
         self.finest_cell_size * (1u64 << level.min(62)) as f32
@@ -109,8 +124,10 @@ impl CascadeShape {
         (0..self.levels)
             .map(|l| {
                 let cell_size = self.cell_size(l);
-                let window_min = cascade_window(focus, cell_size, self.cells)?;
-                Ok(CascadeLevel { cell_size, cells: self.cells, window_min })
+                let origin = self.lattice_origin();
+                let window_min =
+                    cascade_window(focus - origin, cell_size, self.cells).map_err(|_| CascadeError::BadFocus(focus))?;
+                Ok(CascadeLevel { origin, cell_size, cells: self.cells, window_min })
             })
             .collect()
     }
@@ -119,6 +136,8 @@ impl CascadeShape {
 /// One level of a set of cascades: its cell size and the window of the lattice it holds.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CascadeLevel {
+    /// World position of lattice cell 0's min corner ([`CascadeShape::lattice_origin`]).
+    pub origin: Vec3,
     /// World-space cell size.
     pub cell_size: f32,
     /// Cells per axis.
@@ -143,19 +162,24 @@ impl CascadeLevel {
         }
     }
 
-    /// World space to this level's lattice (anchored at the world origin, cells of side 1).
+    /// World space to this level's lattice (anchored at [`Self::origin`], cells of side 1).
     pub fn grid_from_world(&self) -> Affine3A {
-        Affine3A::from_scale(Vec3::splat(1.0 / self.cell_size))
+        Affine3A::from_scale(Vec3::splat(1.0 / self.cell_size)) * Affine3A::from_translation(-self.origin)
     }
 
     /// The window as a plain grid (origin at its min corner), e.g. for an occupancy stored relative to it.
     pub fn window_grid(&self) -> Result<VoxelGrid, GridError> {
-        VoxelGrid::new(self.window_min.as_vec3() * self.cell_size, self.cell_size, UVec3::splat(self.cells))
+        VoxelGrid::new(
+            self.origin + self.window_min.as_vec3() * self.cell_size,
+            self.cell_size,
+            UVec3::splat(self.cells),
+        )
     }
 }
 
-/// The lattice cell at the min corner of a window of `cells` cells of side `cell_size` around `focus`: the
-/// focus's cell snapped down to a multiple of [`SCROLL_STEP`], minus half the window.
+/// The lattice cell at the min corner of a window of `cells` cells of side `cell_size` around `focus` (relative
+/// to the lattice's origin): the focus's cell snapped down to a multiple of [`SCROLL_STEP`], minus half the
+/// window.
 pub fn cascade_window(focus: Vec3, cell_size: f32, cells: u32) -> Result<IVec3, CascadeError> {
     let p = focus / cell_size;
     if !p.is_finite() || p.abs().max_element() > MAX_LATTICE_COORD - 2.0 * cells as f32 {
@@ -204,6 +228,24 @@ mod tests {
     }
 
     #[test]
+    fn planes_on_whole_cells_lie_in_the_middle_of_the_finest_cells() {
+        let s = shape();
+        let levels = s.levels_at(Vec3::new(0.3, 1.2, -0.7)).unwrap();
+        let g = levels[0].grid_from_world();
+        // A floor at y = 0 and a wall at x = 2 finest cells: half a cell into their cells.
+        assert_eq!(g.transform_point3(Vec3::new(0.5, 0.0, 0.5 * 0.25)).y, 0.5);
+        assert_eq!(g.transform_point3(Vec3::new(2.0 * 0.25, 0.1, 0.0)).x, 2.5);
+        // The window's grid is the same lattice.
+        let w = levels[0].window_grid().unwrap();
+        let p = Vec3::new(0.3, 0.0, 0.1);
+        assert!((w.world_to_grid(p) + levels[0].window_min.as_vec3() - g.transform_point3(p)).length() < 1.0e-4);
+        // Coarser levels share the origin, so their lattices nest.
+        for l in &levels {
+            assert_eq!(l.origin, Vec3::splat(-0.125));
+        }
+    }
+
+    #[test]
     fn windows_are_snapped_centred_and_nested() {
         let s = shape();
         for focus in [Vec3::ZERO, Vec3::new(3.3, -7.1, 100.9), Vec3::new(-1234.5, 2.0, 999.0)] {
@@ -212,7 +254,7 @@ mod tests {
                 assert_eq!(level.cell_size, 0.25 * (1 << l) as f32);
                 assert_eq!(level.window_min % SCROLL_STEP as i32, IVec3::ZERO);
                 // The focus lies within a step of the window's centre.
-                let centre = (level.window_min.as_vec3() + Vec3::splat(16.0)) * level.cell_size;
+                let centre = level.origin + (level.window_min.as_vec3() + Vec3::splat(16.0)) * level.cell_size;
                 assert!(((focus - centre) / level.cell_size).abs().max_element() <= SCROLL_STEP as f32);
                 if l > 0 {
                     // Level l-1's window lies inside level l's.
@@ -224,7 +266,7 @@ mod tests {
         }
         // Moving within a step keeps every window: voxels do not swim.
         let a = s.levels_at(Vec3::new(0.1, 0.1, 0.1)).unwrap();
-        let b = s.levels_at(Vec3::new(1.9, 0.1, 0.1)).unwrap();
+        let b = s.levels_at(Vec3::new(1.8, 0.1, 0.1)).unwrap();
         assert_eq!(a, b);
         assert!(s.levels_at(Vec3::new(f32::NAN, 0.0, 0.0)).is_err());
         assert!(s.levels_at(Vec3::new(1.0e12, 0.0, 0.0)).is_err());

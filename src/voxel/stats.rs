@@ -122,6 +122,9 @@ impl VoxelizeCounters {
 /// One cascade level as it stands (see [`VoxelizationStatsData::cascades`]).
 #[derive(Clone, Copy, Default, Debug, PartialEq)]
 pub struct CascadeLevelStats {
+    /// World position of the lattice's cell 0 (min corner): the cell of lattice coordinates `c` covers
+    /// `origin + [c, c + 1] * cell_size`.
+    pub origin: Vec3,
     /// World-space cell size.
     pub cell_size: f32,
     /// The lattice cell at the window's min corner.

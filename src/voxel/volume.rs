@@ -30,7 +30,8 @@ pub const MAX_VOXEL_MIPS: u32 = 5;
 #[derive(Resource, Clone, Debug)]
 pub struct VoxelGridAssets {
     /// The grid of one level: for a single grid, the grid itself; for cascades, the storage of one cascade
-    /// (origin at the world origin, the finest cell size, `cells^3` dimensions). The buffers hold
+    /// (origin at the lattice's, half a finest cell below the world origin, the finest cell size, `cells^3`
+    /// dimensions). The buffers hold
     /// [`Self::levels`] such grids one after the other; a cascade level is stored toroidally (lattice cell `c`
     /// of its window at `c mod cells`).
     pub grid: VoxelGrid,
@@ -176,7 +177,7 @@ pub(crate) fn update_voxel_volume(
     let shape = volume.cascade_shape();
     let (grid, levels, mip_levels) = if let Some(shape) = shape {
         let grid = shape.validate().and_then(|_| {
-            VoxelGrid::new(Vec3::ZERO, shape.finest_cell_size, UVec3::splat(shape.cells))
+            VoxelGrid::new(shape.lattice_origin(), shape.finest_cell_size, UVec3::splat(shape.cells))
                 .map_err(cpu::CascadeError::Grid)
         });
         match grid {

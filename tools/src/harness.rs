@@ -337,7 +337,8 @@ pub fn read_cascades(app: &mut App, static_only: bool) -> Vec<CascadeReadback> {
         .iter()
         .enumerate()
         .map(|(l, level)| {
-            let grid = VoxelGrid::new(level.window_min.as_vec3() * level.cell_size, level.cell_size, d).unwrap();
+            let grid = VoxelGrid::new(level.origin + level.window_min.as_vec3() * level.cell_size, level.cell_size, d)
+                .unwrap();
             let occupancy = VoxelOccupancy::new(grid, false);
             let wrap = level.window_min.rem_euclid(d.as_ivec3()).as_uvec3();
             for z in 0..d.z {
@@ -370,7 +371,7 @@ pub fn read_trace_voxels(app: &mut App) -> Vec<(Vec3, f32, IVec3, bevy_hao::cpu:
         .into_iter()
         .map(|c| {
             let mips = bevy_hao::cpu::march::VoxelMips::new(&c.occupancy, assets.mip_levels);
-            (Vec3::ZERO, c.level.cell_size, c.level.window_min, mips)
+            (c.level.origin, c.level.cell_size, c.level.window_min, mips)
         })
         .collect()
 }

@@ -78,11 +78,7 @@ pub(crate) struct LevelLayout {
 impl LevelLayout {
     /// World space to the level's lattice.
     pub fn grid_from_world(&self) -> Affine3A {
-        if self.toroidal {
-            Affine3A::from_scale(Vec3::splat(1.0 / self.cell_size))
-        } else {
-            VoxelGrid { origin: self.origin, cell_size: self.cell_size, dims: self.dims }.grid_from_world()
-        }
+        VoxelGrid { origin: self.origin, cell_size: self.cell_size, dims: self.dims }.grid_from_world()
     }
 
     /// Where the window's min corner is stored.
@@ -149,7 +145,7 @@ pub(crate) fn place_levels(assets: &VoxelGridAssets, focus: Option<Vec3>) -> Opt
                     .iter()
                     .enumerate()
                     .map(|(l, c)| LevelLayout {
-                        origin: Vec3::ZERO,
+                        origin: c.origin,
                         cell_size: c.cell_size,
                         dims: UVec3::splat(c.cells),
                         size: assets.texture_size,

@@ -341,6 +341,7 @@ pub fn prepare_voxelize(
     let level_stats = |s: &mut Vec<CascadeLevelStats>, regions: &[(Vec<CellBox>, bool, bool)]| {
         for (l, level) in levels.iter().enumerate() {
             if let Some(ls) = s.get_mut(l) {
+                ls.origin = level.origin;
                 ls.cell_size = level.cell_size;
                 ls.window_min = level.window_min;
                 let (boxes, whole, scrolled) = &regions[l];
