@@ -6,8 +6,9 @@
 //! The half cell puts the planes that scenes are built on (a floor at y = 0, walls and boxes on whole or
 //! eighth metres) in the middle of the finest cells rather than on their faces: a surface on a face fills
 //! the whole cell on one side of it, a cell thicker toward that side, while in the middle it stands half a
-//! cell out on each side, as the march's estimate (half a cell into the first occupied cell) takes it. Each window is centred on the focus (the camera) and snapped to whole multiples of
-//! [`SCROLL_STEP`] cells of its own level, so a voxel never moves relative to the world (no swimming) and
+//! cell out on each side, as the march's estimate (half a cell into the first occupied cell) takes it.
+//! Each window is centred on the focus (the camera) and snapped to whole multiples of [`SCROLL_STEP`] cells
+//! of its own level, so a voxel never moves relative to the world (no swimming) and
 //! the windows nest: level `l` always lies inside level `l + 1`.
 //!
 //! On the GPU a level is stored toroidally (lattice cell `c` lives at `c mod cells`), so when the window
@@ -121,10 +122,10 @@ impl CascadeShape {
     /// The levels' windows around `focus` (see [`cascade_window`]).
     pub fn levels_at(&self, focus: Vec3) -> Result<Vec<CascadeLevel>, CascadeError> {
         self.validate()?;
+        let origin = self.lattice_origin();
         (0..self.levels)
             .map(|l| {
                 let cell_size = self.cell_size(l);
-                let origin = self.lattice_origin();
                 let window_min =
                     cascade_window(focus - origin, cell_size, self.cells).map_err(|_| CascadeError::BadFocus(focus))?;
                 Ok(CascadeLevel { origin, cell_size, cells: self.cells, window_min })

@@ -136,7 +136,8 @@ pub struct MarchResult {
 /// grid, or one cascade level with its occupancy stored relative to its window.
 #[derive(Clone, Copy)]
 pub struct TraceLevel<'a> {
-    /// World position of lattice cell 0 (for cascades half a finest cell below the world origin, the grid's min corner otherwise).
+    /// World position of lattice cell 0 (for cascades half a finest cell below the world origin, the grid's
+    /// min corner otherwise).
     pub origin: Vec3,
     /// World-space cell size.
     pub cell_size: f32,

@@ -20,7 +20,8 @@ pub const MAX_VOXEL_LEVELS: usize = crate::cpu::cascade::MAX_CASCADES as usize;
 /// One level (WGSL `VoxelLevel`).
 #[derive(ShaderType, Clone, Copy, Default, Debug)]
 pub struct GpuVoxelLevel {
-    /// World position of lattice cell 0 (for cascades half a finest cell below the world origin, the grid's min corner otherwise).
+    /// World position of lattice cell 0 (for cascades half a finest cell below the world origin, the grid's
+    /// min corner otherwise).
     pub origin: Vec3,
     /// World-space cell size.
     pub cell_size: f32,

@@ -372,6 +372,7 @@ pub(crate) fn update_voxel_volume(
         s.grid = Some(grid);
         s.cascades = (0..levels)
             .map(|l| CascadeLevelStats {
+                origin: grid.origin,
                 cell_size: shape.map_or(grid.cell_size, |c| c.cell_size(l)),
                 bytes,
                 ..default()
