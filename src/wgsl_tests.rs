@@ -214,7 +214,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
                 depth_contacts,
                 checkerboard,
                 contact_samples,
-                _pad_b,
+                still_accumulation_frames,
                 _pad_c,
             ]
         ),
@@ -382,7 +382,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 35] = [
+    let pairs: [(&str, &str, f64); 37] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -397,6 +397,8 @@ fn shared_constants_agree() {
         (hao, "CLAMPED_COUNT", temporal::CLAMPED_COUNT as f64),
         (hao, "CHANGED_COUNT", temporal::CHANGED_COUNT as f64),
         (hao, "STAND_IN_COUNT", temporal::STAND_IN_COUNT as f64),
+        (hao, "MAX_HISTORY_FRAMES", temporal::MAX_HISTORY_FRAMES as f64),
+        (hao, "STILL_TOLERANCE", temporal::STILL_TOLERANCE as f64),
         ("src/ao/hao_change.wgsl", "CHANGE_NOISE_FLOOR", temporal::CHANGE_NOISE_FLOOR as f64),
         ("src/ao/hao_change.wgsl", "CHANGE_NOISE_SAMPLES", temporal::CHANGE_NOISE_SAMPLES as f64),
         ("src/ao/hao_change.wgsl", "CHANGE_RAYS_SCALE", temporal::CHANGE_RAYS_SCALE as f64),

@@ -624,7 +624,15 @@ fn assert_accumulation_matches_cpu_with(quality: HaoQuality, spinner: Option<Vec
     use bevy_hao::cpu::temporal::{MovedVoxels, accumulate_still, occlusion_change};
     let _gpu = gpu_lock();
     // With the filter (`cpu::temporal::prefilter`), wider than its default.
-    let settings = HybridAmbientOcclusion { denoise_radius: 2, accumulation_frames: 8, quality, ..hao_settings() };
+    // The history as long still as in motion (8 frames), so that the frames traced while the grid was being
+    // built leave it (`a_still_view_keeps_a_longer_history_and_shimmers_less` holds the longer one).
+    let settings = HybridAmbientOcclusion {
+        denoise_radius: 2,
+        accumulation_frames: 8,
+        still_accumulation_frames: 8,
+        quality,
+        ..hao_settings()
+    };
     let half_resolution = settings.trace_parameters().2;
     let frames_per_trace = settings.frames_per_trace() as usize;
     // Long enough for the first frames, traced while the grid was still being built, to have left the
@@ -665,7 +673,8 @@ fn assert_accumulation_matches_cpu_with(quality: HaoQuality, spinner: Option<Vec
     let pixels: Vec<Option<(f32, Vec3)>> =
         samples.iter().map(|s| s.map(|(p, n)| (-view_from_world.transform_point3(p).z, n))).collect();
     let accumulate = |frames| {
-        accumulate_still(frames, &pixels, &change, UVec2::new(w, h), half_resolution, 8.0, settings.denoise_radius)
+        let size = UVec2::new(w, h);
+        accumulate_still(frames, &pixels, &change, size, half_resolution, 8.0, 8.0, settings.denoise_radius)
     };
     let error = |cpu: &[f32]| {
         let (mut sum, mut n) = (0.0f64, 0);
@@ -1275,6 +1284,38 @@ fn two_rays_a_frame_accumulated_converge_towards_many_rays() {
     assert!(e16 < 0.4 * e1, "{e16} against {e1}");
 }
 
+/// Two rays a frame at full resolution with no filter, accumulated over `accumulation_frames`.
+fn two_rays_accumulated(accumulation_frames: u32) -> HybridAmbientOcclusion {
+    HybridAmbientOcclusion {
+        quality: HaoQuality::Custom { rays: 2, steps: 48, half_resolution: false },
+        denoise_radius: 0,
+        accumulation_frames,
+        ..hao_settings()
+    }
+}
+
+#[test]
+fn a_still_view_keeps_a_longer_history_and_shimmers_less() {
+    let _gpu = gpu_lock();
+    let camera = Transform::from_xyz(1.5, 9.0, 5.5).looking_at(Vec3::new(1.0, 0.0, 0.5), Vec3::Y);
+    // The mean change of the AO from one frame to the next after 60 frames of two rays, at full resolution,
+    // with 8 frames accumulated: still, the history keeps `still_accumulation_frames` (about 55 frames by
+    // then at 64, against 8), and the change falls as one over them.
+    let shimmer = |still_accumulation_frames: u32| {
+        let settings = HybridAmbientOcclusion { still_accumulation_frames, ..two_rays_accumulated(8) };
+        let mut app = scene_app(camera, Ao::Hao(settings), walls);
+        run(&mut app, 60);
+        let a = ao_image(&mut app).2;
+        run(&mut app, 1);
+        let b = ao_image(&mut app).2;
+        assert!(take_render_errors().is_empty());
+        mean_difference(&a, &b)
+    };
+    let (short, long) = (shimmer(8), shimmer(64));
+    println!("frame-to-frame change of a still view: history of 8 frames {short:.5}, of up to 64 {long:.5}");
+    assert!(short > 0.0 && long < 0.4 * short, "{long} against {short}");
+}
+
 #[test]
 fn an_occluder_that_leaves_leaves_no_trail() {
     let _gpu = gpu_lock();
@@ -1319,13 +1360,7 @@ fn a_moving_camera_keeps_its_history_without_trails() {
     // along the walls' feet (at 96x64 a pixel is wider than a voxel), where the history's reprojection
     // blurs them; measured 99th percentiles 0.133 and 0.154.
     for (depth_contacts, p99_bound) in [(false, 0.15), (true, 0.18)] {
-        let settings = HybridAmbientOcclusion {
-            quality: HaoQuality::Custom { rays: 2, steps: 48, half_resolution: false },
-            denoise_radius: 0,
-            accumulation_frames: 16,
-            depth_contacts,
-            ..hao_settings()
-        };
+        let settings = HybridAmbientOcclusion { depth_contacts, ..two_rays_accumulated(16) };
         moving_camera_against_many_rays(settings, p99_bound);
     }
     // `Medium` as a game gets it (1 ray a frame at half resolution, the denoiser): each pixel traces every

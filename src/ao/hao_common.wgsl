@@ -41,7 +41,8 @@ struct HaoSettings {
     checkerboard: u32,
     // Points each ray's depth contacts sample in the depth prepass (`depth_contact`).
     contact_samples: u32,
-    pad_b: u32,
+    // Most frames of history a pixel keeps where the view stands still (`history_limit`).
+    still_accumulation_frames: u32,
     pad_c: u32,
 }
 
@@ -213,13 +214,25 @@ fn unpack_normal(p: f32) -> vec3<f32> {
 }
 
 // cpu/temporal.rs: DEPTH_TOLERANCE, NORMAL_TOLERANCE, CLAMP_MARGIN, CLAMPED_COUNT, CHANGED_COUNT,
-// STAND_IN_COUNT
+// STAND_IN_COUNT, MAX_HISTORY_FRAMES, STILL_TOLERANCE
 const DEPTH_TOLERANCE: f32 = 0.02;
 const NORMAL_TOLERANCE: f32 = 0.9;
 const CLAMP_MARGIN: f32 = 0.1;
 const CLAMPED_COUNT: f32 = 2.0;
 const CHANGED_COUNT: f32 = 2.0;
 const STAND_IN_COUNT: f32 = 3.0;
+const MAX_HISTORY_FRAMES: f32 = 127.0;
+const STILL_TOLERANCE: f32 = 0.01;
+
+// cpu/temporal.rs: history_limit. The most frames a pixel's history keeps: max_count (accumulation_frames),
+// or where the view stands still there (`still`: its surface reprojects onto the pixel itself) still_count,
+// within [max_count, MAX_HISTORY_FRAMES]; without accumulation none either way.
+fn history_limit(max_count: f32, still_count: f32, still: bool) -> f32 {
+    if still && max_count > 1.0 {
+        return clamp(still_count, max_count, MAX_HISTORY_FRAMES);
+    }
+    return max_count;
+}
 
 // cpu/temporal.rs: uses_stand_in. Whether a pixel without its own trace this frame blends its stand-in: where
 // its history holds fewer than STAND_IN_COUNT frames (or the cap, if lower), the voxels near it changed enough
@@ -261,11 +274,12 @@ fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: 
 }
 
 // cpu/temporal.rs: temporal_update; returns (ao, frames of weight). `own`: the pixel was traced this frame
-// and `current` is its AO; else `current` is its stand-in, blended only where `uses_stand_in` (else the
-// history stays as it is).
-fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, cap: f32) -> vec2<f32> {
+// and `current` is its AO; else `current` is its stand-in, blended only where `uses_stand_in` (against
+// max_count, accumulation_frames; else the history stays as it is). The blend keeps at most `limit` frames
+// (`history_limit`).
+fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, limit: f32, cap: f32) -> vec2<f32> {
     if own || uses_stand_in(history_count, max_count, cap) {
-        return temporal_blend(history, history_count, window, current, max_count, cap);
+        return temporal_blend(history, history_count, window, current, limit, cap);
     }
     return vec2<f32>(history, history_count);
 }
@@ -278,7 +292,7 @@ fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: boo
 fn pack_history(v: vec4<f32>) -> vec2<u32> {
     let depth = (bitcast<u32>(max(v.y, 0.0)) + 0x800u) >> 12u;
     let ao = u32(round(clamp(v.x, 0.0, 1.0) * 8191.0));
-    let frames = u32(round(clamp(v.w, 0.0, 127.0) * 8.0));
+    let frames = u32(round(clamp(v.w, 0.0, MAX_HISTORY_FRAMES) * 8.0));
     return vec2<u32>((depth << 13u) | ao, (u32(v.z) << 10u) | frames);
 }
 

@@ -5,7 +5,9 @@
 // texels (both from the neighborhood pass). At half resolution a pixel is traced every fourth frame (every
 // eighth in the checkerboard, where the trace keeps half its texels from last frame: `texel_traced`); in the
 // other frames its history stays as it is, and where it has none its traced neighbours on its surface stand
-// in. Writes the new history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`; a
+// in. Where the view stands still (the surface reprojects onto the pixel itself), the pixel's own texel is
+// read, exactly, and the history keeps up to `still_accumulation_frames` (`history_limit`). Writes the new
+// history (ao, view depth, packed normal, frames of weight, in 64 bits: `pack_history`; a
 // buffer of the view's pixels row by row), which the next frame reprojects, and its AO into the texture PBR
 // reads (at target_pixel(p): the texture is the target's size); with the near field, into the plugin's result
 // texture with the minimum of Bevy's screen-space AO, which the apply pass then copies (Bevy's SSAO texture
@@ -14,9 +16,9 @@
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
-    HaoSettings, history_accepts, history_index, octahedral_encode, pack_history, pack_normal, target_pixel,
-    temporal_update, trace_index, uses_stand_in, traced_pixel, texel_traced, trace_turn, unpack_direction,
-    unpack_history,
+    HaoSettings, history_accepts, history_index, history_limit, octahedral_encode, pack_history, pack_normal,
+    target_pixel, temporal_update, trace_index, uses_stand_in, traced_pixel, texel_traced, trace_turn,
+    unpack_direction, unpack_history, STILL_TOLERANCE,
 }
 #import bevy_hao::hao_change::{occlusion_change, change_cap}
 
@@ -151,11 +153,18 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let expected_depth = -(previous_view.view_from_world * vec4<f32>(world, 1.0)).z;
     var history_ao = 0.0;
     var history_count = 0.0;
+    // Whether the view stands still here: the surface reprojects onto the pixel itself (no camera motion,
+    // no TAA jitter), whose history is then read exactly and may keep more frames (`history_limit`).
+    var still = false;
     if clip.w > 0.0 {
         let prev_ndc = clip.xy / clip.w;
         let prev_uv = vec2<f32>(prev_ndc.x * 0.5 + 0.5, 0.5 - prev_ndc.y * 0.5);
-        // The history's texel coordinates, bilinear.
-        let hp = prev_uv * view.viewport.zw - 0.5;
+        // The history's texel coordinates, bilinear; the pixel's own texel where the view stands still.
+        var hp = prev_uv * view.viewport.zw - 0.5;
+        still = all(abs(hp - vec2<f32>(pixel)) <= vec2<f32>(STILL_TOLERANCE));
+        if still {
+            hp = vec2<f32>(pixel);
+        }
         let base = vec2<i32>(floor(hp));
         let f = hp - floor(hp);
         var weight = 0.0;
@@ -199,7 +208,9 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     if traced {
         current = filtered[trace_index(settings, block)];
     }
-    let blended = temporal_update(history_ao, history_count, window, traced, current, f32(settings.accumulation_frames), cap);
+    let max_count = f32(settings.accumulation_frames);
+    let limit = history_limit(max_count, f32(settings.still_accumulation_frames), still);
+    let blended = temporal_update(history_ao, history_count, window, traced, current, max_count, limit, cap);
     history_out[history_index(settings, pixel)] =
         pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
     store_ao(pixel, blended.x);

@@ -114,6 +114,10 @@ impl Plugin for HybridAmbientOcclusionPlugin {
 /// no ambient occlusion for as long as they are that small, with one warning per camera.
 pub const MIN_VIEWPORT_PIXELS: u32 = 16;
 
+/// The most frames of weight a pixel's history holds (its texel keeps them to an eighth in 10 bits:
+/// `bevy_hao::cpu::denoise::HistoryTexel::stored`), the most `still_accumulation_frames` can keep.
+const MAX_HISTORY_FRAMES: u32 = crate::cpu::temporal::MAX_HISTORY_FRAMES as u32;
+
 /// Whether HAO (and Bevy's SSAO textures with it) can run on a viewport of `size` pixels.
 pub fn viewport_supported(size: UVec2) -> bool {
     size.min_element() >= 1 && size.max_element() >= MIN_VIEWPORT_PIXELS
@@ -383,6 +387,15 @@ pub struct HybridAmbientOcclusion {
     /// one every fourth frame (every eighth in `Low`'s checkerboard), so the history spans
     /// four (eight) times as many frames.
     pub accumulation_frames: u32,
+    /// The frames a pixel's history keeps where the view stands still: where its surface reprojects onto
+    /// the pixel itself (a still camera, a still surface, no TAA jitter), the history is read exactly, with
+    /// no resampling to blur it, and the voxel grid's list of moved occluders shortens it near anything that
+    /// moves (see `bevy_hao::cpu::temporal`), so it may keep more than `accumulation_frames` and the AO of a
+    /// still view settles further: its frame-to-frame shimmer falls as one over the frames kept. Counted as
+    /// `accumulation_frames` is (a pixel's own traces); at least `accumulation_frames` (a lower value acts
+    /// as it), at most 127 (what the history's texel holds). Lower it for geometry HAO does not see move
+    /// (a vertex shader's animation), whose shadow a long history would follow more slowly.
+    pub still_accumulation_frames: u32,
     /// With multi-valued voxels ([`crate::VoxelVolume::attributes`]): a ray passes through a voxel whose
     /// average normal clearly faces along it (the back of a surface, which a ray reaches only from inside a
     /// solid, grazing the voxels of its own surface, or behind single-sided geometry) instead of stopping
@@ -418,6 +431,13 @@ impl HybridAmbientOcclusion {
         }
     }
 
+    /// The frames a still pixel's history keeps (`still_accumulation_frames`, at least
+    /// `accumulation_frames`; with 1 accumulation frame, 1: no accumulation).
+    pub fn still_history_frames(&self) -> u32 {
+        let frames = self.accumulation_frames.clamp(1, 64);
+        if frames <= 1 { 1 } else { self.still_accumulation_frames.clamp(frames, MAX_HISTORY_FRAMES) }
+    }
+
     /// Points each ray samples in the depth prepass for its contacts (the occluders within its first two
     /// cells, which the voxels cannot resolve; `depth_contacts`): the quality's, 8 for `High` and `Ultra`
     /// and 4 for the others. At 1920x1080 the 8 lowered `High`'s error against the reference by up to a
@@ -436,7 +456,8 @@ impl HybridAmbientOcclusion {
     /// These settings with every invalid value replaced by the one the passes use, and one message per
     /// replacement naming the field, the value given and the value used (the plugin logs each once per
     /// camera). NaN, infinite, zero or negative distances and exponents are invalid; so are more than 256
-    /// rays, more than 1024 steps, a denoise radius above 8, or accumulation frames outside 1..=64.
+    /// rays, more than 1024 steps, a denoise radius above 8, accumulation frames outside 1..=64, or still
+    /// accumulation frames outside 1..=127.
     pub fn sanitized(&self) -> (HybridAmbientOcclusion, Vec<String>) {
         let mut h = self.clone();
         let mut fixes = Vec::new();
@@ -478,6 +499,14 @@ impl HybridAmbientOcclusion {
             ));
             h.accumulation_frames = used;
         }
+        if !(1..=MAX_HISTORY_FRAMES).contains(&h.still_accumulation_frames) {
+            let used = h.still_accumulation_frames.clamp(1, MAX_HISTORY_FRAMES);
+            fixes.push(format!(
+                "HybridAmbientOcclusion::still_accumulation_frames is {}; using {used}",
+                h.still_accumulation_frames
+            ));
+            h.still_accumulation_frames = used;
+        }
         if h.denoise_radius > 8 {
             fixes.push(format!("HybridAmbientOcclusion::denoise_radius is {}; using 8", h.denoise_radius));
             h.denoise_radius = 8;
@@ -509,6 +538,7 @@ impl Default for HybridAmbientOcclusion {
             near_field_quality: ScreenSpaceAmbientOcclusionQualityLevel::Medium,
             denoise_radius: 1,
             accumulation_frames: 16,
+            still_accumulation_frames: MAX_HISTORY_FRAMES,
             ignore_back_hits: true,
         }
     }

@@ -70,17 +70,19 @@ pub struct GpuHaoSettings {
     pub checkerboard: u32,
     /// Points each ray's depth contacts sample in the depth prepass.
     pub contact_samples: u32,
+    /// Most frames of temporal history where the view stands still.
+    pub still_accumulation_frames: u32,
     /// Padding to the struct's alignment (its matrix's 16 bytes).
-    pub _pad_b: u32,
-    /// Padding.
     pub _pad_c: u32,
 }
 
-/// What a view's temporal pass needs from its last frame: the TAA jitter and sizes it had, when, and whether
-/// its passes ran then.
+/// What a view's temporal pass needs from its last frame: the TAA jitter, sizes and settings it had, when,
+/// and whether its passes ran then.
 #[derive(Clone)]
 pub struct ViewHistory {
     jitter: Vec2,
+    /// The settings it was traced with (sanitized).
+    settings: HybridAmbientOcclusion,
     view_size: UVec2,
     trace_size: UVec2,
     frame: u32,
@@ -99,6 +101,17 @@ impl ViewHistory {
             && self.view_size == view_size
             && self.trace_size == trace_size
             && self.written.load(Ordering::Relaxed)
+    }
+
+    /// The frames a still pixel's history keeps this frame, with `settings` (sanitized): their
+    /// `still_history_frames`, or in a frame whose settings differ from the last frame's
+    /// `accumulation_frames`, which cuts every longer history short, so that a change of the settings
+    /// (an inspector's slider) shows as fast as it would in a view that moves.
+    pub fn still_history_frames(last: Option<&Self>, settings: &HybridAmbientOcclusion) -> u32 {
+        match last {
+            Some(last) if last.settings != *settings => settings.accumulation_frames.clamp(1, 64),
+            _ => settings.still_history_frames(),
+        }
     }
 }
 
@@ -253,6 +266,7 @@ pub fn prepare_hao_textures(
         let history_written = Arc::new(AtomicBool::new(false));
         let record = ViewHistory {
             jitter: jitter_offset,
+            settings: hao.clone(),
             view_size,
             trace_size,
             frame: *frame,
@@ -260,6 +274,7 @@ pub fn prepare_hao_textures(
         };
         histories.insert(entity, (record, buffers));
         let history_valid = last.as_ref().is_some_and(|l| l.continues(view_size, trace_size, *frame));
+        let still_history_frames = ViewHistory::still_history_frames(last.as_ref(), hao);
         let previous_clip_from_world = match (previous_view, last) {
             (Some(previous), Some(last)) => previous_clip_from_world(previous, last.jitter, last.view_size),
             (Some(previous), None) => previous.clip_from_world,
@@ -296,7 +311,7 @@ pub fn prepare_hao_textures(
             depth_contacts: hao.depth_contacts as u32,
             checkerboard: checkerboard as u32,
             contact_samples: hao.contact_samples(),
-            _pad_b: 0,
+            still_accumulation_frames: still_history_frames,
             _pad_c: 0,
         };
         // Written into the view's own buffer before this frame's passes run (the last frame's passes were
@@ -483,6 +498,7 @@ mod tests {
     fn history_continues_only_from_the_frame_before_at_the_same_size() {
         let h = ViewHistory {
             jitter: Vec2::ZERO,
+            settings: HybridAmbientOcclusion::default(),
             view_size: UVec2::new(64, 48),
             trace_size: UVec2::new(32, 24),
             frame: 7,
@@ -499,6 +515,30 @@ mod tests {
         // Prepared the frame before, but its passes did not run (the node left early): no history written.
         let not_run = ViewHistory { written: Arc::new(AtomicBool::new(false)), ..h };
         assert!(!not_run.continues(UVec2::new(64, 48), UVec2::new(32, 24), 8));
+    }
+
+    #[test]
+    fn a_change_of_settings_cuts_a_still_history_short_for_a_frame() {
+        let settings = HybridAmbientOcclusion::default();
+        let last = ViewHistory {
+            jitter: Vec2::ZERO,
+            settings: settings.clone(),
+            view_size: UVec2::new(64, 48),
+            trace_size: UVec2::new(32, 24),
+            frame: 7,
+            written: Arc::new(AtomicBool::new(true)),
+        };
+        assert_eq!(ViewHistory::still_history_frames(Some(&last), &settings), 127);
+        assert_eq!(ViewHistory::still_history_frames(None, &settings), 127);
+        let brighter = HybridAmbientOcclusion { intensity: 0.5, ..settings.clone() };
+        assert_eq!(ViewHistory::still_history_frames(Some(&last), &brighter), 16);
+        // Never under accumulation_frames, at most what the texel holds; none without accumulation.
+        let short = HybridAmbientOcclusion { still_accumulation_frames: 4, ..settings.clone() };
+        assert_eq!(short.still_history_frames(), 16);
+        let none = HybridAmbientOcclusion { accumulation_frames: 1, ..settings.clone() };
+        assert_eq!(none.still_history_frames(), 1);
+        let (fixed, fixes) = HybridAmbientOcclusion { still_accumulation_frames: 1000, ..settings }.sanitized();
+        assert_eq!((fixed.still_accumulation_frames, fixes.len()), (127, 1), "{fixes:?}");
     }
 
     #[test]

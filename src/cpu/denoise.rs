@@ -29,7 +29,7 @@ impl HistoryTexel {
             ao: (self.ao.clamp(0.0, 1.0) * 8191.0).round() / 8191.0,
             depth,
             normal: self.normal,
-            frames: (self.frames.clamp(0.0, 127.0) * 8.0).round() / 8.0,
+            frames: (self.frames.clamp(0.0, super::temporal::MAX_HISTORY_FRAMES) * 8.0).round() / 8.0,
         }
     }
 }

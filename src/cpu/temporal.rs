@@ -34,7 +34,12 @@
 //!    history is then the AO PBR reads: there is no filter after accumulation.
 //! 5. **Blend** ([`temporal_blend`]): with `c` frames of history, capped at
 //!    `HybridAmbientOcclusion::accumulation_frames`, the new AO is `history + (current - history) / c`: the
-//!    running mean of the last frames, an exponential average once the cap is reached.
+//!    running mean of the last frames, an exponential average once the cap is reached. Where the view
+//!    stands still (the pixel's surface reprojects onto the pixel itself, within [`STILL_TOLERANCE`]), the
+//!    history is read from the pixel's own texel, exactly, and the cap is
+//!    `HybridAmbientOcclusion::still_accumulation_frames` ([`history_limit`]): nothing resamples that
+//!    history, and the change cap (3.) shortens it near anything that moves, so a still view settles
+//!    further, its frame-to-frame change falling as one over the frames kept.
 //!
 //! The history is kept at full resolution. A half-resolution trace traces one pixel of each 2x2 block a
 //! frame, each pixel in turn (`cpu::ao::traced_pixel`), so every pixel accumulates its own rays, one trace
@@ -53,6 +58,24 @@ pub const CLAMP_MARGIN: f32 = 0.1;
 use super::ao::{texel_traced, trace_turn, traced_pixel};
 use super::denoise::HistoryTexel;
 use glam::{IVec2, UVec2, Vec2, Vec3};
+
+/// The most frames of weight a history holds (its texel keeps them to an eighth in 10 bits:
+/// [`HistoryTexel::stored`]; WGSL: `MAX_HISTORY_FRAMES`).
+pub const MAX_HISTORY_FRAMES: f32 = 127.0;
+
+/// How far, in pixels, a pixel's surface may reproject from the pixel itself for the view to count as still
+/// there ([`history_limit`]; WGSL: `STILL_TOLERANCE`): a still camera's reprojection is the identity up to
+/// rounding (about 1e-4 pixels at 1920x1080), and TAA's jitter moves it by a fraction of a pixel every frame.
+pub const STILL_TOLERANCE: f32 = 0.01;
+
+/// The most frames a pixel's history keeps (WGSL: `history_limit`): `max_count`
+/// (`HybridAmbientOcclusion::accumulation_frames`), or where the view stands still there (its surface
+/// reprojects onto the pixel itself, within [`STILL_TOLERANCE`]) `still_count`
+/// (`still_accumulation_frames`), at least `max_count` and at most [`MAX_HISTORY_FRAMES`]. Without
+/// accumulation (`max_count` 1), none either way.
+pub fn history_limit(max_count: f32, still_count: f32, still: bool) -> f32 {
+    if still && max_count > 1.0 { still_count.clamp(max_count, MAX_HISTORY_FRAMES) } else { max_count }
+}
 
 /// The most frames of weight a history keeps after it was clamped.
 pub const CLAMPED_COUNT: f32 = 2.0;
@@ -348,10 +371,12 @@ pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2,
 
 /// One pixel's new history and frames of weight (WGSL: the end of `temporal`), from its reprojected history
 /// (`count` 0: none), the window, its own trace this frame (`None` where its block traced another pixel),
-/// its stand-in ([`stand_in`]), the cap and the frames it keeps where the voxels near it changed
-/// ([`change_cap`]). A frame without its own trace keeps the history as it is, unless the history is
-/// short, the voxels near it changed or there is no accumulation ([`uses_stand_in`]): then the stand-in is
-/// blended as a trace.
+/// its stand-in ([`stand_in`]), `HybridAmbientOcclusion::accumulation_frames` (`max_count`), the most
+/// frames the history keeps ([`history_limit`]: more where the view stands still) and those it keeps where
+/// the voxels near it changed ([`change_cap`]). A frame without its own trace keeps the history as it is,
+/// unless the history is short, the voxels near it changed or there is no accumulation
+/// ([`uses_stand_in`], against `max_count`): then the stand-in is blended as a trace.
+#[allow(clippy::too_many_arguments)]
 pub fn temporal_update(
     history: f32,
     count: f32,
@@ -359,13 +384,12 @@ pub fn temporal_update(
     own: Option<f32>,
     stand_in: f32,
     max_count: f32,
+    limit: f32,
     cap: f32,
 ) -> (f32, f32) {
     match own {
-        Some(current) => temporal_blend(history, count, window, current, max_count, cap),
-        None if uses_stand_in(count, max_count, cap) => {
-            temporal_blend(history, count, window, stand_in, max_count, cap)
-        }
+        Some(current) => temporal_blend(history, count, window, current, limit, cap),
+        None if uses_stand_in(count, max_count, cap) => temporal_blend(history, count, window, stand_in, limit, cap),
         None => (history, count),
     }
 }
@@ -414,7 +438,10 @@ impl TraceFrame {
 /// [`occlusion_change`]: the voxels are the same, the occluders near it move); `frames` the trace of each
 /// frame, at half resolution or not. The result is each pixel's AO after the last frame (NaN for the
 /// background). Each pixel's own trace is filtered ([`prefilter`]) with the filter's `radius`
-/// (`HybridAmbientOcclusion::denoise_radius`).
+/// (`HybridAmbientOcclusion::denoise_radius`). Every pixel's history keeps up to `still_count` frames
+/// (`still_accumulation_frames`: [`history_limit`]), the view being still; `max_count` is
+/// `accumulation_frames`.
+#[allow(clippy::too_many_arguments)]
 pub fn accumulate_still(
     frames: &[TraceFrame],
     pixels: &[Option<(f32, Vec3)>],
@@ -422,8 +449,10 @@ pub fn accumulate_still(
     view_size: UVec2,
     half_resolution: bool,
     max_count: f32,
+    still_count: f32,
     radius: u32,
 ) -> Vec<f32> {
+    let limit = history_limit(max_count, still_count, true);
     let trace_size = if half_resolution { (view_size + UVec2::ONE) / 2 } else { view_size };
     let mut ao = vec![f32::NAN; pixels.len()];
     let mut count = vec![0.0f32; pixels.len()];
@@ -442,7 +471,7 @@ pub fn accumulate_still(
             let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal, radius);
             // (The GPU caps only a pixel with history.)
             let cap = if count[i] > 0.0 { change_cap(change[i], window) } else { f32::INFINITY };
-            let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, cap);
+            let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, limit, cap);
             // As the GPU stores it (`HistoryTexel::stored`).
             let stored = HistoryTexel { ao: a, depth, normal, frames: c }.stored();
             (ao[i], count[i]) = (stored.ao, stored.frames);
@@ -575,10 +604,10 @@ mod tests {
             })
             .collect();
         let size = UVec2::new(w, h);
-        let ao = accumulate_still(&frames, &flat(w, h), &vec![0.0; flat(w, h).len()], size, false, 32.0, 0);
+        let ao = accumulate_still(&frames, &flat(w, h), &vec![0.0; flat(w, h).len()], size, false, 32.0, 32.0, 0);
         assert!(ao.iter().all(|a| (a - 0.75).abs() < 0.02), "{ao:?}");
         // After one frame, the frame's AO as the history stores it (to 1/8191).
-        let one = accumulate_still(&frames[..1], &flat(w, h), &vec![0.0; flat(w, h).len()], size, false, 32.0, 0);
+        let one = accumulate_still(&frames[..1], &flat(w, h), &vec![0.0; flat(w, h).len()], size, false, 32.0, 32.0, 0);
         assert!(one.iter().zip(&frames[0].texels).all(|(a, t)| (a - t.unwrap().ao).abs() <= 0.5 / 8191.0), "{one:?}");
     }
 
@@ -597,14 +626,14 @@ mod tests {
                     .collect(),
             })
             .collect();
-        let ao = accumulate_still(&frames, &flat(4, 4), &vec![0.0; flat(4, 4).len()], size, true, 4.0, 0);
+        let ao = accumulate_still(&frames, &flat(4, 4), &vec![0.0; flat(4, 4).len()], size, true, 4.0, 4.0, 0);
         for (i, a) in ao.iter().enumerate() {
             let p = UVec2::new(i as u32 % 4, i as u32 / 4);
             // 16 traces of its own: the stand-in of the first frame (the block's traced pixel) weighs under 1 %.
             assert!((a - truth(p)).abs() < 0.02, "pixel {p}: {a}, not {}", truth(p));
         }
         // After the first frame alone the untraced pixels hold their neighbourhood's traces.
-        let first = accumulate_still(&frames[..1], &flat(4, 4), &vec![0.0; flat(4, 4).len()], size, true, 4.0, 0);
+        let first = accumulate_still(&frames[..1], &flat(4, 4), &vec![0.0; flat(4, 4).len()], size, true, 4.0, 4.0, 0);
         // (As the history stores them, to 1/8191.)
         assert!((first[0] - 0.2).abs() <= 0.5 / 8191.0, "traced: {}", first[0]);
         assert!((first[1] - 0.2).abs() <= 0.5 / 8191.0, "its block's traced pixel stands in: {}", first[1]);
@@ -628,7 +657,7 @@ mod tests {
         // Each frame after the first keeps half the texels as they were.
         let kept = (0..16).filter(|&i| frames[9].texels[i].unwrap().ao == frames[8].texels[i].unwrap().ao).count();
         assert_eq!(kept, 8);
-        let ao = accumulate_still(&frames, &flat(8, 8), &vec![0.0; flat(8, 8).len()], size, true, 4.0, 0);
+        let ao = accumulate_still(&frames, &flat(8, 8), &vec![0.0; flat(8, 8).len()], size, true, 4.0, 4.0, 0);
         for (i, a) in ao.iter().enumerate() {
             let p = UVec2::new(i as u32 % 8, i as u32 / 8);
             // 20 traces of its own, one every eighth frame: the first frames' stand-ins weigh under 1 %.
@@ -667,6 +696,7 @@ mod tests {
                 size,
                 true,
                 16.0,
+                16.0,
                 1,
             );
             let pixel = |i: usize| UVec2::new(i as u32 % size.x, i as u32 / size.x);
@@ -700,23 +730,81 @@ mod tests {
     #[test]
     fn a_frame_without_the_pixels_own_trace_keeps_its_history() {
         let window = (0.0, 1.2);
-        assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, NONE), (0.4, 6.0));
+        assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, 16.0, NONE), (0.4, 6.0));
         // Its own trace is blended; with no history, or near a change, the stand-in is.
-        assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, NONE), (0.5, 4.0));
-        assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, NONE), (0.9, 1.0));
+        assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, 16.0, NONE), (0.5, 4.0));
+        assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, 16.0, NONE), (0.9, 1.0));
         // A short history (under STAND_IN_COUNT frames) blends the stand-in until the pixel's own trace
         // comes; not where the cap is that short itself.
-        let (ao, c) = temporal_update(0.4, 2.0, window, None, 0.9, 16.0, NONE);
+        let (ao, c) = temporal_update(0.4, 2.0, window, None, 0.9, 16.0, 16.0, NONE);
         assert!((ao - (0.4 + 0.5 / 3.0)).abs() < 1e-6 && c == 3.0, "{ao} {c}");
-        assert_eq!(temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, NONE), (0.4, STAND_IN_COUNT));
+        assert_eq!(temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, 16.0, NONE), (0.4, STAND_IN_COUNT));
         // A history the window clamped keeps its own (CLAMPED_COUNT + 1 frames are not a short history).
-        let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, NONE);
+        let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, 16.0, NONE);
         assert!(!uses_stand_in(clamped, 16.0, NONE));
-        assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, NONE), (0.4, 2.0));
-        let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, CHANGED_COUNT);
+        assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, 2.0, NONE), (0.4, 2.0));
+        let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, 16.0, CHANGED_COUNT);
         assert!((ao - 0.6).abs() < 1e-6 && c == 3.0, "{ao} {c}");
         // No accumulation: the stand-in is the frame's AO.
-        assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, NONE), (0.9, 1.0));
+        assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, 1.0, NONE), (0.9, 1.0));
+    }
+
+    #[test]
+    fn a_still_view_keeps_a_longer_history_than_a_moving_one() {
+        // Moving (or jittered), accumulation_frames; still, still_accumulation_frames, within the bounds.
+        assert_eq!(history_limit(16.0, 127.0, false), 16.0);
+        assert_eq!(history_limit(16.0, 127.0, true), 127.0);
+        assert_eq!(history_limit(16.0, 8.0, true), 16.0, "never fewer than accumulation_frames");
+        assert_eq!(history_limit(16.0, 1000.0, true), MAX_HISTORY_FRAMES, "never more than the texel holds");
+        assert_eq!(history_limit(1.0, 127.0, true), 1.0, "no accumulation");
+        // A converged still pixel at the limit moves a 127th of the way to a new trace; and its count
+        // survives the texel's packing.
+        let window = (-10.0, 10.0);
+        let limit = history_limit(16.0, 127.0, true);
+        let (ao, c) = temporal_update(0.5, 127.0, window, Some(1.0), 0.0, 16.0, limit, NONE);
+        assert!((ao - (0.5 + 0.5 / 127.0)).abs() < 1e-6 && c == 127.0, "{ao} {c}");
+        let stored = HistoryTexel { ao, depth: 10.0, normal: Vec3::Z, frames: c }.stored();
+        assert_eq!(stored.frames, 127.0);
+        // A frame without its own trace still keeps the history as it is: the stand-in follows
+        // accumulation_frames, not the limit.
+        assert_eq!(temporal_update(0.5, 40.0, window, None, 0.0, 16.0, limit, NONE), (0.5, 40.0));
+        // Near a change the change cap shortens it as before.
+        let (_, c) = temporal_update(0.5, 127.0, window, Some(1.0), 0.0, 16.0, limit, CHANGED_COUNT);
+        assert_eq!(c, CHANGED_COUNT + 1.0);
+    }
+
+    #[test]
+    fn a_still_view_settles_further_with_a_longer_history() {
+        // Four binary rays a frame at full resolution over uniform AO 0.6, no filter: the frame-to-frame
+        // change of the last frames falls about as one over the frames kept (16 against 127: 8 times). (With
+        // one ray, a neighbourhood whose nine texels all read 1, one frame in a hundred, clamps the history
+        // and cuts it short.)
+        let size = UVec2::new(32, 32);
+        let change = |still_count: f32| {
+            let mut state = 0x2545_f491_4f6c_dd1d_u64;
+            let mut random = move || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 40) as f32 / (1u64 << 24) as f32
+            };
+            let frames: Vec<TraceFrame> = (0..400)
+                .map(|k| TraceFrame {
+                    number: k,
+                    checkerboard: false,
+                    texels: (0..size.x * size.y)
+                        .map(|_| texel((0..4).map(|_| if random() < 0.6 { 0.25 } else { 0.0 }).sum()))
+                        .collect(),
+                })
+                .collect();
+            let pixels = flat(size.x, size.y);
+            let zero = vec![0.0; pixels.len()];
+            let a = accumulate_still(&frames[..399], &pixels, &zero, size, false, 16.0, still_count, 0);
+            let b = accumulate_still(&frames, &pixels, &zero, size, false, 16.0, still_count, 0);
+            a.iter().zip(&b).map(|(a, b)| (a - b).abs()).sum::<f32>() / a.len() as f32
+        };
+        let (short, long) = (change(16.0), change(127.0));
+        assert!(long < short / 5.0, "{long} against {short}");
     }
 
     #[test]

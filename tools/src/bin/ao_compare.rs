@@ -6,7 +6,9 @@
 //!
 //! HAO accumulates its AO over frames (`--accumulation`, `HybridAmbientOcclusion::accumulation_frames`, 16
 //! by default; 1 for none): the images are read after the scene has settled and then four times that many
-//! frames more, when the history has converged (the frames are printed). `--hao-rays`, `--hao-steps` and
+//! frames more, when the history has converged (the frames are printed; a still view's history, which may
+//! keep up to `still_accumulation_frames`, holds a quarter of those frames' traces by then and goes on
+//! settling). `--hao-rays`, `--hao-steps` and
 //! `--hao-resolution` trace that many rays and steps a frame, at that resolution, instead of the quality's;
 //! `--denoise` sets the denoiser's width (`HybridAmbientOcclusion::denoise_radius`; 0: off).
 //!
@@ -102,6 +104,10 @@ struct Args {
     /// Frames HAO accumulates (HybridAmbientOcclusion::accumulation_frames; 1 for none).
     #[arg(long, default_value_t = HybridAmbientOcclusion::default().accumulation_frames)]
     accumulation: u32,
+    /// Frames HAO's history keeps where the view stands still
+    /// (HybridAmbientOcclusion::still_accumulation_frames; at least --accumulation).
+    #[arg(long, default_value_t = HybridAmbientOcclusion::default().still_accumulation_frames)]
+    still_accumulation: u32,
     /// Rays a frame instead of the quality's.
     #[arg(long)]
     hao_rays: Option<u32>,
@@ -276,6 +282,7 @@ fn main() {
         start_offset: args.start_offset,
         near_field: false,
         accumulation_frames: args.accumulation,
+        still_accumulation_frames: args.still_accumulation,
         denoise_radius: args.denoise.unwrap_or(HybridAmbientOcclusion::default().denoise_radius),
         ignore_back_hits: !args.stop_at_back_hits,
         depth_contacts: !args.no_depth_contacts,
@@ -534,9 +541,11 @@ fn main() {
         _ => String::new(),
     };
     println!(
-        "HAO: {:?}{}, max distance {}, accumulation over {accumulation} frames (measured {settled} frames after \
-         the scene settled{}), voxel volume: {volume}{world}; reference: {} rays per pixel\n",
+        "HAO: {:?}{}, max distance {}, accumulation over {accumulation} frames ({} where the view stands still; \
+         measured {settled} frames after the scene settled{}), voxel volume: {volume}{world}; reference: {} rays \
+         per pixel\n",
         hao.quality,
+        hao.still_history_frames(),
         if hao.uses_depth_free_space() { " with free space from the depth prepass" } else { "" },
         args.max_distance,
         args.motion.map_or(String::new(), |d| format!(", the camera swinging at up to {d} degrees a frame")),

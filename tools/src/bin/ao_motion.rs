@@ -84,6 +84,10 @@ struct Args {
     /// Bevy's TAA on both cameras (HAO's then without MSAA).
     #[arg(long)]
     taa: bool,
+    /// Frames HAO's history keeps where the view stands still
+    /// (HybridAmbientOcclusion::still_accumulation_frames; at least its accumulation_frames, 16).
+    #[arg(long, default_value_t = HybridAmbientOcclusion::default().still_accumulation_frames)]
+    still_accumulation: u32,
     /// The props voxelized filled (`VoxelFill::Solid`; they are closed meshes), not as surfaces.
     #[arg(long)]
     solid: bool,
@@ -284,7 +288,11 @@ fn main() {
         std::process::exit(1);
     }
     let msaa = if args.taa { Msaa::Off } else { Msaa::from_samples(args.msaa) };
-    let hao = HybridAmbientOcclusion { quality: args.quality.into(), ..default() };
+    let hao = HybridAmbientOcclusion {
+        quality: args.quality.into(),
+        still_accumulation_frames: args.still_accumulation,
+        ..default()
+    };
     let sanitized = hao.sanitized().0;
     let size = args.size;
     let frames = args.frames as i32;
