@@ -4,12 +4,10 @@
 // CPU twin: `bevy_hao::cpu::temporal` (`occlusion_change`, `change_cap`). The voxel grid is bound at group 2.
 #define_import_path bevy_hao::hao_change
 
-#import bevy_hao::hao_common::{ao_falloff, CLAMP_MARGIN, CHANGED_COUNT}
+#import bevy_hao::hao_common::{ao_falloff, current_variance, CHANGED_COUNT}
 #import bevy_hao::voxel_grid::{voxel_grid, MAX_MOVED_OCCLUDERS}
 
-// cpu/temporal.rs: CHANGE_NOISE_FLOOR, CHANGE_NOISE_SAMPLES, CHANGE_RAYS_FROM, CHANGE_RAYS_SCALE
-const CHANGE_NOISE_FLOOR: f32 = 0.1;
-const CHANGE_NOISE_SAMPLES: f32 = 4.0;
+// cpu/temporal.rs: CHANGE_RAYS_FROM, CHANGE_RAYS_SCALE
 const CHANGE_RAYS_SCALE: u32 = 4u;
 const CHANGE_RAYS_FROM: f32 = 0.005;
 
@@ -52,9 +50,7 @@ fn change_cap(change: f32, window: vec2<f32>) -> f32 {
     if !(change > 0.0) {
         return 1.0e30;
     }
-    let sigma = max((window.y - window.x) * 0.25 - CLAMP_MARGIN * 0.5, CHANGE_NOISE_FLOOR);
-    let variance = sigma * sigma / CHANGE_NOISE_SAMPLES;
-    return max(pow(2.0 * variance / (change * change), 1.0 / 3.0), CHANGED_COUNT);
+    return max(pow(2.0 * current_variance(window) / (change * change), 1.0 / 3.0), CHANGED_COUNT);
 }
 
 // cpu/temporal.rs: occlusion_change. How much the occlusion at `p` (unit normal `n`) can have changed since

@@ -214,7 +214,7 @@ fn unpack_normal(p: f32) -> vec3<f32> {
 }
 
 // cpu/temporal.rs: DEPTH_TOLERANCE, NORMAL_TOLERANCE, CLAMP_MARGIN, CLAMPED_COUNT, CHANGED_COUNT,
-// STAND_IN_COUNT, MAX_HISTORY_FRAMES, STILL_TOLERANCE
+// STAND_IN_COUNT, MAX_HISTORY_FRAMES, STILL_TOLERANCE, CHANGE_NOISE_FLOOR, CHANGE_NOISE_SAMPLES
 const DEPTH_TOLERANCE: f32 = 0.02;
 const NORMAL_TOLERANCE: f32 = 0.9;
 const CLAMP_MARGIN: f32 = 0.1;
@@ -223,6 +223,22 @@ const CHANGED_COUNT: f32 = 2.0;
 const STAND_IN_COUNT: f32 = 3.0;
 const MAX_HISTORY_FRAMES: f32 = 127.0;
 const STILL_TOLERANCE: f32 = 0.01;
+const CHANGE_NOISE_FLOOR: f32 = 0.1;
+const CHANGE_NOISE_SAMPLES: f32 = 4.0;
+
+// cpu/temporal.rs: current_variance. The variance of a pixel's blended current AO from its neighbourhood's
+// window: the deviation (a quarter of the window's width, less the margin), at least CHANGE_NOISE_FLOOR,
+// squared over CHANGE_NOISE_SAMPLES.
+fn current_variance(window: vec2<f32>) -> f32 {
+    let sigma = max((window.y - window.x) * 0.25 - CLAMP_MARGIN * 0.5, CHANGE_NOISE_FLOOR);
+    return sigma * sigma / CHANGE_NOISE_SAMPLES;
+}
+
+// cpu/temporal.rs: clamped_count. The most frames a history keeps after the window moved it by `shift`: as
+// many as leave its noise no smaller than the shift, s^2 / shift^2, at least CLAMPED_COUNT.
+fn clamped_count(shift: f32, window: vec2<f32>) -> f32 {
+    return max(current_variance(window) / (shift * shift), CLAMPED_COUNT);
+}
 
 // cpu/temporal.rs: history_limit. The most frames a pixel's history keeps: max_count (accumulation_frames),
 // or where the view stands still there (`still`: its surface reprojects onto the pixel itself) still_count,
@@ -263,8 +279,9 @@ fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: 
     var h = history;
     var c = min(history_count, cap);
     if h < window.x || h > window.y {
-        h = clamp(h, window.x, window.y);
-        c = min(c, CLAMPED_COUNT);
+        let clamped = clamp(h, window.x, window.y);
+        c = min(c, clamped_count(clamped - h, window));
+        h = clamped;
     }
     let count = min(c + 1.0, max(max_count, 1.0));
     if count <= 1.0 {

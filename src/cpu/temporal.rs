@@ -14,7 +14,8 @@
 //!    minus two standard deviations and [`CLAMP_MARGIN`] ([`neighborhood_window`]): the window of the
 //!    trace's 3x3 texels around the pixel's ([`trace_window`]). Where an occluder has gone, every ray of the
 //!    neighbourhood now escapes, the window closes around 1 and the shadow it left is clamped away in one
-//!    frame. A clamped history also loses its weight: at most [`CLAMPED_COUNT`] frames.
+//!    frame. A clamped history also loses weight, the more the further it was moved ([`clamped_count`]): an
+//!    occluder gone leaves it [`CLAMPED_COUNT`] frames, a window a few rays narrowed by chance most of it.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
 //!    one or two rays. The voxel grid lists the occluders whose voxels changed in the last few frames
 //!    (dynamic ones that moved, static ones added, changed or taken out): the box around each now and last
@@ -77,7 +78,8 @@ pub fn history_limit(max_count: f32, still_count: f32, still: bool) -> f32 {
     if still && max_count > 1.0 { still_count.clamp(max_count, MAX_HISTORY_FRAMES) } else { max_count }
 }
 
-/// The most frames of weight a history keeps after it was clamped.
+/// The fewest frames of weight a history keeps after it was clamped ([`clamped_count`]: all it had if
+/// the clamp moved it little, down to this if it moved it far).
 pub const CLAMPED_COUNT: f32 = 2.0;
 
 /// The fewest frames of weight [`change_cap`] leaves a history near voxels that changed (the most it keeps
@@ -177,9 +179,26 @@ pub fn change_cap(change: f32, window: (f32, f32)) -> f32 {
     if !(change > 0.0) {
         return f32::INFINITY;
     }
+    (2.0 * current_variance(window) / (change * change)).cbrt().max(CHANGED_COUNT)
+}
+
+/// The variance of a pixel's blended current AO (WGSL: `current_variance`), from the window of its
+/// neighbourhood's traced AO ([`neighborhood_window`], whose half-width is two deviations and
+/// [`CLAMP_MARGIN`]): the deviation, at least [`CHANGE_NOISE_FLOOR`], squared over
+/// [`CHANGE_NOISE_SAMPLES`].
+pub fn current_variance(window: (f32, f32)) -> f32 {
     let sigma = ((window.1 - window.0) * 0.25 - CLAMP_MARGIN * 0.5).max(CHANGE_NOISE_FLOOR);
-    let variance = sigma * sigma / CHANGE_NOISE_SAMPLES;
-    (2.0 * variance / (change * change)).cbrt().max(CHANGED_COUNT)
+    sigma * sigma / CHANGE_NOISE_SAMPLES
+}
+
+/// The most frames of weight a history keeps after the window moved it by `shift` (WGSL: `clamped_count`):
+/// as many as leave its noise, the current AO's deviation over their square root ([`current_variance`]),
+/// no smaller than the shift, `n = s^2 / shift^2`, at least [`CLAMPED_COUNT`]. An occluder gone (the
+/// window closes around 1 and a shadow of 0.4 is clamped to 0.9) keeps [`CLAMPED_COUNT`]; the window of a
+/// few rays that all escaped this frame, which moves a history of 0.88 to 0.9, keeps most of it, where a
+/// reset to [`CLAMPED_COUNT`] left a light speck that took a dozen traces to fade.
+pub fn clamped_count(shift: f32, window: (f32, f32)) -> f32 {
+    (current_variance(window) / (shift * shift)).max(CLAMPED_COUNT)
 }
 
 /// A pixel whose history holds fewer frames than this (or than the cap, if lower) blends its stand-in in the
@@ -239,8 +258,9 @@ pub fn temporal_blend(
     let mut h = history;
     let mut c = history_count.min(cap);
     if h < window.0 || h > window.1 {
-        h = h.clamp(window.0, window.1);
-        c = c.min(CLAMPED_COUNT);
+        let clamped = h.clamp(window.0, window.1);
+        c = c.min(clamped_count(clamped - h, window));
+        h = clamped;
     }
     let count = (c + 1.0).min(max_count.max(1.0));
     (if count <= 1.0 { current } else { h + (current - h) / count }, count)
@@ -512,6 +532,14 @@ mod tests {
         assert_eq!(window, (0.9, 1.1));
         let (ao, c) = temporal_blend(0.4, 16.0, window, 1.0, 16.0, NONE);
         assert!((ao - (0.9 + 0.1 / 3.0)).abs() < 1e-6 && c == 3.0, "{ao} {c}");
+        // Nine rays that all escaped by chance around a pixel of AO 0.88: the history, moved by 0.02, keeps
+        // as many frames as hide a bias of 0.02 in their noise (0.1^2 / 4 / 0.02^2, about 6), not 2.
+        assert!((clamped_count(0.02, window) - 6.25).abs() < 1e-3);
+        let (ao, c) = temporal_blend(0.88, 16.0, window, 1.0, 16.0, NONE);
+        assert!((c - 7.25).abs() < 1e-3 && (ao - (0.9 + 0.1 / 7.25)).abs() < 1e-5, "{ao} {c}");
+        // A history moved less keeps all of it; a wide window (noisy neighbours) counts more noise.
+        assert_eq!(temporal_blend(0.895, 16.0, window, 1.0, 16.0, NONE).1, 16.0);
+        assert!(clamped_count(0.05, (0.0, 1.2)) > clamped_count(0.05, window));
     }
 
     #[test]
