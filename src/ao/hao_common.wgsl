@@ -292,13 +292,13 @@ fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: 
 
 // cpu/temporal.rs: temporal_update; returns (ao, frames of weight). `own`: the pixel was traced this frame
 // and `current` is its AO; else `current` is its stand-in, blended only where `uses_stand_in` (against
-// max_count, accumulation_frames; else the history stays as it is). The blend keeps at most `limit` frames
-// (`history_limit`).
+// max_count, accumulation_frames; else the history stays as it is). Either way it keeps at most `limit`
+// frames (`history_limit`): a frame that cuts the limit cuts every pixel's history, traced or not.
 fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, limit: f32, cap: f32) -> vec2<f32> {
     if own || uses_stand_in(history_count, max_count, cap) {
         return temporal_blend(history, history_count, window, current, limit, cap);
     }
-    return vec2<f32>(history, history_count);
+    return vec2<f32>(history, min(history_count, limit));
 }
 
 // cpu/denoise.rs: HistoryTexel::stored. The temporal history's texel (ao, view depth, packed normal, frames

@@ -389,12 +389,13 @@ pub struct HybridAmbientOcclusion {
     pub accumulation_frames: u32,
     /// The frames a pixel's history keeps where the view stands still: where its surface reprojects onto
     /// the pixel itself (a still camera, a still surface, no TAA jitter), the history is read exactly, with
-    /// no resampling to blur it, and the voxel grid's list of moved occluders shortens it near anything that
-    /// moves (see `bevy_hao::cpu::temporal`), so it may keep more than `accumulation_frames` and the AO of a
+    /// no resampling to blur it, and the voxel grid's list of moved occluders shortens it near every occluder
+    /// that moves (see `bevy_hao::cpu::temporal`), so it may keep more than `accumulation_frames` and the AO of a
     /// still view settles further: its frame-to-frame shimmer falls as one over the frames kept. Counted as
     /// `accumulation_frames` is (a pixel's own traces); at least `accumulation_frames` (a lower value acts
     /// as it), at most 127 (what the history's texel holds). Lower it for geometry HAO does not see move
-    /// (a vertex shader's animation), whose shadow a long history would follow more slowly.
+    /// (a vertex shader's animation, a `NoVoxelOcclusion` mesh), whose AO a long history would follow more
+    /// slowly.
     pub still_accumulation_frames: u32,
     /// With multi-valued voxels ([`crate::VoxelVolume::attributes`]): a ray passes through a voxel whose
     /// average normal clearly faces along it (the back of a surface, which a ray reaches only from inside a
@@ -457,7 +458,7 @@ impl HybridAmbientOcclusion {
     /// replacement naming the field, the value given and the value used (the plugin logs each once per
     /// camera). NaN, infinite, zero or negative distances and exponents are invalid; so are more than 256
     /// rays, more than 1024 steps, a denoise radius above 8, accumulation frames outside 1..=64, or still
-    /// accumulation frames outside 1..=127.
+    /// accumulation frames above 127.
     pub fn sanitized(&self) -> (HybridAmbientOcclusion, Vec<String>) {
         let mut h = self.clone();
         let mut fixes = Vec::new();
@@ -499,8 +500,8 @@ impl HybridAmbientOcclusion {
             ));
             h.accumulation_frames = used;
         }
-        if !(1..=MAX_HISTORY_FRAMES).contains(&h.still_accumulation_frames) {
-            let used = h.still_accumulation_frames.clamp(1, MAX_HISTORY_FRAMES);
+        if h.still_accumulation_frames > MAX_HISTORY_FRAMES {
+            let used = MAX_HISTORY_FRAMES;
             fixes.push(format!(
                 "HybridAmbientOcclusion::still_accumulation_frames is {}; using {used}",
                 h.still_accumulation_frames

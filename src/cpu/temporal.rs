@@ -15,7 +15,7 @@
 //!    trace's 3x3 texels around the pixel's ([`trace_window`]). Where an occluder has gone, every ray of the
 //!    neighbourhood now escapes, the window closes around 1 and the shadow it left is clamped away in one
 //!    frame. A clamped history also loses weight, the more the further it was moved ([`clamped_count`]): an
-//!    occluder gone leaves it [`CLAMPED_COUNT`] frames, a window a few rays narrowed by chance most of it.
+//!    occluder gone leaves it [`CLAMPED_COUNT`] frames, a window a few rays narrowed by chance several.
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
 //!    one or two rays. The voxel grid lists the occluders whose voxels changed in the last few frames
 //!    (dynamic ones that moved, static ones added, changed or taken out): the box around each now and last
@@ -75,7 +75,7 @@ pub const STILL_TOLERANCE: f32 = 0.01;
 /// (`still_accumulation_frames`), at least `max_count` and at most [`MAX_HISTORY_FRAMES`]. Without
 /// accumulation (`max_count` 1), none either way.
 pub fn history_limit(max_count: f32, still_count: f32, still: bool) -> f32 {
-    if still && max_count > 1.0 { still_count.clamp(max_count, MAX_HISTORY_FRAMES) } else { max_count }
+    if still && max_count > 1.0 { still_count.min(MAX_HISTORY_FRAMES).max(max_count) } else { max_count }
 }
 
 /// The fewest frames of weight a history keeps after it was clamped ([`clamped_count`]: all it had if
@@ -195,7 +195,7 @@ pub fn current_variance(window: (f32, f32)) -> f32 {
 /// as many as leave its noise, the current AO's deviation over their square root ([`current_variance`]),
 /// no smaller than the shift, `n = s^2 / shift^2`, at least [`CLAMPED_COUNT`]. An occluder gone (the
 /// window closes around 1 and a shadow of 0.4 is clamped to 0.9) keeps [`CLAMPED_COUNT`]; the window of a
-/// few rays that all escaped this frame, which moves a history of 0.88 to 0.9, keeps most of it, where a
+/// few rays that all escaped this frame, which moves a history of 0.88 to 0.9, keeps several frames (6 for a shift of 0.02), where a
 /// reset to [`CLAMPED_COUNT`] left a light speck that took a dozen traces to fade.
 pub fn clamped_count(shift: f32, window: (f32, f32)) -> f32 {
     (current_variance(window) / (shift * shift)).max(CLAMPED_COUNT)
@@ -203,7 +203,7 @@ pub fn clamped_count(shift: f32, window: (f32, f32)) -> f32 {
 
 /// A pixel whose history holds fewer frames than this (or than the cap, if lower) blends its stand-in in the
 /// frames without its own trace ([`uses_stand_in`]): a new history is noisier than its neighbourhood's traces,
-/// and at half resolution a pixel waits up to 4 frames for its own (8 in a checkerboard). It is the count a
+/// and at half resolution a pixel waits up to 4 frames for its own (8 in a checkerboard). It is the least count a
 /// clamped history leaves with ([`CLAMPED_COUNT`] + 1), so that detail finer than the window, which a clamp
 /// cut short, is not then averaged away with its neighbours'.
 pub const STAND_IN_COUNT: f32 = CLAMPED_COUNT + 1.0;
@@ -395,7 +395,8 @@ pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2,
 /// frames the history keeps ([`history_limit`]: more where the view stands still) and those it keeps where
 /// the voxels near it changed ([`change_cap`]). A frame without its own trace keeps the history as it is,
 /// unless the history is short, the voxels near it changed or there is no accumulation
-/// ([`uses_stand_in`], against `max_count`): then the stand-in is blended as a trace.
+/// ([`uses_stand_in`], against `max_count`): then the stand-in is blended as a trace. Either way it keeps
+/// at most `limit` frames of weight: a frame that cuts the limit cuts every pixel's history.
 #[allow(clippy::too_many_arguments)]
 pub fn temporal_update(
     history: f32,
@@ -410,7 +411,9 @@ pub fn temporal_update(
     match own {
         Some(current) => temporal_blend(history, count, window, current, limit, cap),
         None if uses_stand_in(count, max_count, cap) => temporal_blend(history, count, window, stand_in, limit, cap),
-        None => (history, count),
+        // (Never more frames than the limit: a frame that cuts it, as a change of the settings does, cuts
+        // every pixel's, traced or not.)
+        None => (history, count.min(limit)),
     }
 }
 
@@ -796,6 +799,10 @@ mod tests {
         // A frame without its own trace still keeps the history as it is: the stand-in follows
         // accumulation_frames, not the limit.
         assert_eq!(temporal_update(0.5, 40.0, window, None, 0.0, 16.0, limit, NONE), (0.5, 40.0));
+        // A frame that cuts the limit (the settings changed, or the view moves) cuts the history of every
+        // pixel, those without their own trace too, which would otherwise keep their 127 frames.
+        assert_eq!(temporal_update(0.5, 127.0, window, None, 0.0, 16.0, 16.0, NONE), (0.5, 16.0));
+        assert_eq!(history_limit(200.0, 127.0, true), 200.0, "no panic on a max_count past the texel's");
         // Near a change the change cap shortens it as before.
         let (_, c) = temporal_update(0.5, 127.0, window, Some(1.0), 0.0, 16.0, limit, CHANGED_COUNT);
         assert_eq!(c, CHANGED_COUNT + 1.0);
