@@ -245,7 +245,7 @@ fn clamped_count(shift: f32, window: vec2<f32>) -> f32 {
 // within [max_count, MAX_HISTORY_FRAMES]; without accumulation none either way.
 fn history_limit(max_count: f32, still_count: f32, still: bool) -> f32 {
     if still && max_count > 1.0 {
-        return clamp(still_count, max_count, MAX_HISTORY_FRAMES);
+        return max(min(still_count, MAX_HISTORY_FRAMES), max_count);
     }
     return max_count;
 }
