@@ -775,8 +775,25 @@ pub mod args {
         Ok(c)
     }
 
+    /// `LEVELS,CELLS,FINEST_CELL_SIZE`: the shape of camera-following cascades (`--cascades`), as
+    /// `VolumeBounds::FollowCamera` takes it (the plugin sanitizes the values).
+    pub fn cascades(v: &str) -> Result<(u32, u32, f32), String> {
+        let bad = || format!("expected LEVELS,CELLS,FINEST_CELL_SIZE, got {v}");
+        let p: Vec<&str> = v.split(',').map(str::trim).collect();
+        let [levels, cells, size] = p[..] else { return Err(bad()) };
+        Ok((levels.parse().map_err(|_| bad())?, cells.parse().map_err(|_| bad())?, size.parse().map_err(|_| bad())?))
+    }
+
     #[cfg(test)]
     mod tests {
+        #[test]
+        fn cascades_take_three_values() {
+            assert_eq!(super::cascades("5, 192,0.0625"), Ok((5, 192, 0.0625)));
+            for bad in ["5,192", "5,192,0.1,2", "a,192,0.1", "5,x,0.1", "5,192,y"] {
+                assert!(super::cascades(bad).is_err(), "{bad}");
+            }
+        }
+
         #[test]
         fn sizes_and_crops_of_zero_or_past_the_limit_are_refused() {
             assert_eq!(super::size("320x180"), Ok(super::UVec2::new(320, 180)));

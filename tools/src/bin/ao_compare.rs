@@ -93,7 +93,7 @@ struct Args {
     #[arg(long, value_enum, default_value_t = Volume::Cascades)]
     volume: Volume,
     /// The cascades' shape: LEVELS,CELLS,FINEST_CELL_SIZE.
-    #[arg(long, value_parser = cascades)]
+    #[arg(long, value_parser = args::cascades)]
     cascades: Option<(u32, u32, f32)>,
     /// Put the scene inside a generated level 1 km across, which the reference traces too.
     #[arg(long)]
@@ -167,14 +167,6 @@ enum Resolution {
 }
 
 /// `LEVELS,CELLS,FINEST_CELL_SIZE`.
-fn cascades(v: &str) -> Result<(u32, u32, f32), String> {
-    let bad = || format!("expected LEVELS,CELLS,FINEST_CELL_SIZE, got {v}");
-    let p: Vec<&str> = v.split(',').collect();
-    if p.len() != 3 {
-        return Err(bad());
-    }
-    Ok((p[0].parse().map_err(|_| bad())?, p[1].parse().map_err(|_| bad())?, p[2].parse().map_err(|_| bad())?))
-}
 
 #[derive(Component)]
 struct View(usize);
@@ -501,10 +493,15 @@ fn main() {
     bar.finish_and_clear();
     let mut reference = vec![1.0f32; (w * h) as usize];
     let mut offscreen = Vec::new();
+    // The contact band: contacts and creases, where the reference is darker than 0.5.
+    let mut band = Vec::new();
     for &(i, ao, share) in &results {
         reference[i] = ao;
         if share > 0.5 && ao < 0.99 {
             offscreen.push(i);
+        }
+        if ao < 0.5 {
+            band.push(i);
         }
     }
     // Sparse: each pixel shows its block's sampled pixel in the picture.
@@ -545,20 +542,29 @@ fn main() {
          measured {settled} frames after the scene settled{}), voxel volume: {volume}{world}; reference: {} rays \
          per pixel\n",
         hao.quality,
-        hao.still_history_frames(),
         if hao.uses_depth_free_space() { " with free space from the depth prepass" } else { "" },
         args.max_distance,
+        hao.still_history_frames(),
         args.motion.map_or(String::new(), |d| format!(", the camera swinging at up to {d} degrees a frame")),
         args.rays
     );
-    println!("| AO | mean abs. error, all pixels | mean abs. error, off-screen/hidden occluders | mean AO |");
-    println!("|---|---:|---:|---:|");
+    println!(
+        "| AO | mean abs. error, all pixels | mean abs. error, off-screen/hidden occluders | mean abs. error, contact \
+         band ({:.1} % of the pixels) | mean AO |",
+        100.0 * band.len() as f32 / pixels.len().max(1) as f32
+    );
+    println!("|---|---:|---:|---:|---:|");
     for (k, name) in NAMES.iter().enumerate() {
         let mean = pixels.iter().map(|&i| ao[k][i]).sum::<f32>() / pixels.len().max(1) as f32;
-        println!("| {name} | {:.4} | {:.4} | {mean:.3} |", mae(&ao[k], &pixels), mae(&ao[k], &offscreen));
+        println!(
+            "| {name} | {:.4} | {:.4} | {:.4} | {mean:.3} |",
+            mae(&ao[k], &pixels),
+            mae(&ao[k], &offscreen),
+            mae(&ao[k], &band)
+        );
     }
     let ref_mean = pixels.iter().map(|&i| reference[i]).sum::<f32>() / pixels.len().max(1) as f32;
-    println!("| reference | 0 | 0 | {ref_mean:.3} |");
+    println!("| reference | 0 | 0 | 0 | {ref_mean:.3} |");
     let (e_hao, e_ssao) = (mae(&ao[0], &pixels), mae(&ao[2], &pixels));
     println!("\nHAO's error is {:.2}x Bevy SSAO's", e_hao / e_ssao.max(1e-6));
     if args.bias {

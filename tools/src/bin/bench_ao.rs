@@ -3,8 +3,8 @@
 //!
 //! ```text
 //! cargo run --release -p bevy_hao_tools --bin bench_ao -- [SCENE] [--size 1280x720] [--frames 10] [--rounds 3]
-//!     [--quality low|medium|high|ultra ...] [--res N] [--attributes] [--no-depth-contacts]
-//!     [--depth-free-space [on|off|both]] [--custom RAYS,STEPS ...]
+//!     [--quality low|medium|high|ultra ...] [--res N | --cascades L,CELLS,FINEST] [--attributes]
+//!     [--no-depth-contacts] [--depth-free-space [on|off|both]] [--custom RAYS,STEPS ...]
 //! ```
 //!
 //! One headless camera renders the scene in phases of one run, each measured over `--frames` frames after a
@@ -84,6 +84,10 @@ struct Args {
     /// default volume, camera-following cascades).
     #[arg(long)]
     res: Option<u32>,
+    /// Camera-following cascades of this shape instead of the default's (4,192,0.125): LEVELS,CELLS,
+    /// FINEST_CELL_SIZE.
+    #[arg(long, value_parser = bevy_hao_tools::harness::args::cascades, conflicts_with = "res")]
+    cascades: Option<(u32, u32, f32)>,
     /// Multi-valued voxels (VoxelVolume::attributes), and the trace with and without ignore_back_hits.
     #[arg(long, requires = "res")]
     attributes: bool,
@@ -139,8 +143,19 @@ fn preset_name(settings: &HybridAmbientOcclusion) -> String {
 }
 
 fn main() {
-    let Args { scene, size, frames, rounds, quality, res, attributes, no_depth_contacts, depth_free_space, custom } =
-        Args::parse();
+    let Args {
+        scene,
+        size,
+        frames,
+        rounds,
+        quality,
+        res,
+        cascades,
+        attributes,
+        no_depth_contacts,
+        depth_free_space,
+        custom,
+    } = Args::parse();
     let rounds = rounds as usize;
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
         eprintln!("error: {e}");
@@ -172,6 +187,11 @@ fn main() {
                         bounds: VolumeBounds::FitStaticScene { margin: 0.0 },
                         resolution: VolumeResolution::Cells(res),
                         attributes,
+                        ..default()
+                    });
+                } else if let Some((cascades, cells, finest_cell_size)) = cascades {
+                    commands.spawn(VoxelVolume {
+                        bounds: VolumeBounds::FollowCamera { cascades, cells, finest_cell_size },
                         ..default()
                     });
                 }
