@@ -599,7 +599,7 @@ fn cpu_trace_frame(
         }
     }
     let (ao, _) = cpu_trace_near_change(&sparse, view, settings, levels, noise_frame(turn, half_resolution), change);
-    TraceFrame::traced(frame, checkerboard, trace_size, previous, |t| {
+    TraceFrame::traced(frame, checkerboard, settings.trace_parameters().0, trace_size, previous, |t| {
         let pixel = pixel_of(t);
         samples[pixel].map(|(world, normal)| {
             // Where occluders moved near it, the texel says so and is filtered wider.

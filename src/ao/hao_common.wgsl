@@ -214,7 +214,7 @@ fn unpack_normal(p: f32) -> vec3<f32> {
 }
 
 // cpu/temporal.rs: DEPTH_TOLERANCE, NORMAL_TOLERANCE, CLAMP_MARGIN, CLAMPED_COUNT, CHANGED_COUNT,
-// STAND_IN_COUNT, MAX_HISTORY_FRAMES, STILL_TOLERANCE, CHANGE_NOISE_FLOOR, CHANGE_NOISE_SAMPLES
+// STAND_IN_COUNT, MAX_HISTORY_FRAMES, STILL_TOLERANCE, CHANGE_NOISE_FLOOR, CHANGE_NOISE_SAMPLES, WINDOW_Z
 const DEPTH_TOLERANCE: f32 = 0.02;
 const NORMAL_TOLERANCE: f32 = 0.9;
 const CLAMP_MARGIN: f32 = 0.1;
@@ -225,6 +225,7 @@ const MAX_HISTORY_FRAMES: f32 = 127.0;
 const STILL_TOLERANCE: f32 = 0.01;
 const CHANGE_NOISE_FLOOR: f32 = 0.1;
 const CHANGE_NOISE_SAMPLES: f32 = 4.0;
+const WINDOW_Z: f32 = 2.0;
 
 // cpu/temporal.rs: current_variance. The variance of a pixel's blended current AO from its neighbourhood's
 // window: the deviation (a quarter of the window's width, less the margin), at least CHANGE_NOISE_FLOOR,
@@ -266,11 +267,25 @@ fn history_accepts(expected_depth: f32, history_depth: f32, normal: vec3<f32>, d
         && c > 0.0 && c * c >= NORMAL_TOLERANCE * NORMAL_TOLERANCE * dot(direction, direction);
 }
 
-// cpu/temporal.rs: neighborhood_window
-fn neighborhood_window(sum: f32, sum_squares: f32, count: f32) -> vec2<f32> {
+// cpu/temporal.rs: neighborhood_window. The mean of the texels plus or minus two deviations and CLAMP_MARGIN;
+// with `samples` rays (0: none), at least the interval they tell the mean to lie in (`sample_interval`).
+fn neighborhood_window(sum: f32, sum_squares: f32, count: f32, samples: f32) -> vec2<f32> {
     let mean = sum / count;
     let sigma = sqrt(max(sum_squares / count - mean * mean, 0.0));
-    return vec2<f32>(mean - 2.0 * sigma - CLAMP_MARGIN, mean + 2.0 * sigma + CLAMP_MARGIN);
+    let window = vec2<f32>(mean - 2.0 * sigma - CLAMP_MARGIN, mean + 2.0 * sigma + CLAMP_MARGIN);
+    // (A sample count of 0 leaves the window as it is, without a branch.)
+    let interval = sample_interval(mean, max(samples, 1.0));
+    return select(window, vec2<f32>(min(window.x, interval.x), max(window.y, interval.y)), samples > 0.0);
+}
+
+// cpu/temporal.rs: sample_interval. Where the mean AO of `samples` rays whose mean is `mean` says the
+// neighbourhood's lies: Wilson's score interval at WINDOW_Z standard errors.
+fn sample_interval(mean: f32, samples: f32) -> vec2<f32> {
+    let m = clamp(mean, 0.0, 1.0);
+    let z2n = WINDOW_Z * WINDOW_Z / samples;
+    let centre = (m + 0.5 * z2n) / (1.0 + z2n);
+    let half = WINDOW_Z / (1.0 + z2n) * sqrt((m * (1.0 - m) + 0.25 * z2n) / samples);
+    return vec2<f32>(centre - half, centre + half);
 }
 
 // cpu/temporal.rs: temporal_blend; returns (ao, frames of weight). `cap`: the frames the history keeps near

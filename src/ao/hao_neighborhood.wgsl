@@ -1,7 +1,8 @@
 // Hybrid ambient occlusion, pass 2: once per texel of the trace, what the pixels of the temporal pass read
 // of its 3x3 texels: the window that bounds their history (the mean of the traced AO over the texels that
-// show geometry, plus and minus two standard deviations and a margin: `neighborhood_window`; (-1, 2), no
-// bound, where none does), and the texel's AO filtered over them (`bilateral_weight`: their distance in
+// show geometry, plus and minus two standard deviations and a margin, and away from occluders that moved at
+// least the interval the texels' rays tell their mean to lie in: `neighborhood_window`; (-1, 2), no bound,
+// where none does), and the texel's AO filtered over them (`bilateral_weight`: their distance in
 // texels over `denoise_radius`, their depth and normal against the traced pixel's; where occluders moved
 // near it, over 5x5 texels at twice the width), which the pixel it traced blends into its history. At half
 // resolution the four pixels of a 2x2 block share their block's window, so it is computed here once, at the
@@ -58,9 +59,12 @@ fn neighborhood(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
     }
+    // Away from occluders that moved, the window is at least as wide as the rays can tell: a neighbourhood
+    // whose few rays all escaped by chance must not lift a pixel's history into a light speck.
+    let samples = select(n * f32(settings.rays), 0.0, center.w > 0.5 || center.y <= 0.0);
     var window = vec2<f32>(-1.0, 2.0);
     if n > 0.0 {
-        window = neighborhood_window(sum, squares, n);
+        window = neighborhood_window(sum, squares, n, samples);
     }
     // Radius 0, or a texel that shows no geometry (no pixel blends it): the texel as traced.
     let ao = select(center.x, filtered.x / filtered.y, settings.denoise_radius > 0u && center.y > 0.0 && filtered.y > 0.0);

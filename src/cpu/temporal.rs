@@ -16,6 +16,10 @@
 //!    neighbourhood now escapes, the window closes around 1 and the shadow it left is clamped away in one
 //!    frame. A clamped history also loses weight, the more the further it was moved ([`clamped_count`]): an
 //!    occluder gone leaves it [`CLAMPED_COUNT`] frames, a window a few rays narrowed by chance several.
+//!    Away from occluders that moved, the window is never narrower than what the neighbourhood's rays can
+//!    tell of its mean ([`sample_interval`]): nine rays that all escaped say the AO is above 0.69, not above
+//!    0.9, so a pixel of AO 0.85 keeps its history instead of being lifted into a light speck (and one in a
+//!    deep shadow, whose rays all hit, is not pushed into a dark one).
 //! 3. **Where occluders move**, the clamp cannot tell a shadow arriving from noise when each pixel traces
 //!    one or two rays. The voxel grid lists the occluders whose voxels changed in the last few frames
 //!    (dynamic ones that moved, static ones added, changed or taken out): the box around each now and last
@@ -55,6 +59,10 @@
 /// Added to the neighbourhood window on each side, so that a pixel whose neighbours saw no occluder this
 /// frame (common with few rays where AO is near 1) keeps its history.
 pub const CLAMP_MARGIN: f32 = 0.1;
+
+/// How many standard errors [`sample_interval`] reaches around the neighbourhood's mean (WGSL: `WINDOW_Z`):
+/// as many as the window's deviations.
+pub const WINDOW_Z: f32 = 2.0;
 
 use super::ao::{texel_traced, trace_turn, traced_pixel};
 use super::denoise::HistoryTexel;
@@ -235,12 +243,34 @@ pub fn history_accepts(expected_depth: f32, history_depth: f32, normal: Vec3, di
 }
 
 /// The clamping window of the history from the current AO of a pixel's 3x3 neighbourhood (WGSL:
-/// `neighborhood_window`): `(sum, sum of squares, count)` of the neighbours that show geometry.
+/// `neighborhood_window`): `(sum, sum of squares, count)` of the neighbours that show geometry, and the
+/// `samples` (rays) they traced, or 0. The mean plus or minus two deviations and [`CLAMP_MARGIN`]; with
+/// samples, at least the interval they tell the mean to lie in ([`sample_interval`]), which a window of
+/// texels that happen to agree (all their rays escaped) would otherwise undercut.
 #[inline]
-pub fn neighborhood_window(sum: f32, sum_squares: f32, count: f32) -> (f32, f32) {
+pub fn neighborhood_window(sum: f32, sum_squares: f32, count: f32, samples: f32) -> (f32, f32) {
     let mean = sum / count;
     let sigma = (sum_squares / count - mean * mean).max(0.0).sqrt();
-    (mean - 2.0 * sigma - CLAMP_MARGIN, mean + 2.0 * sigma + CLAMP_MARGIN)
+    let window = (mean - 2.0 * sigma - CLAMP_MARGIN, mean + 2.0 * sigma + CLAMP_MARGIN);
+    if samples > 0.0 {
+        let (lower, upper) = sample_interval(mean, samples);
+        (window.0.min(lower), window.1.max(upper))
+    } else {
+        window
+    }
+}
+
+/// Where the mean AO of a neighbourhood lies, from `samples` rays whose mean AO is `mean` (WGSL:
+/// `sample_interval`): Wilson's score interval at [`WINDOW_Z`] standard errors. A ray's AO lies in [0, 1],
+/// so its variance is at most `m (1 - m)`, a coin's, and the interval is the coin's: unlike the rays' own
+/// spread, it does not close to a point where they all agree by chance (nine that escaped: (0.69, 1)).
+#[inline]
+pub fn sample_interval(mean: f32, samples: f32) -> (f32, f32) {
+    let m = mean.clamp(0.0, 1.0);
+    let z2n = WINDOW_Z * WINDOW_Z / samples;
+    let centre = (m + 0.5 * z2n) / (1.0 + z2n);
+    let half = WINDOW_Z / (1.0 + z2n) * ((m * (1.0 - m) + 0.25 * z2n) / samples).sqrt();
+    (centre - half, centre + half)
 }
 
 /// One pixel's blend (WGSL: `temporal_blend`): the history AO and its frames of weight (0: none), the
@@ -319,16 +349,20 @@ fn neighbourhood_within(
 }
 
 /// The window that bounds the history of the pixels of trace texel `texel` (WGSL: `hao_neighborhood.wgsl`,
-/// once per texel of the trace): [`neighborhood_window`] over its 3x3 texels that show geometry; `(-1, 2)`,
-/// none, where none does.
-pub fn trace_window(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2) -> (f32, f32) {
+/// once per texel of the trace): [`neighborhood_window`] over its 3x3 texels that show geometry, each of
+/// `rays` rays, at least their [`sample_interval`] unless occluders moved near the texel (its
+/// [`TracedTexel::changed`]: there a window that closes is how a shadow left behind is cleared); `(-1, 2)`,
+/// none, where none shows geometry.
+pub fn trace_window(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2, rays: u32) -> (f32, f32) {
     let (mut sum, mut squares, mut n) = (0.0f32, 0.0f32, 0.0f32);
     for (_, v) in neighbourhood(trace, trace_size, texel) {
         sum += v.ao;
         squares += v.ao * v.ao;
         n += 1.0;
     }
-    if n > 0.0 { neighborhood_window(sum, squares, n) } else { (-1.0, 2.0) }
+    let centre = trace.get((texel.y * trace_size.x + texel.x) as usize).copied().flatten();
+    let samples = if centre.is_some_and(|c| !c.changed) { n * rays as f32 } else { 0.0 };
+    if n > 0.0 { neighborhood_window(sum, squares, n, samples) } else { (-1.0, 2.0) }
 }
 
 /// What stands in for a pixel's own trace where its block traced another pixel (WGSL: `stand_in` in
@@ -425,6 +459,9 @@ pub struct TraceFrame {
     /// Whether the frame traced half the texels (`GpuHaoSettings::checkerboard`): the others hold the last
     /// frame's.
     pub checkerboard: bool,
+    /// Rays each texel traced (`GpuHaoSettings::rays`; more near occluders that moved, which the window
+    /// does not count on).
+    pub rays: u32,
     /// The trace, one texel per pixel, or per 2x2 block at half resolution, as the trace's buffer holds it
     /// after the frame's trace.
     pub texels: Vec<Option<TracedTexel>>,
@@ -437,6 +474,7 @@ impl TraceFrame {
     pub fn traced(
         number: u32,
         checkerboard: bool,
+        rays: u32,
         trace_size: UVec2,
         previous: Option<&TraceFrame>,
         mut trace: impl FnMut(UVec2) -> Option<TracedTexel>,
@@ -451,7 +489,7 @@ impl TraceFrame {
                 }
             })
             .collect();
-        TraceFrame { number, checkerboard, texels }
+        TraceFrame { number, checkerboard, rays, texels }
     }
 }
 
@@ -489,7 +527,7 @@ pub fn accumulate_still(
                 && traced_pixel(texel, turn, view_size, half_resolution) == p
                 && frame.texels[(texel.y * trace_size.x + texel.x) as usize].is_some())
             .then(|| prefilter(&frame.texels, trace_size, texel, radius));
-            let window = trace_window(&frame.texels, trace_size, texel);
+            let window = trace_window(&frame.texels, trace_size, texel, frame.rays);
             // (The GPU reads the stand-in only where `temporal_update` uses it.)
             let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal, radius);
             // (The GPU caps only a pixel with history.)
@@ -531,7 +569,7 @@ mod tests {
     fn a_history_outside_the_window_is_clamped_and_loses_its_weight() {
         // An occluder has gone: the neighbourhood reads 1 everywhere, the old shadow of 0.4 is clamped to
         // 0.9 and weighs two frames.
-        let window = neighborhood_window(9.0, 9.0, 9.0);
+        let window = neighborhood_window(9.0, 9.0, 9.0, 0.0);
         assert_eq!(window, (0.9, 1.1));
         let (ao, c) = temporal_blend(0.4, 16.0, window, 1.0, 16.0, NONE);
         assert!((ao - (0.9 + 0.1 / 3.0)).abs() < 1e-6 && c == 3.0, "{ao} {c}");
@@ -582,7 +620,7 @@ mod tests {
 
     #[test]
     fn the_change_cap_balances_lag_against_noise() {
-        let window = neighborhood_window(4.5, 4.5 * 0.5 + 2.25 * 0.25, 9.0);
+        let window = neighborhood_window(4.5, 4.5 * 0.5 + 2.25 * 0.25, 9.0, 0.0);
         // No change: no cap. The largest change: CHANGED_COUNT.
         assert_eq!(change_cap(0.0, window), f32::INFINITY);
         assert_eq!(change_cap(f32::NAN, window), f32::INFINITY);
@@ -631,6 +669,7 @@ mod tests {
             .map(|k| TraceFrame {
                 number: k,
                 checkerboard: false,
+                rays: 1,
                 texels: (0..w * h).map(|i| texel(if (i + k) % 2 == 0 { 0.5 } else { 1.0 })).collect(),
             })
             .collect();
@@ -652,6 +691,7 @@ mod tests {
             .map(|k| TraceFrame {
                 number: k,
                 checkerboard: false,
+                rays: 1,
                 texels: (0..4u32)
                     .map(|t| texel(truth(crate::cpu::ao::traced_pixel(UVec2::new(t % 2, t / 2), k, size, true))))
                     .collect(),
@@ -679,7 +719,7 @@ mod tests {
         let truth = |p: UVec2| 0.1 + 0.8 * ((p.x * 3 + p.y * 5) % 7) as f32 / 6.0;
         let mut frames: Vec<TraceFrame> = Vec::new();
         for k in 0..160 {
-            let traced = TraceFrame::traced(k, true, trace_size, frames.last(), |t| {
+            let traced = TraceFrame::traced(k, true, 1, trace_size, frames.last(), |t| {
                 texel(truth(traced_pixel(t, trace_turn(k, !frames.is_empty()), size, true)))
             });
             frames.push(traced);
@@ -715,7 +755,7 @@ mod tests {
             let mut traces: Vec<TraceFrame> = Vec::new();
             for k in 0..frames {
                 let turn = trace_turn(k, checkerboard && !traces.is_empty());
-                let traced = TraceFrame::traced(k, checkerboard, trace_size, traces.last(), |t| {
+                let traced = TraceFrame::traced(k, checkerboard, 1, trace_size, traces.last(), |t| {
                     texel(if random() < truth(traced_pixel(t, turn, size, true)) { 1.0 } else { 0.0 })
                 });
                 traces.push(traced);
@@ -827,6 +867,7 @@ mod tests {
                 .map(|k| TraceFrame {
                     number: k,
                     checkerboard: false,
+                    rays: 4,
                     texels: (0..size.x * size.y)
                         .map(|_| texel((0..4).map(|_| if random() < 0.6 { 0.25 } else { 0.0 }).sum()))
                         .collect(),
@@ -909,6 +950,39 @@ mod tests {
     }
 
     #[test]
+    fn a_window_of_rays_that_agree_by_chance_stays_as_wide_as_they_can_tell() {
+        // Nine one-ray texels that all escaped: their spread is nil, but nine rays only tell that the
+        // mean is above 0.69 (Wilson's interval at two standard errors).
+        let (lower, upper) = sample_interval(1.0, 9.0);
+        assert!((lower - 9.0 / 13.0).abs() < 1e-5 && (upper - 1.0).abs() < 1e-5, "{lower} {upper}");
+        let (lower, upper) = sample_interval(0.0, 9.0);
+        assert!(lower.abs() < 1e-5 && (upper - 4.0 / 13.0).abs() < 1e-5, "{lower} {upper}");
+        // It holds the mean, and closes as the rays grow in number.
+        for m in [0.0, 0.1, 0.5, 0.85, 1.0] {
+            let (a, b) = sample_interval(m, 9.0);
+            let (c, d) = sample_interval(m, 900.0);
+            let holds = |lo: f32, hi: f32| lo <= m + 1e-6 && m <= hi + 1e-6;
+            assert!(holds(a, b) && holds(c, d) && d - c < (b - a) * 0.2, "{m}: {a} {b} {c} {d}");
+        }
+        let escaped = TracedTexel { ao: 1.0, depth: 10.0, normal: Vec3::Z, changed: false };
+        let open = Some(escaped);
+        let size = UVec2::new(3, 3);
+        let window = trace_window(&[open; 9], size, UVec2::ONE, 1);
+        assert!((window.0 - 9.0 / 13.0).abs() < 1e-5 && (window.1 - 1.1).abs() < 1e-6, "{window:?}");
+        // A pixel of AO 0.85 keeps its 127 frames: no light speck.
+        let (ao, count) = temporal_blend(0.85, 126.0, window, 1.0, 127.0, NONE);
+        assert!((ao - (0.85 + 0.15 / 127.0)).abs() < 1e-6 && count == 127.0, "{ao} {count}");
+        // More rays tell more; near occluders that moved the window closes as before, so that the shadow
+        // one left is cleared at once.
+        assert!(trace_window(&[open; 9], size, UVec2::ONE, 4).0 > window.0);
+        let mut moved = [open; 9];
+        moved[4] = Some(TracedTexel { changed: true, ..escaped });
+        assert_eq!(trace_window(&moved, size, UVec2::ONE, 1), (0.9, 1.1));
+        // A noisy neighbourhood's window is as wide as its spread already.
+        assert_eq!(neighborhood_window(4.5, 4.5, 9.0, 9.0), neighborhood_window(4.5, 4.5, 9.0, 0.0));
+    }
+
+    #[test]
     fn the_stand_in_is_taken_from_the_pixels_own_surface() {
         // A 3x3 trace: the middle row shows the pixel's surface (AO 0.5), the rows above and below a surface
         // far behind it (AO 1): the stand-in is 0.5, the window spans both.
@@ -916,15 +990,15 @@ mod tests {
         let trace = [far, far, far, texel(0.5), texel(0.5), texel(0.5), far, far, far];
         let size = UVec2::new(3, 3);
         assert_eq!(stand_in(&trace, size, UVec2::ONE, 10.0, Vec3::Z, 1), 0.5);
-        let window = trace_window(&trace, size, UVec2::ONE);
+        let window = trace_window(&trace, size, UVec2::ONE, 1);
         assert!(window.0 < 0.5 && window.1 > 1.0, "{window:?}");
         // A surface none of the texels shows: the mean of all of them.
         assert_eq!(stand_in(&trace, size, UVec2::ONE, 20.0, Vec3::Z, 1), (6.0 + 1.5) / 9.0);
         // At the corner, the four texels inside the trace: two far (1), two on the surface (0.5).
         assert_eq!(stand_in(&trace, size, UVec2::ZERO, 40.0, Vec3::Z, 1), 1.0);
-        assert_eq!(trace_window(&trace, size, UVec2::ZERO), neighborhood_window(3.0, 2.5, 4.0));
+        assert_eq!(trace_window(&trace, size, UVec2::ZERO, 1), neighborhood_window(3.0, 2.5, 4.0, 4.0));
         // No texel shows geometry: no window, the stand-in open.
-        assert_eq!(trace_window(&[None; 9], size, UVec2::ONE), (-1.0, 2.0));
+        assert_eq!(trace_window(&[None; 9], size, UVec2::ONE, 1), (-1.0, 2.0));
         assert_eq!(stand_in(&[None; 9], size, UVec2::ONE, 10.0, Vec3::Z, 1), 1.0);
     }
 }

@@ -1,4 +1,5 @@
-//! Quality figures against the ground truth: bias, excess voxels, and the six-direction watertight test.
+//! Quality figures against the ground truth: bias, excess voxels, and the six-direction watertight test; and
+//! of an AO image against its reference, the isolated specks ([`specks`]).
 
 use bevy_hao::cpu::VoxelOccupancy;
 use glam::UVec3;
@@ -175,4 +176,63 @@ pub fn watertight(result: &VoxelOccupancy, truth: &VoxelOccupancy) -> Watertight
         }
     }
     report
+}
+
+/// How far a pixel's AO must lie from the median of its eight neighbours to count as a speck ([`specks`]).
+pub const SPECK_STEP: f32 = 0.1;
+
+/// The isolated specks of an AO image of `width` columns against its `reference`: the pixels that lie more
+/// than [`SPECK_STEP`] below (dark) or above (light) the median of their eight neighbours where the
+/// reference's pixel lies less than half that from its own neighbours' median (a crease or an edge the
+/// reference shows is not a speck). Only pixels whose eight neighbours all show geometry (`geometry`)
+/// count. Returns (dark, light).
+pub fn specks(image: &[f32], reference: &[f32], width: usize, geometry: impl Fn(usize) -> bool) -> (usize, usize) {
+    let height = image.len() / width.max(1);
+    let step = |img: &[f32], x: usize, y: usize| {
+        let mut n: Vec<f32> =
+            (0..9).filter(|&k| k != 4).map(|k| img[(y + k / 3 - 1) * width + x + k % 3 - 1]).collect();
+        n.sort_by(f32::total_cmp);
+        img[y * width + x] - 0.5 * (n[3] + n[4])
+    };
+    let (mut dark, mut light) = (0, 0);
+    for y in 1..height.saturating_sub(1) {
+        for x in 1..width.saturating_sub(1) {
+            if !(0..9).all(|k| geometry((y + k / 3 - 1) * width + x + k % 3 - 1)) {
+                continue;
+            }
+            let (d, r) = (step(image, x, y), step(reference, x, y));
+            if d < -SPECK_STEP && r > -0.5 * SPECK_STEP {
+                dark += 1;
+            } else if d > SPECK_STEP && r < 0.5 * SPECK_STEP {
+                light += 1;
+            }
+        }
+    }
+    (dark, light)
+}
+
+#[cfg(test)]
+mod speck_tests {
+    #[test]
+    fn a_lone_pixel_off_its_neighbours_is_a_speck_and_a_crease_the_reference_shows_is_not() {
+        let (w, h) = (5, 5);
+        let reference = vec![0.8f32; w * h];
+        let mut image = reference.clone();
+        image[2 * w + 2] = 0.6;
+        image[w + 1] = 0.95;
+        assert_eq!(super::specks(&image, &reference, w, |_| true), (1, 1));
+        // The same dark pixel where the reference is dark too: a contact, not a speck.
+        let mut dark_reference = reference.clone();
+        dark_reference[2 * w + 2] = 0.6;
+        assert_eq!(super::specks(&image, &dark_reference, w, |_| true), (0, 1));
+        // Beside the background, nothing is counted.
+        assert_eq!(super::specks(&image, &reference, w, |i| i != 0), (1, 0));
+        // A line of dark pixels the reference lacks is no speck: its neighbours' median is dark too.
+        let mut line = reference.clone();
+        for x in 0..w {
+            line[2 * w + x] = 0.6;
+            line[3 * w + x] = 0.6;
+        }
+        assert_eq!(super::specks(&line, &reference, w, |_| true), (0, 0));
+    }
 }

@@ -31,9 +31,11 @@
 //! alone; each camera's AO is read back. The CPU reference traces `--rays` cosine-weighted rays per pixel
 //! against the scene's real triangles (through a BVH) from the positions and normals the prepass produced,
 //! with HAO's maximum distance, falloff and intensity. The tool prints the mean absolute error of each
-//! against the reference, over all pixels that show geometry and over the pixels whose reference occlusion
+//! against the reference, over all pixels that show geometry, over the pixels whose reference occlusion
 //! comes mostly (over half) from occluders the view cannot see (off screen or hidden behind what it shows),
-//! and writes the four AO images side by side (HAO, HAO + near field, SSAO, reference) as one PNG.
+//! and over the contact band (the pixels whose reference is under 0.5: contacts and creases), the count of
+//! isolated dark and light specks (`bevy_hao_tools::metrics::specks`: pixels more than 0.1 off the median
+//! of their neighbours where the reference is not), and writes the four AO images side by side (HAO, HAO + near field, SSAO, reference) as one PNG.
 //! `--sparse N` traces the reference at every Nth pixel of each row and column only and measures the errors
 //! there (the PNG's reference shows each block's sampled pixel), so that 1920x1080 stays affordable.
 //!
@@ -550,21 +552,32 @@ fn main() {
     );
     println!(
         "| AO | mean abs. error, all pixels | mean abs. error, off-screen/hidden occluders | mean abs. error, contact \
-         band ({:.1} % of the pixels) | mean AO |",
+         band ({:.1} % of the pixels) | isolated specks, dark / light | mean AO |",
         100.0 * band.len() as f32 / pixels.len().max(1) as f32
     );
-    println!("|---|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|");
+    // Specks need every pixel's reference: not with --sparse.
+    let geometry = |i: usize| depth[i] > 0.0 && normals[i] != Vec3::ZERO;
+    let specks = |img: &[f32]| {
+        if sparse > 1 {
+            "-".to_string()
+        } else {
+            let (dark, light) = bevy_hao_tools::metrics::specks(img, &reference, w as usize, geometry);
+            format!("{dark} / {light}")
+        }
+    };
     for (k, name) in NAMES.iter().enumerate() {
         let mean = pixels.iter().map(|&i| ao[k][i]).sum::<f32>() / pixels.len().max(1) as f32;
         println!(
-            "| {name} | {:.4} | {:.4} | {:.4} | {mean:.3} |",
+            "| {name} | {:.4} | {:.4} | {:.4} | {} | {mean:.3} |",
             mae(&ao[k], &pixels),
             mae(&ao[k], &offscreen),
-            mae(&ao[k], &band)
+            mae(&ao[k], &band),
+            specks(&ao[k])
         );
     }
     let ref_mean = pixels.iter().map(|&i| reference[i]).sum::<f32>() / pixels.len().max(1) as f32;
-    println!("| reference | 0 | 0 | 0 | {ref_mean:.3} |");
+    println!("| reference | 0 | 0 | 0 | 0 / 0 | {ref_mean:.3} |");
     let (e_hao, e_ssao) = (mae(&ao[0], &pixels), mae(&ao[2], &pixels));
     println!("\nHAO's error is {:.2}x Bevy SSAO's", e_hao / e_ssao.max(1e-6));
     if args.bias {
