@@ -203,8 +203,8 @@ pub fn current_variance(window: (f32, f32)) -> f32 {
 /// as many as leave its noise, the current AO's deviation over their square root ([`current_variance`]),
 /// no smaller than the shift, `n = s^2 / shift^2`, at least [`CLAMPED_COUNT`]. An occluder gone (the
 /// window closes around 1 and a shadow of 0.4 is clamped to 0.9) keeps [`CLAMPED_COUNT`]; the window of a
-/// few rays that all escaped this frame, which moves a history of 0.88 to 0.9, keeps several frames (6 for a shift of 0.02), where a
-/// reset to [`CLAMPED_COUNT`] left a light speck that took a dozen traces to fade.
+/// few rays that all escaped this frame, which moves a history of 0.88 to 0.9, keeps several frames (6 for
+/// a shift of 0.02), where a reset to [`CLAMPED_COUNT`] left a light speck that took a dozen traces to fade.
 pub fn clamped_count(shift: f32, window: (f32, f32)) -> f32 {
     (current_variance(window) / (shift * shift)).max(CLAMPED_COUNT)
 }

@@ -35,7 +35,8 @@
 //! comes mostly (over half) from occluders the view cannot see (off screen or hidden behind what it shows),
 //! and over the contact band (the pixels whose reference is under 0.5: contacts and creases), the count of
 //! isolated dark and light specks (`bevy_hao_tools::metrics::specks`: pixels more than 0.1 off the median
-//! of their neighbours where the reference is not), and writes the four AO images side by side (HAO, HAO + near field, SSAO, reference) as one PNG.
+//! of their neighbours where the reference is not), and writes the four AO images side by side (HAO, HAO +
+//! near field, SSAO, reference) as one PNG.
 //! `--sparse N` traces the reference at every Nth pixel of each row and column only and measures the errors
 //! there (the PNG's reference shows each block's sampled pixel), so that 1920x1080 stays affordable.
 //!
@@ -167,8 +168,6 @@ enum Resolution {
     Full,
     Half,
 }
-
-/// `LEVELS,CELLS,FINEST_CELL_SIZE`.
 
 #[derive(Component)]
 struct View(usize);
@@ -451,8 +450,9 @@ fn main() {
     };
     let sparse = args.sparse as usize;
     let sampled = |i: usize| (i % w as usize).is_multiple_of(sparse) && (i / w as usize).is_multiple_of(sparse);
-    let pixels: Vec<usize> =
-        (0..(w * h) as usize).filter(|&i| sampled(i) && depth[i] > 0.0 && normals[i] != Vec3::ZERO).collect();
+    // A pixel that shows geometry: depth and a normal.
+    let geometry = |i: usize| depth[i] > 0.0 && normals[i] != Vec3::ZERO;
+    let pixels: Vec<usize> = (0..(w * h) as usize).filter(|&i| sampled(i) && geometry(i)).collect();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let bar = bevy_hao_tools::harness::progress_bar(pixels.len() as u64, "reference");
     let results: Vec<(usize, f32, f32)> = std::thread::scope(|s| {
@@ -557,7 +557,6 @@ fn main() {
     );
     println!("|---|---:|---:|---:|---:|---:|");
     // Specks need every pixel's reference: not with --sparse.
-    let geometry = |i: usize| depth[i] > 0.0 && normals[i] != Vec3::ZERO;
     let specks = |img: &[f32]| {
         if sparse > 1 {
             "-".to_string()
