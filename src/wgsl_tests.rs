@@ -382,7 +382,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 38] = [
+    let pairs: [(&str, &str, f64); 41] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -413,6 +413,7 @@ fn shared_constants_agree() {
         ("src/ao/hao_trace.wgsl", "MAX_BACK_HITS", crate::cpu::ao::MAX_BACK_HITS as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_LENGTH", contacts::CONTACT_LENGTH as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_THICKNESS", contacts::CONTACT_THICKNESS as f64),
+        ("src/ao/hao_trace.wgsl", "CONTACT_GRAZING_COS", contacts::CONTACT_GRAZING_COS as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_LIFT_PIXELS", contacts::CONTACT_LIFT_PIXELS as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_LIFT_CELLS", contacts::CONTACT_LIFT_CELLS as f64),
         ("src/ao/hao_trace.wgsl", "CONTACT_DEPTH_EPSILON", contacts::CONTACT_DEPTH_EPSILON as f64),
@@ -421,6 +422,8 @@ fn shared_constants_agree() {
         ("src/ao/hao_trace.wgsl", "NEAR_FREE_SPACE_CELLS", contacts::NEAR_FREE_SPACE_CELLS as f64),
         ("src/ao/hao_trace.wgsl", "NEAR_FREE_SPACE_PIXELS", contacts::NEAR_FREE_SPACE_PIXELS as f64),
         ("src/ao/hao_trace.wgsl", "MAX_NEAR_FREE_SPACE_PASSES", contacts::MAX_NEAR_FREE_SPACE_PASSES as f64),
+        ("src/ao/hao_trace.wgsl", "OWN_CELL_MARGIN", crate::cpu::near::OWN_CELL_MARGIN as f64),
+        ("src/ao/hao_trace.wgsl", "NEAR_VOXEL_STEPS", crate::cpu::near::NEAR_VOXEL_STEPS as f64),
     ];
     for (path, name, rust) in pairs {
         let wgsl = wgsl_const(path, name);

@@ -140,16 +140,11 @@ fn the_ao_around_moving_props_stays_near_that_of_the_same_frame_still() {
     assert!(noise < 3.0 * still_noise, "noise {noise} against {still_noise} still");
 }
 
-#[test]
-fn the_floor_darkens_toward_a_resting_balls_contact() {
+/// The converged AO (default settings, the scene still) at floor points `points` (normal +Y) of `scene`, and
+/// the reference's there (1024 rays on the scene's triangles).
+fn floor_profile<const N: usize>(scene: MotionScene, points: [Vec3; N]) -> ([f32; N], [f32; N]) {
     use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
-    let _gpu = gpu_lock();
     let hao = HybridAmbientOcclusion::default();
-    let mut scene = MotionScene::named("contacts", Marker::Dynamic).unwrap();
-    // Low and from the side: the floor beside the contact, under the ball's overhang, is in view nearly to
-    // the contact; the profile runs across the view.
-    let contact = Vec3::new(0.6, 0.0, -0.2);
-    scene.camera = Transform::from_translation(contact + Vec3::new(3.0, 0.3, 0.0)).looking_at(contact, Vec3::Y);
     let reference = ReferenceScene::new(&scene.triangles_at(0));
     let converged = (4 * hao.accumulation_frames * hao.frames_per_trace()) as usize + 30;
     let (max_distance, falloff) = (hao.max_distance, hao.falloff);
@@ -160,21 +155,70 @@ fn the_floor_darkens_toward_a_resting_balls_contact() {
     let ao = &frames[0];
     let mut q = app.world_mut().query::<(&Camera, &GlobalTransform)>();
     let (camera, transform) = q.single(app.world()).unwrap();
-    let at = |p: Vec3| {
+    let profile = points.map(|p| {
         let v = camera.world_to_viewport(transform, p).expect("in view");
         let (x, y) = (v.x as u32, v.y as u32);
         ao[(y.min(SIZE.y - 1) * SIZE.x + x.min(SIZE.x - 1)) as usize]
-    };
-    let distances = [0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.2];
-    let points = distances.map(|r| contact + Vec3::Z * r);
-    let profile = points.map(at);
+    });
     let expected = points.map(|p| {
         reference_ao(&reference, p, Vec3::Y, 1024, Vec2::ZERO, max_distance, falloff, 1.0, 1e-4, |_| false).ao
     });
+    (profile, expected)
+}
+
+#[test]
+fn the_floor_darkens_toward_a_resting_balls_contact() {
+    let _gpu = gpu_lock();
+    let mut scene = MotionScene::named("contacts", Marker::Dynamic).unwrap();
+    // Low and from the side: the floor beside the contact, under the ball's overhang, is in view nearly to
+    // the contact; the profile runs across the view.
+    let contact = Vec3::new(0.6, 0.0, -0.2);
+    scene.camera = Transform::from_translation(contact + Vec3::new(3.0, 0.3, 0.0)).looking_at(contact, Vec3::Y);
+    let distances = [0.1, 0.2, 0.3, 0.45, 0.6, 0.8, 1.2];
+    let (profile, expected) = floor_profile(scene, distances.map(|r| contact + Vec3::Z * r));
     println!("floor AO at {distances:?} m from the contact: {profile:.3?} (reference {expected:.3?})");
     // Darkest at the contact and lighter outward: no ring detached from it, no lighter band inside it.
     for (k, w) in profile.windows(2).enumerate() {
         assert!(w[1] >= w[0] - 0.03, "lighter at {} m than at {} m: {profile:?}", distances[k], distances[k + 1]);
     }
     assert!(profile[0] < profile[6] - 0.2, "{profile:?}");
+}
+
+/// The README's quick start (a unit sphere, `DynamicOccluder`, sunk a tenth into a floor 0.2 thick; the
+/// default cascades; the camera's MSAA), seen close from above the sphere's front: the floor under its
+/// silhouette darkens toward the contact. The march's start a cell off the floor lies inside the sphere
+/// there; before the trace's near cells (`cpu::near`) the floor right under the silhouette came out lighter
+/// than a hand's breadth further out, which the picture shows as a light band between the sphere and its
+/// shadow.
+#[test]
+fn the_floor_under_the_quick_starts_sphere_darkens_toward_its_silhouette() {
+    use bevy_hao_tools::meshes::builtin::{cuboid, sphere};
+    use bevy_hao_tools::motion::{Prop, PropPath};
+    let _gpu = gpu_lock();
+    let scene = MotionScene {
+        statics: vec![("floor", cuboid(Vec3::new(-10.0, -0.1, -10.0), Vec3::new(10.0, 0.1, 10.0)))],
+        props: vec![Prop {
+            name: "sphere",
+            mesh: sphere(1.0, 64, 32),
+            smooth: true,
+            marker: Marker::Dynamic,
+            path: PropPath::Still(Transform::from_xyz(0.0, 1.0, 0.0)),
+        }],
+        camera: Transform::from_xyz(0.0, 0.9, 2.6).looking_at(Vec3::new(0.0, 0.15, 0.0), Vec3::Y),
+        camera_center: Vec3::ZERO,
+        camera_speed: 0.0,
+        character: None,
+        solid_props: false,
+    };
+    // Outward on the floor's top from the sphere's axis, 35 degrees off the view's: the floor there shows
+    // from 0.5 m out (the sphere meets the floor 0.436 m out), under the sphere's overhang.
+    let out = Vec3::new(35f32.to_radians().sin(), 0.0, 35f32.to_radians().cos());
+    let radii = [0.5, 0.55, 0.62, 0.7, 0.85, 1.0, 1.3];
+    let (profile, expected) = floor_profile(scene, radii.map(|r| Vec3::Y * 0.1 + out * r));
+    println!("floor AO at {radii:?} m from the sphere's axis: {profile:.3?} (reference {expected:.3?})");
+    for (k, w) in profile.windows(2).enumerate() {
+        assert!(w[1] >= w[0] - 0.03, "lighter at {} m than at {} m: {profile:?}", radii[k], radii[k + 1]);
+    }
+    // Dark at the silhouette, as the reference is (0.18 there).
+    assert!(profile[0] < expected[0] + 0.15, "{profile:?} against {expected:?}");
 }

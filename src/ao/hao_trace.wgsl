@@ -2,7 +2,9 @@
 // turn it is: `traced_pixel`), cosine-weighted rays from the surface (position from the depth prepass,
 // normal from the normal prepass) through the voxel texture, with empty-space skipping on its max-reduced
 // mips; each ray's first cells, which the voxels skip, are traced in the depth prepass (`depth_contact`),
-// and its voxel hits near the surface that the depth prepass shows in empty space are passed (`near`).
+// and its voxel hits near the surface that the depth prepass shows in empty space are passed (`near`);
+// where the view hides the march's start, those first cells are marched in the voxels past the surface's
+// own (`near_voxel_hit`).
 // Writes the noisy AO (1 = open, 0 = occluded) with the traced pixel's view depth and octahedral normal,
 // which the temporal pass weighs by, into a buffer of the trace's texels row by row (`pack_history`; in
 // place of frames, 1 where occluders moved near the pixel, whose texel the passes after it filter wider).
@@ -10,6 +12,7 @@
 // keep their last frame's.
 // Where occluders moved near the pixel, `change_rays` times the rays (`hao_change.wgsl`).
 // CPU twin: `bevy_hao::cpu::ao::voxel_ambient_occlusion_counted` (the contacts: `bevy_hao::cpu::contacts`;
+// the first cells in the voxels: `bevy_hao::cpu::near`;
 // the rays: `bevy_hao::cpu::temporal::change_rays`).
 // The voxel levels are bound at group 2.
 #import bevy_render::view::View
@@ -21,6 +24,7 @@
 }
 #import bevy_hao::voxel_grid::{
     voxel_grid, ray_start_level, march_cascades, march_cascades_left, level_position, voxel_normal_at, safe_inverse, ray_box,
+    voxel_occupied, MIN_OCCLUDING_CHORD,
 }
 #import bevy_hao::hao_change::{occlusion_change, change_rays, filters_wide}
 
@@ -110,10 +114,15 @@ const CONTACT_LIFT_PIXELS: f32 = 0.5;
 const CONTACT_LIFT_CELLS: f32 = 0.125;
 const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
 
+// cpu/contacts.rs: CONTACT_GRAZING_COS
+const CONTACT_GRAZING_COS: f32 = 0.25;
+
 // cpu/contacts.rs: ViewDepth::behind_clip. Whether the point at `clip` (clip space) and view depth `depth`
 // lies behind the surface the view shows at the pixel it projects to, by more than CONTACT_DEPTH_EPSILON of
-// its depth and less than `thickness`.
-fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32) -> bool {
+// its depth and less than `thickness` along the view, or with `grazing` along that surface's normal (`eye`:
+// the direction the view looks along; the normal is read only where the point lies deeper than `thickness`
+// along the view).
+fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32, grazing: bool, eye: vec3<f32>) -> bool {
     if !(clip.w > 0.0) {
         return false;
     }
@@ -128,7 +137,17 @@ fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32) -> bool {
         return false;
     }
     let surface = surface_view_depth(d);
-    return depth > surface * (1.0 + CONTACT_DEPTH_EPSILON) && depth < surface + thickness;
+    if !(depth > surface * (1.0 + CONTACT_DEPTH_EPSILON)) {
+        return false;
+    }
+    if depth < surface + thickness {
+        return true;
+    }
+    if !grazing {
+        return false;
+    }
+    let n = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
+    return depth < surface + thickness / max(abs(dot(n, eye)), CONTACT_GRAZING_COS);
 }
 
 // cpu/contacts.rs: ViewDepth::surface_view_depth. The view depth of the surface at prepass depth `d`: the z
@@ -157,8 +176,9 @@ fn contact_lift(pixel: f32, cell: f32) -> f32 {
 
 // cpu/contacts.rs: depth_contact. The distance along ray `dir` from the surface point to its first contact
 // in the depth prepass within `reach`, or -1: settings.contact_samples points, lifted `contact_lift` along the
-// normal, the first behind the view's surface by less than CONTACT_THICKNESS cells.
-fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32) -> f32 {
+// normal, the first behind the view's surface by less than CONTACT_THICKNESS cells (with `grazing`, along its
+// normal; `eye`: the direction the view looks along at `world`).
+fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32, grazing: bool, eye: vec3<f32>) -> f32 {
     let lift = contact_lift(pixel_size((view.clip_from_world * vec4<f32>(world, 1.0)).w), cell);
     let base = vec4<f32>(world + normal * lift, 1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
@@ -169,9 +189,60 @@ fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32,
     let samples = settings.contact_samples;
     for (var k = 0u; k < samples; k++) {
         let t = reach * (f32(k) + jitter) / f32(samples);
-        if behind_depth(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell) {
+        if behind_depth(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, grazing, eye) {
             return t;
         }
+    }
+    return -1.0;
+}
+
+// cpu/near.rs: hides_origin. Whether the view hides the point `origin` (where a ray's march starts): behind
+// the surface the view shows at its pixel by more than CONTACT_DEPTH_EPSILON of its depth, however far.
+fn hides_origin(origin: vec3<f32>) -> bool {
+    let p = vec4<f32>(origin, 1.0);
+    return behind_depth(view.clip_from_world * p, -(view.view_from_world * p).z, 1.0e30, false, vec3<f32>(0.0));
+}
+
+// cpu/near.rs: OWN_CELL_MARGIN, NEAR_VOXEL_STEPS
+const OWN_CELL_MARGIN: f32 = 0.125;
+const NEAR_VOXEL_STEPS: u32 = 8u;
+
+// cpu/near.rs: own_cell. Whether cell `cell` (a level's cells) is the surface's own: the plane through
+// `surface` (the same cells) with normal `normal` crosses it, or passes within OWN_CELL_MARGIN of it.
+fn own_cell(cell: vec3<f32>, surface: vec3<f32>, normal: vec3<f32>) -> bool {
+    let extent = 0.5 * (abs(normal.x) + abs(normal.y) + abs(normal.z)) + OWN_CELL_MARGIN;
+    return abs(dot(normal, cell + vec3<f32>(0.5) - surface)) <= extent;
+}
+
+// cpu/near.rs: near_voxel_hit. The world distance (half a cell past the entry) from the surface point `world`
+// (normal `normal`) along ray `dir` to the first occupied cell of level `level`'s finest occupancy within
+// `reach` cells that is not the surface's own, entered by a run of such cells the ray goes
+// MIN_OCCLUDING_CHORD through, or -1; a hit whose surface the view shows in free space by a pixel is passed.
+fn near_voxel_hit(level: u32, world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, reach: f32) -> f32 {
+    let o = level_position(level, world);
+    let inv = safe_inverse(dir);
+    let cell_size = voxel_grid.levels[level].cell_size;
+    var t = 0.0;
+    var run_start = 0.0;
+    var run_length = 0.0;
+    var visits = 0u;
+    while visits < NEAR_VOXEL_STEPS && t < reach {
+        visits += 1u;
+        let cell = floor(o + dir * t);
+        let exit = ray_box(o, inv, cell, cell + vec3<f32>(1.0)).y;
+        let other = voxel_occupied(level, vec3<i32>(cell), 0u) && !own_cell(cell, o, normal);
+        run_start = select(run_start, t, other && run_length == 0.0);
+        run_length = select(0.0, run_length + exit - t, other);
+        if run_length >= MIN_OCCLUDING_CHORD {
+            let distance = (run_start + 0.5) * cell_size;
+            let surface = world + dir * distance;
+            let margin = NEAR_FREE_SPACE_PIXELS * pixel_size((view.clip_from_world * vec4<f32>(surface, 1.0)).w);
+            if !shows_free_space(surface, margin) {
+                return distance;
+            }
+            run_length = 0.0;
+        }
+        t = max(exit, t) + 1.0e-3;
     }
     return -1.0;
 }
@@ -207,6 +278,8 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
     let world = world_position(pixel, depth);
     let normal = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
     let view_depth = -(view.view_from_world * vec4<f32>(world, 1.0)).z;
+    // cpu/contacts.rs: ViewDepth::eye_direction. From the near plane's point at the pixel to the surface.
+    let eye = normalize(world - world_position(pixel, 1.0));
     let packed_normal = pack_normal(octahedral_encode(normal));
     if voxel_grid.level_count == 0u {
         noisy[at] = pack_history(vec4<f32>(1.0, view_depth, packed_normal, 0.0));
@@ -237,10 +310,21 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         // The ray's first cells in the depth prepass: a contact there stops it, and the march is not run.
         if settings.depth_contacts != 0u && settings.start_offset > 0.0 {
             let reach = CONTACT_LENGTH * settings.start_offset * cell;
-            let t = depth_contact(world, normal, dir, cell, reach, fract(jitter + f32(i) * GOLDEN));
+            // Where the view hides the march's start, it may lie inside an occluder: the contacts' thickness is
+            // measured along the normal of the surface the view shows, and the first cells are also marched
+            // in the voxels, past the surface's own.
+            let hidden = hides_origin(world + normal * (settings.start_offset * cell));
+            let t = depth_contact(world, normal, dir, cell, reach, fract(jitter + f32(i) * GOLDEN), hidden, eye);
             if t >= 0.0 {
                 occlusion += ao_falloff(t, settings.max_distance, settings.falloff);
                 continue;
+            }
+            if hidden {
+                let d = near_voxel_hit(start, world, normal, dir, CONTACT_LENGTH * settings.start_offset);
+                if d >= 0.0 {
+                    occlusion += ao_falloff(d, settings.max_distance, settings.falloff);
+                    continue;
+                }
             }
         }
         let origin = world + normal * (settings.start_offset * cell);
@@ -262,10 +346,13 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         // surface to be (`depth_contacts`); the march goes on with the steps it has left.
         let near = NEAR_FREE_SPACE_CELLS * cell;
         for (var k = 0u; k < MAX_NEAR_FREE_SPACE_PASSES && settings.depth_contacts != 0u && marched.x >= 0.0 && marched.z > 0.0; k++) {
-            let surface = origin + dir * (marched.x + 0.5 * voxel_grid.levels[u32(marched.y)].cell_size);
-            if length(surface - world) > near {
+            // The point at the hit's distance on the ray from the surface itself, which the lift moved the
+            // march's off: near an occluder overhead the lifted ray crosses cells the ray misses.
+            let distance = length(origin + dir * (marched.x + 0.5 * voxel_grid.levels[u32(marched.y)].cell_size) - world);
+            if distance > near {
                 break;
             }
+            let surface = world + dir * distance;
             let margin = NEAR_FREE_SPACE_PIXELS * pixel_size((view.clip_from_world * vec4<f32>(surface, 1.0)).w);
             if !shows_free_space(surface, margin) {
                 break;

@@ -8,6 +8,7 @@ use super::contacts::{
     NEAR_FREE_SPACE_PIXELS, ViewDepth, depth_contact, ray_jitter,
 };
 use super::march::{March, TraceLevel, ray_box, ray_start_level, safe_inverse};
+use super::near::{hides_origin, near_voxel_hit};
 use glam::{Mat3, Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -143,6 +144,11 @@ pub struct TraceWork {
     pub hits: u64,
     /// Rays stopped by a contact in the depth prepass (their march is not run).
     pub contacts: u64,
+    /// Rays whose first cells were marched in the voxels, the view hiding the march's start
+    /// ([`super::near`]).
+    pub near_voxel_marches: u64,
+    /// Of those, rays stopped there (their march is not run).
+    pub near_voxel_hits: u64,
     /// Marches stopped by the step budget before reaching `max_distance` or leaving the volume.
     pub out_of_steps: u64,
 }
@@ -263,7 +269,8 @@ pub fn voxel_ambient_occlusion_counted(
 /// level `start`, finds within `s.max_distance`, or `None` (WGSL: the body of the ray loop in `trace`): with
 /// `contact` (the view's depth and this ray's jitter) and [`TraceSettings::depth_contacts`], first a contact
 /// in the depth prepass along its first [`CONTACT_LENGTH`] cells per cell of start offset, which stops it;
-/// then the voxels ([`voxel_ray_occluder`]).
+/// where the view hides the march's start, a hit in those cells' voxels past the surface's own
+/// ([`super::near`]), which stops it too; then the voxels ([`voxel_ray_occluder`]).
 #[allow(clippy::too_many_arguments)]
 pub fn ray_occluder(
     levels: &[TraceLevel],
@@ -280,9 +287,24 @@ pub fn ray_occluder(
         let cell = levels[start].cell_size;
         let length = CONTACT_LENGTH * s.start_offset * cell;
         let samples = s.contact_samples;
-        if let Some(t) = depth_contact(view, world, normal, dir, cell, length, samples, jitter, &mut work.depth_loads) {
+        // Where the view hides the march's start, it may lie inside an occluder: the contacts' thickness is
+        // measured along the normal of the surface the view shows, and the first cells are also marched in
+        // the voxels, past the surface's own.
+        let hidden = hides_origin(view, world + normal * (s.start_offset * cell), &mut work.depth_loads);
+        let loads = &mut work.depth_loads;
+        if let Some(t) = depth_contact(view, world, normal, dir, cell, length, samples, jitter, hidden, loads) {
             work.contacts += 1;
             return Some(t);
+        }
+        if hidden {
+            let reach = CONTACT_LENGTH * s.start_offset;
+            let near = near_voxel_hit(&levels[start], Some(view), world, normal, dir, reach, &mut work.depth_loads);
+            work.near_voxel_marches += 1;
+            work.texel_visits += u64::from(near.visits);
+            if let Some(d) = near.distance {
+                work.near_voxel_hits += 1;
+                return Some(d);
+            }
         }
     }
     voxel_ray_occluder(levels, contact.map(|c| c.view), world, normal, dir, start, s, work).map(|o| o.distance)
@@ -331,10 +353,13 @@ pub fn voxel_ray_occluder(
         let near = NEAR_FREE_SPACE_CELLS * levels[start].cell_size;
         for _ in 0..MAX_NEAR_FREE_SPACE_PASSES {
             let Some((t, level)) = hit.filter(|_| march.steps_left() > 0) else { break };
-            let surface = origin + dir * (t + 0.5 * levels[level].cell_size);
-            if (surface - world).length() > near {
+            // The point at the hit's distance on the ray from the surface itself, which the lift moved the
+            // march's off: near an occluder overhead the lifted ray crosses cells the ray misses.
+            let distance = (origin + dir * (t + 0.5 * levels[level].cell_size) - world).length();
+            if distance > near {
                 break;
             }
+            let surface = world + dir * distance;
             let margin = NEAR_FREE_SPACE_PIXELS * view.pixel_size((view.clip_from_world * surface.extend(1.0)).w);
             if !view.shows_free_space(surface, margin, &mut work.depth_loads) {
                 break;

@@ -30,6 +30,13 @@ pub const CONTACT_LENGTH: f32 = 2.0;
 /// `CONTACT_THICKNESS`): deeper, it is behind a surface in front of it (which a screen-space test cannot
 /// tell from a solid), and the ray goes on.
 pub const CONTACT_THICKNESS: f32 = 1.0;
+/// The thickness is measured along the normal of the surface the view shows (WGSL: `CONTACT_GRAZING_COS`):
+/// along the view it is [`CONTACT_THICKNESS`] over the cosine between the view and that normal, that cosine
+/// taken at least this (at most four cells along the view). Near a silhouette the view grazes the surface,
+/// and a point a hair inside it (the floor's contact under a resting sphere, seen from above) lies many
+/// cells behind it along the view: measured along the view alone, those contacts were missed, and the floor
+/// right under a sphere's silhouette came out lighter than a hand's breadth further out.
+pub const CONTACT_GRAZING_COS: f32 = 0.25;
 /// How far the sampled points are lifted off the surface along its normal, in pixels of the view at the
 /// surface (WGSL: `CONTACT_LIFT_PIXELS`; [`ViewDepth::pixel_size`]), at most [`CONTACT_LIFT_CELLS`]: against
 /// the depth of a pixel's neighbours, which a grazing view or a curved surface sets a little in front of the
@@ -60,6 +67,9 @@ pub struct ViewDepth {
     pub view_from_world: Mat4,
     /// Clip to view space.
     pub view_from_clip: Mat4,
+    /// The normal prepass's world normals (unit; zero for the background), row by row, as the trace decodes
+    /// them.
+    pub normals: Vec<Vec3>,
 }
 
 /// How far in front of the surfaces the view shows around it a voxel hit must lie to be passed as free
@@ -119,17 +129,36 @@ impl ViewDepth {
     }
 
     /// Whether the world point `p` lies behind the surface the view shows at the pixel it projects to, by
-    /// more than [`CONTACT_DEPTH_EPSILON`] of its depth and less than `thickness` (world units), counting
-    /// the depth samples it reads in `depth_loads`. Points off the view, behind the camera or over the
-    /// background are not.
-    pub fn behind(&self, p: Vec3, thickness: f32, depth_loads: &mut u64) -> bool {
+    /// more than [`CONTACT_DEPTH_EPSILON`] of its depth and less than `thickness` (world units) along the
+    /// view, or with `grazing` along that surface's normal ([`CONTACT_GRAZING_COS`]), counting the prepass
+    /// samples it reads in `depth_loads`. Points off the view, behind the camera or over the background are
+    /// not.
+    pub fn behind(&self, p: Vec3, thickness: f32, grazing: bool, depth_loads: &mut u64) -> bool {
         let depth = -(self.view_from_world * p.extend(1.0)).z;
-        self.behind_clip(self.clip_from_world * p.extend(1.0), depth, thickness, depth_loads)
+        let eye = grazing.then(|| self.eye_direction(p));
+        self.behind_clip(self.clip_from_world * p.extend(1.0), depth, thickness, eye, depth_loads)
+    }
+
+    /// The direction the view looks along at the world point `p` (WGSL: `eye_direction` in `trace`): from
+    /// the near plane's point at its pixel position to it, for a perspective or an orthographic view alike.
+    pub fn eye_direction(&self, p: Vec3) -> Vec3 {
+        let clip = self.clip_from_world * p.extend(1.0);
+        let near = self.clip_from_world.inverse().project_point3((clip.truncate() / clip.w).truncate().extend(1.0));
+        (p - near).normalize_or_zero()
     }
 
     /// [`ViewDepth::behind`] for a point given in clip space and by its view depth (WGSL: `behind_depth`):
-    /// both are linear along a ray, so a ray's points cost a multiply-add each.
-    pub fn behind_clip(&self, clip: Vec4, depth: f32, thickness: f32, depth_loads: &mut u64) -> bool {
+    /// both are linear along a ray, so a ray's points cost a multiply-add each. With `eye`, the direction the
+    /// view looks along ([`ViewDepth::eye_direction`]), the thickness is along the normal, which is read only
+    /// where the point lies deeper than `thickness` along the view.
+    pub fn behind_clip(
+        &self,
+        clip: Vec4,
+        depth: f32,
+        thickness: f32,
+        eye: Option<Vec3>,
+        depth_loads: &mut u64,
+    ) -> bool {
         let Some(pixel) = self.pixel_at(clip) else { return false };
         *depth_loads += 1;
         let d = self.depth_at(pixel.as_ivec2());
@@ -137,7 +166,25 @@ impl ViewDepth {
             return false;
         }
         let surface = self.surface_view_depth(d);
-        depth > surface * (1.0 + CONTACT_DEPTH_EPSILON) && depth < surface + thickness
+        if !(depth > surface * (1.0 + CONTACT_DEPTH_EPSILON)) {
+            return false;
+        }
+        if depth < surface + thickness {
+            return true;
+        }
+        let Some(eye) = eye else { return false };
+        *depth_loads += 1;
+        let n = self.normal_at(pixel.as_ivec2());
+        depth < surface + thickness / n.dot(eye).abs().max(CONTACT_GRAZING_COS)
+    }
+
+    /// The normal prepass's normal at pixel `p`: zero off the view or where the normals are shorter than
+    /// the view.
+    fn normal_at(&self, p: IVec2) -> Vec3 {
+        if p.x < 0 || p.y < 0 || p.x >= self.size.x as i32 || p.y >= self.size.y as i32 {
+            return Vec3::ZERO;
+        }
+        self.normals.get((p.y as u32 * self.size.x + p.x as u32) as usize).copied().unwrap_or(Vec3::ZERO)
     }
 
     /// The size of one of the view's pixels, in world units, at a point whose clip-space w is `clip_w`
@@ -200,7 +247,8 @@ pub fn contact_lift(pixel: f32, cell: f32) -> f32 {
 /// The distance from the surface point `world` (normal `normal`) along ray `dir` to its first contact in the
 /// depth prepass within `length` (world units), or `None` (WGSL: `depth_contact`): `samples` points at
 /// `length * (k + jitter) / samples`, lifted [`contact_lift`] along the normal, the first that
-/// is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells. `cell` is the cell
+/// is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells (with `grazing`,
+/// along that surface's normal: where the view hides the march's start, [`super::near`]). `cell` is the cell
 /// size of the level the ray starts in.
 #[allow(clippy::too_many_arguments)]
 pub fn depth_contact(
@@ -212,16 +260,18 @@ pub fn depth_contact(
     length: f32,
     samples: u32,
     jitter: f32,
+    grazing: bool,
     depth_loads: &mut u64,
 ) -> Option<f32> {
     let lift = contact_lift(view.pixel_size((view.clip_from_world * world.extend(1.0)).w), cell);
+    let eye = grazing.then(|| view.eye_direction(world));
     let base = (world + normal * lift).extend(1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
     let (clip, clip_dir) = (view.clip_from_world * base, view.clip_from_world * dir.extend(0.0));
     let (depth, depth_dir) = (-(view.view_from_world * base).z, -(view.view_from_world * dir.extend(0.0)).z);
-    (0..samples)
-        .map(|k| length * (k as f32 + jitter) / samples as f32)
-        .find(|&t| view.behind_clip(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, depth_loads))
+    (0..samples).map(|k| length * (k as f32 + jitter) / samples as f32).find(|&t| {
+        view.behind_clip(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, eye, depth_loads)
+    })
 }
 
 #[cfg(test)]
@@ -249,7 +299,8 @@ mod tests {
                 depth.push(clip_from_world.project_point3(hit).z);
             }
         }
-        ViewDepth { size, depth, clip_from_world, view_from_world, view_from_clip: clip_from_view.inverse() }
+        let normals = depth.iter().map(|_| Vec3::Z).collect();
+        ViewDepth { size, depth, clip_from_world, view_from_world, view_from_clip: clip_from_view.inverse(), normals }
     }
 
     /// The voxel hits near the surface that the view shows in empty space are passed (`depth_contacts`):
@@ -352,13 +403,13 @@ mod tests {
         // From the floor just before the step, toward it: inside the step within two cells.
         let toward = Vec3::new(1.0, 0.0, 0.3).normalize();
         let (from, reach) = (Vec3::new(-0.2, 0.0, 0.0), 2.0 * cell);
-        let t = depth_contact(&view, from, Vec3::Z, toward, cell, reach, CONTACT_SAMPLES, 0.5, &mut loads);
+        let t = depth_contact(&view, from, Vec3::Z, toward, cell, reach, CONTACT_SAMPLES, 0.5, false, &mut loads);
         assert!(t.is_some_and(|t| t > 0.1 && t < 0.5), "{t:?}");
         // Away from it, and up: open.
         for dir in [Vec3::new(-1.0, 0.0, 0.3).normalize(), Vec3::Z, Vec3::new(0.0, 1.0, 0.2).normalize()] {
             for jitter in [0.0, 0.5, 0.99] {
                 let at = Vec3::new(-1.5, 0.3, 0.0);
-                let t = depth_contact(&view, at, Vec3::Z, dir, cell, reach, CONTACT_SAMPLES, jitter, &mut loads);
+                let t = depth_contact(&view, at, Vec3::Z, dir, cell, reach, CONTACT_SAMPLES, jitter, false, &mut loads);
                 assert_eq!(t, None);
             }
         }
@@ -370,12 +421,30 @@ mod tests {
         let view = floor_with_a_step();
         let mut loads = 0;
         // Under the step's top by 0.15: inside it for a thickness above that, not below.
-        assert!(view.behind(Vec3::new(0.5, 0.0, 0.1), 1.0, &mut loads));
-        assert!(!view.behind(Vec3::new(0.5, 0.0, 0.1), 0.1, &mut loads));
+        assert!(view.behind(Vec3::new(0.5, 0.0, 0.1), 1.0, false, &mut loads));
+        assert!(!view.behind(Vec3::new(0.5, 0.0, 0.1), 0.1, false, &mut loads));
         // Above the surface, and beside the view.
-        assert!(!view.behind(Vec3::new(0.5, 0.0, 0.4), 1.0, &mut loads));
-        assert!(!view.behind(Vec3::new(50.0, 0.0, 0.0), 1.0, &mut loads));
+        assert!(!view.behind(Vec3::new(0.5, 0.0, 0.4), 1.0, false, &mut loads));
+        assert!(!view.behind(Vec3::new(50.0, 0.0, 0.0), 1.0, false, &mut loads));
         // Behind the camera.
-        assert!(!view.behind(Vec3::new(0.0, 0.0, 20.0), 1.0, &mut loads));
+        assert!(!view.behind(Vec3::new(0.0, 0.0, 20.0), 1.0, false, &mut loads));
+    }
+
+    #[test]
+    fn under_a_surface_the_view_grazes_the_thickness_reaches_deeper_along_the_view() {
+        let view = floor_with_a_step();
+        let mut loads = 0;
+        // Seen head on, 0.15 under the step's top is deeper than 0.1.
+        assert!(!view.behind(Vec3::new(0.5, 0.0, 0.1), 0.1, false, &mut loads));
+        // The same depths where the view grazes the surfaces it shows (their normals at 76 degrees to it):
+        // a thickness of 0.1 along the normal is 0.4 along the view, not more.
+        let tilted = Vec3::new(0.97, 0.0, 0.243).normalize();
+        let grazing = ViewDepth { normals: view.normals.iter().map(|_| tilted).collect(), ..view };
+        let before = loads;
+        assert!(grazing.behind(Vec3::new(0.5, 0.0, 0.1), 0.1, true, &mut loads));
+        assert_eq!(loads, before + 2, "the normal is read where the point lies deeper than the thickness");
+        assert!(!grazing.behind(Vec3::new(0.5, 0.0, -0.3), 0.1, true, &mut loads));
+        // Not asked to measure along the normal, it does not.
+        assert!(!grazing.behind(Vec3::new(0.5, 0.0, 0.1), 0.1, false, &mut loads));
     }
 }

@@ -86,6 +86,12 @@ impl VoxelMips {
         n[(c.x + self.dims.x * (c.y + self.dims.y * c.z)) as usize]
     }
 
+    /// Whether cell `cell` of the finest level is occupied, clamped to the texture (WGSL: `voxel_occupied` at
+    /// mip 0).
+    pub fn occupied(&self, cell: IVec3) -> bool {
+        self.load(cell, 0)
+    }
+
     fn load(&self, texel: IVec3, level: usize) -> bool {
         let (s, v) = &self.levels[level];
         let c = texel.clamp(IVec3::ZERO, s.as_ivec3() - IVec3::ONE).as_uvec3();

@@ -17,7 +17,8 @@
 //!   on the occupancy's mips, [`march::VoxelMips`]).
 //! * [`ao`]: the CPU twin of the hybrid ambient occlusion trace (ray directions, falloff, the hits a ray
 //!   passes on its way, and the occlusion they add up to); [`contacts`]: of the rays' first cells, traced in
-//!   the depth prepass; [`temporal`]: of its temporal accumulation and
+//!   the depth prepass; [`near`]: of those first cells in the voxels where the march would start inside an
+//!   occluder; [`temporal`]: of its temporal accumulation and
 //!   filter; [`denoise`]: the filter's weights and the history's texel.
 //!
 //! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function
@@ -45,6 +46,7 @@ pub mod denoise;
 pub mod grid;
 pub mod march;
 pub mod mesh;
+pub mod near;
 pub mod overlap;
 pub mod pn;
 pub mod skinning;

@@ -440,14 +440,20 @@ pub fn view_samples(
     (w, h, samples)
 }
 
-/// The depth prepass of `camera` as the trace reads it (from the depth its [`bevy_hao::HaoDebugImages`]
-/// copied, and the camera's matrices, without TAA jitter), for the CPU twin's depth contacts.
+/// The depth and normal prepasses of `camera` as the trace reads them (from the depth and normal its
+/// [`bevy_hao::HaoDebugImages`] copied, and the camera's matrices, without TAA jitter), for the CPU twin's
+/// depth contacts.
 pub fn view_depth(
     app: &mut App,
     camera: Entity,
     debug: &bevy_hao::HaoDebugImages,
 ) -> bevy_hao::cpu::contacts::ViewDepth {
     let (w, h, depth) = read_image_f32(app, debug.depth.clone(), 0);
+    let (_, _, _, normal_bytes) = read_image(app, debug.normal.clone(), 0);
+    let normals = normal_bytes
+        .chunks_exact(8)
+        .map(|n| Vec3::new(f16_at(n, 0), f16_at(n, 2), f16_at(n, 4)).normalize_or_zero())
+        .collect();
     let world = app.world();
     let (cam, transform) =
         (world.get::<Camera>(camera).expect("a camera"), world.get::<GlobalTransform>(camera).expect("a transform"));
@@ -459,6 +465,7 @@ pub fn view_depth(
         clip_from_world: clip_from_view * view_from_world,
         view_from_world,
         view_from_clip: clip_from_view.inverse(),
+        normals,
     }
 }
 

@@ -596,6 +596,7 @@ fn main() {
             clip_from_world,
             view_from_world,
             view_from_clip,
+            normals: normals.clone(),
         };
         let trace = bevy_hao_tools::harness::cpu_trace_settings(&sanitized);
         print_bias(&scene, &levels, &view, &surfaces, &trace, epsilon);

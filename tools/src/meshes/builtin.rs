@@ -1,8 +1,8 @@
 //! Meshes the project makes itself: the shapes of Fei et al.'s Figure 8 (windmill, pyramid, chamfer box,
 //! star), a tetrahedron, a sphere, a torus, a procedural cathedral interior (the default scene of the
 //! examples), two furnished interiors of boxes, an apartment and an office hall, on which nothing was
-//! tuned, and `ao_motion`'s room of contacts (a crate in a corner, a step, a leaning pole, a resting
-//! sphere). All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
+//! tuned, `ao_motion`'s room of contacts (a crate in a corner, a step, a leaning pole, a resting
+//! sphere) and the README's quick start (a sphere resting on a floor). All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
 //! tests check it).
 
 use bevy_hao::cpu::TriangleMesh;
@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 
 /// Names accepted by [`builtin`] (and by the examples as `builtin:NAME`).
-pub const BUILTIN_NAMES: [&str; 12] = [
+pub const BUILTIN_NAMES: [&str; 13] = [
     "windmill",
     "pyramid",
     "chamfer-box",
@@ -23,6 +23,7 @@ pub const BUILTIN_NAMES: [&str; 12] = [
     "apartment",
     "office",
     "contacts",
+    "quick-start",
 ];
 
 /// The names of the closed shapes among [`BUILTIN_NAMES`] (all but the windmill, whose blades are open
@@ -46,8 +47,17 @@ pub fn builtin(name: &str) -> Option<TriangleMesh> {
         "office" => office(),
         // `ao_motion`'s room of contacts, still (`crate::motion`).
         "contacts" => crate::motion::MotionScene::named("contacts", crate::motion::Marker::Static)?.triangles_at(0),
+        "quick-start" => quick_start(),
         _ => return None,
     })
+}
+
+/// The README's quick start: a floor 20 x 0.2 x 20 centered at the origin and a sphere of radius 1 at
+/// (0, 1, 0), sunk 0.1 into the floor as the README's is (the `quick_start` tool renders it in the app).
+pub fn quick_start() -> TriangleMesh {
+    let mut m = cuboid(Vec3::new(-10.0, -0.1, -10.0), Vec3::new(10.0, 0.1, 10.0));
+    m.append(&sphere(1.0, 64, 32), glam::Affine3A::from_translation(Vec3::Y));
+    m
 }
 
 /// Flips triangles so that each faces away from `center`: right for shapes that are star-shaped around it.
