@@ -117,37 +117,42 @@ const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
 // cpu/contacts.rs: CONTACT_GRAZING_COS
 const CONTACT_GRAZING_COS: f32 = 0.25;
 
-// cpu/contacts.rs: ViewDepth::behind_clip. Whether the point at `clip` (clip space) and view depth `depth`
-// lies behind the surface the view shows at the pixel it projects to, by more than CONTACT_DEPTH_EPSILON of
-// its depth and less than `thickness` along the view, or with `grazing` along that surface's normal (`eye`:
-// the direction the view looks along; the normal is read only where the point lies deeper than `thickness`
-// along the view).
-fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32, grazing: bool, eye: vec3<f32>) -> bool {
+// cpu/contacts.rs: Behind
+const BEHIND_NO: u32 = 0u;
+const BEHIND_ALONG_VIEW: u32 = 1u;
+const BEHIND_ALONG_NORMAL: u32 = 2u;
+
+// cpu/contacts.rs: ViewDepth::behind_clip. How the point at `clip` (clip space) and view depth `depth` lies
+// behind the surface the view shows at the pixel it projects to: by more than CONTACT_DEPTH_EPSILON of its
+// depth and less than `thickness` along the view (BEHIND_ALONG_VIEW), or with `grazing`, deeper but within
+// `thickness` along that surface's normal (BEHIND_ALONG_NORMAL; `eye`: the direction the view looks along;
+// the normal is read only then), or not (BEHIND_NO).
+fn behind_depth(clip: vec4<f32>, depth: f32, thickness: f32, grazing: bool, eye: vec3<f32>) -> u32 {
     if !(clip.w > 0.0) {
-        return false;
+        return BEHIND_NO;
     }
     let ndc = clip.xyz / clip.w;
     if abs(ndc.x) > 1.0 || abs(ndc.y) > 1.0 || ndc.z <= 0.0 || ndc.z > 1.0 {
-        return false;
+        return BEHIND_NO;
     }
     let size = view.viewport.zw;
     let pixel = min(vec2<u32>(vec2<f32>(ndc.x + 1.0, 1.0 - ndc.y) * 0.5 * size), vec2<u32>(size) - 1u);
     let d = textureLoad(depth_texture, target_pixel(settings, pixel), 0);
     if d <= 0.0 {
-        return false;
+        return BEHIND_NO;
     }
     let surface = surface_view_depth(d);
     if !(depth > surface * (1.0 + CONTACT_DEPTH_EPSILON)) {
-        return false;
+        return BEHIND_NO;
     }
     if depth < surface + thickness {
-        return true;
+        return BEHIND_ALONG_VIEW;
     }
     if !grazing {
-        return false;
+        return BEHIND_NO;
     }
     let n = normalize(textureLoad(normal_texture, target_pixel(settings, pixel), 0).xyz * 2.0 - 1.0);
-    return depth < surface + thickness / max(abs(dot(n, eye)), CONTACT_GRAZING_COS);
+    return select(BEHIND_NO, BEHIND_ALONG_NORMAL, depth < surface + thickness / max(abs(dot(n, eye)), CONTACT_GRAZING_COS));
 }
 
 // cpu/contacts.rs: ViewDepth::surface_view_depth. The view depth of the surface at prepass depth `d`: the z
@@ -176,9 +181,10 @@ fn contact_lift(pixel: f32, cell: f32) -> f32 {
 
 // cpu/contacts.rs: depth_contact. The distance along ray `dir` from the surface point to its first contact
 // in the depth prepass within `reach`, or -1: settings.contact_samples points, lifted `contact_lift` along the
-// normal, the first behind the view's surface by less than CONTACT_THICKNESS cells (with `grazing`, along its
-// normal; `eye`: the direction the view looks along at `world`).
-fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32, grazing: bool, eye: vec3<f32>) -> f32 {
+// normal, the first behind the view's surface by less than CONTACT_THICKNESS cells; with `grazing`, also one
+// within it along that surface's normal that lies in an occupied cell of level `level`'s finest occupancy
+// (`eye`: the direction the view looks along at `world`).
+fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32, reach: f32, jitter: f32, grazing: bool, level: u32, eye: vec3<f32>) -> f32 {
     let lift = contact_lift(pixel_size((view.clip_from_world * vec4<f32>(world, 1.0)).w), cell);
     let base = vec4<f32>(world + normal * lift, 1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
@@ -189,7 +195,11 @@ fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32,
     let samples = settings.contact_samples;
     for (var k = 0u; k < samples; k++) {
         let t = reach * (f32(k) + jitter) / f32(samples);
-        if behind_depth(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, grazing, eye) {
+        let behind = behind_depth(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, grazing, eye);
+        if behind == BEHIND_ALONG_VIEW {
+            return t;
+        }
+        if behind == BEHIND_ALONG_NORMAL && voxel_occupied(level, vec3<i32>(floor(level_position(level, base.xyz + dir * t))), 0u) {
             return t;
         }
     }
@@ -200,7 +210,7 @@ fn depth_contact(world: vec3<f32>, normal: vec3<f32>, dir: vec3<f32>, cell: f32,
 // the surface the view shows at its pixel by more than CONTACT_DEPTH_EPSILON of its depth, however far.
 fn hides_origin(origin: vec3<f32>) -> bool {
     let p = vec4<f32>(origin, 1.0);
-    return behind_depth(view.clip_from_world * p, -(view.view_from_world * p).z, 1.0e30, false, vec3<f32>(0.0));
+    return behind_depth(view.clip_from_world * p, -(view.view_from_world * p).z, 1.0e30, false, vec3<f32>(0.0)) != BEHIND_NO;
 }
 
 // cpu/near.rs: OWN_CELL_MARGIN, NEAR_VOXEL_STEPS
@@ -311,10 +321,10 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
         if settings.depth_contacts != 0u && settings.start_offset > 0.0 {
             let reach = CONTACT_LENGTH * settings.start_offset * cell;
             // Where the view hides the march's start, it may lie inside an occluder: the contacts' thickness is
-            // measured along the normal of the surface the view shows, and the first cells are also marched
-            // in the voxels, past the surface's own.
+            // measured along the normal of the surface the view shows (deeper than a cell along the view, only
+            // inside the voxels), and the first cells are also marched in the voxels, past the surface's own.
             let hidden = hides_origin(world + normal * (settings.start_offset * cell));
-            let t = depth_contact(world, normal, dir, cell, reach, fract(jitter + f32(i) * GOLDEN), hidden, eye);
+            let t = depth_contact(world, normal, dir, cell, reach, fract(jitter + f32(i) * GOLDEN), hidden, start, eye);
             if t >= 0.0 {
                 occlusion += ao_falloff(t, settings.max_distance, settings.falloff);
                 continue;

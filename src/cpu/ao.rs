@@ -288,11 +288,12 @@ pub fn ray_occluder(
         let length = CONTACT_LENGTH * s.start_offset * cell;
         let samples = s.contact_samples;
         // Where the view hides the march's start, it may lie inside an occluder: the contacts' thickness is
-        // measured along the normal of the surface the view shows, and the first cells are also marched in
-        // the voxels, past the surface's own.
+        // measured along the normal of the surface the view shows (deeper than a cell along the view, only
+        // inside the voxels), and the first cells are also marched in the voxels, past the surface's own.
         let hidden = hides_origin(view, world + normal * (s.start_offset * cell), &mut work.depth_loads);
         let loads = &mut work.depth_loads;
-        if let Some(t) = depth_contact(view, world, normal, dir, cell, length, samples, jitter, hidden, loads) {
+        let grazing = hidden.then_some(&levels[start]);
+        if let Some(t) = depth_contact(view, world, normal, dir, cell, length, samples, jitter, grazing, loads) {
             work.contacts += 1;
             return Some(t);
         }

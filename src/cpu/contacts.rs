@@ -16,6 +16,7 @@
 //! shows empty space passes on ([`ViewDepth::shows_free_space`], `TraceSettings::depth_free_space`).
 
 use super::ao::{GOLDEN, interleaved_gradient_noise};
+use super::march::TraceLevel;
 use glam::{IVec2, Mat4, UVec2, Vec2, Vec3, Vec4};
 
 /// Points each ray samples in the depth prepass by default (`TraceSettings::contact_samples`; the presets'
@@ -35,7 +36,8 @@ pub const CONTACT_THICKNESS: f32 = 1.0;
 /// taken at least this (at most four cells along the view). Near a silhouette the view grazes the surface,
 /// and a point a hair inside it (the floor's contact under a resting sphere, seen from above) lies many
 /// cells behind it along the view: measured along the view alone, those contacts were missed, and the floor
-/// right under a sphere's silhouette came out lighter than a hand's breadth further out.
+/// right under a sphere's silhouette came out lighter than a hand's breadth further out. Such a point counts
+/// only where its voxel is occupied ([`depth_contact`]): behind a bar seen edge on, it lies in the open.
 pub const CONTACT_GRAZING_COS: f32 = 0.25;
 /// How far the sampled points are lifted off the surface along its normal, in pixels of the view at the
 /// surface (WGSL: `CONTACT_LIFT_PIXELS`; [`ViewDepth::pixel_size`]), at most [`CONTACT_LIFT_CELLS`]: against
@@ -52,6 +54,19 @@ pub const CONTACT_LIFT_CELLS: f32 = 0.125;
 /// A point is behind the view's surface only if its view depth exceeds the surface's by more than this share
 /// (WGSL: `CONTACT_DEPTH_EPSILON`): the depth prepass's precision.
 pub const CONTACT_DEPTH_EPSILON: f32 = 1.0e-3;
+
+/// How a point lies behind the surface the view shows at its pixel ([`ViewDepth::behind_clip`]; WGSL: the
+/// codes `behind_depth` returns, 0, 1 and 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Behind {
+    /// In front of it or too deep, off the view, behind the camera or over the background.
+    No,
+    /// Behind it by less than the thickness along the view.
+    AlongView,
+    /// Deeper along the view, but within the thickness along the surface's normal (asked only with the
+    /// direction the view looks along).
+    AlongNormal,
+}
 
 /// The view's depth prepass as the trace reads it (WGSL: `depth_texture` and `view`'s matrices).
 #[derive(Debug, Clone, PartialEq)]
@@ -136,21 +151,26 @@ impl ViewDepth {
     pub fn behind(&self, p: Vec3, thickness: f32, grazing: bool, depth_loads: &mut u64) -> bool {
         let depth = -(self.view_from_world * p.extend(1.0)).z;
         let eye = grazing.then(|| self.eye_direction(p));
-        self.behind_clip(self.clip_from_world * p.extend(1.0), depth, thickness, eye, depth_loads)
+        self.behind_clip(self.clip_from_world * p.extend(1.0), depth, thickness, eye, depth_loads) != Behind::No
     }
 
     /// The direction the view looks along at the world point `p` (WGSL: `eye_direction` in `trace`): from
     /// the near plane's point at its pixel position to it, for a perspective or an orthographic view alike.
+    /// The GPU maps the near plane's point to world space with the view's `world_from_clip`; here it is found
+    /// in view space with `view_from_clip` and turned to world space by the view's rotation (a view matrix is
+    /// rigid), which spares the twin a matrix inverse per call.
     pub fn eye_direction(&self, p: Vec3) -> Vec3 {
         let clip = self.clip_from_world * p.extend(1.0);
-        let near = self.clip_from_world.inverse().project_point3((clip.truncate() / clip.w).truncate().extend(1.0));
-        (p - near).normalize_or_zero()
+        let near = self.view_from_clip.project_point3((clip.truncate() / clip.w).truncate().extend(1.0));
+        let along = self.view_from_world.transform_point3(p) - near;
+        (glam::Mat3::from_mat4(self.view_from_world).transpose() * along).normalize_or_zero()
     }
 
-    /// [`ViewDepth::behind`] for a point given in clip space and by its view depth (WGSL: `behind_depth`):
-    /// both are linear along a ray, so a ray's points cost a multiply-add each. With `eye`, the direction the
-    /// view looks along ([`ViewDepth::eye_direction`]), the thickness is along the normal, which is read only
-    /// where the point lies deeper than `thickness` along the view.
+    /// How a point given in clip space and by its view depth lies behind the surface the view shows
+    /// ([`ViewDepth::behind`]; WGSL: `behind_depth`): both are linear along a ray, so a ray's points cost a
+    /// multiply-add each. With `eye`, the direction the view looks along ([`ViewDepth::eye_direction`]), a
+    /// point deeper than `thickness` along the view may still be within it along the surface's normal, which
+    /// is read only then.
     pub fn behind_clip(
         &self,
         clip: Vec4,
@@ -158,24 +178,28 @@ impl ViewDepth {
         thickness: f32,
         eye: Option<Vec3>,
         depth_loads: &mut u64,
-    ) -> bool {
-        let Some(pixel) = self.pixel_at(clip) else { return false };
+    ) -> Behind {
+        let Some(pixel) = self.pixel_at(clip) else { return Behind::No };
         *depth_loads += 1;
         let d = self.depth_at(pixel.as_ivec2());
         if d <= 0.0 {
-            return false;
+            return Behind::No;
         }
         let surface = self.surface_view_depth(d);
         if !(depth > surface * (1.0 + CONTACT_DEPTH_EPSILON)) {
-            return false;
+            return Behind::No;
         }
         if depth < surface + thickness {
-            return true;
+            return Behind::AlongView;
         }
-        let Some(eye) = eye else { return false };
+        let Some(eye) = eye else { return Behind::No };
         *depth_loads += 1;
         let n = self.normal_at(pixel.as_ivec2());
-        depth < surface + thickness / n.dot(eye).abs().max(CONTACT_GRAZING_COS)
+        if depth < surface + thickness / n.dot(eye).abs().max(CONTACT_GRAZING_COS) {
+            Behind::AlongNormal
+        } else {
+            Behind::No
+        }
     }
 
     /// The normal prepass's normal at pixel `p`: zero off the view or where the normals are shorter than
@@ -247,9 +271,11 @@ pub fn contact_lift(pixel: f32, cell: f32) -> f32 {
 /// The distance from the surface point `world` (normal `normal`) along ray `dir` to its first contact in the
 /// depth prepass within `length` (world units), or `None` (WGSL: `depth_contact`): `samples` points at
 /// `length * (k + jitter) / samples`, lifted [`contact_lift`] along the normal, the first that
-/// is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells (with `grazing`,
-/// along that surface's normal: where the view hides the march's start, [`super::near`]). `cell` is the cell
-/// size of the level the ray starts in.
+/// is [`ViewDepth::behind`] the view's surface by less than [`CONTACT_THICKNESS`] cells. With `grazing` (where
+/// the view hides the march's start, [`super::near`]: the level the ray starts in), also one within that
+/// thickness along that surface's normal that lies in an occupied cell of the level's finest occupancy: a
+/// surface the view grazes reaches that deep only where its voxels do (a thin bar seen edge on does not).
+/// `cell` is the cell size of the level the ray starts in.
 #[allow(clippy::too_many_arguments)]
 pub fn depth_contact(
     view: &ViewDepth,
@@ -260,17 +286,23 @@ pub fn depth_contact(
     length: f32,
     samples: u32,
     jitter: f32,
-    grazing: bool,
+    grazing: Option<&TraceLevel>,
     depth_loads: &mut u64,
 ) -> Option<f32> {
     let lift = contact_lift(view.pixel_size((view.clip_from_world * world.extend(1.0)).w), cell);
-    let eye = grazing.then(|| view.eye_direction(world));
+    let eye = grazing.map(|_| view.eye_direction(world));
     let base = (world + normal * lift).extend(1.0);
     // The ray's start and direction in clip space and in view depth: each point is a multiply-add away.
     let (clip, clip_dir) = (view.clip_from_world * base, view.clip_from_world * dir.extend(0.0));
     let (depth, depth_dir) = (-(view.view_from_world * base).z, -(view.view_from_world * dir.extend(0.0)).z);
     (0..samples).map(|k| length * (k as f32 + jitter) / samples as f32).find(|&t| {
-        view.behind_clip(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, eye, depth_loads)
+        match view.behind_clip(clip + clip_dir * t, depth + depth_dir * t, CONTACT_THICKNESS * cell, eye, depth_loads) {
+            Behind::No => false,
+            Behind::AlongView => true,
+            Behind::AlongNormal => grazing.is_some_and(|level| {
+                level.mips.occupied(level.level_position(base.truncate() + dir * t).floor().as_ivec3())
+            }),
+        }
     })
 }
 
@@ -370,6 +402,31 @@ mod tests {
     }
 
     #[test]
+    fn the_view_looks_from_its_camera_or_along_its_axis() {
+        // Perspective, the camera at (0, 0, 10): from the camera to the point (the near plane's point at its
+        // pixel lies on that line).
+        let view = floor_with_a_step();
+        for p in [Vec3::ZERO, Vec3::new(1.5, -2.0, 0.25), Vec3::new(-3.0, 1.0, -4.0)] {
+            let expected = (p - Vec3::new(0.0, 0.0, 10.0)).normalize();
+            assert!(view.eye_direction(p).distance(expected) < 1.0e-5, "{p} {}", view.eye_direction(p));
+        }
+        // Orthographic, turned: along the view's axis at any point.
+        let view_from_world = Mat4::look_at_rh(Vec3::new(3.0, 4.0, 5.0), Vec3::ZERO, Vec3::Y);
+        // (Bevy's reverse Z: its near plane at depth 1.)
+        let clip_from_view = Mat4::orthographic_rh(-4.0, 4.0, -4.0, 4.0, 100.0, 0.1);
+        let ortho = ViewDepth {
+            clip_from_world: clip_from_view * view_from_world,
+            view_from_world,
+            view_from_clip: clip_from_view.inverse(),
+            ..view
+        };
+        let axis = -Vec3::new(3.0, 4.0, 5.0).normalize();
+        for p in [Vec3::ZERO, Vec3::new(1.0, -1.0, 0.5)] {
+            assert!(ortho.eye_direction(p).distance(axis) < 1.0e-5, "{p} {}", ortho.eye_direction(p));
+        }
+    }
+
+    #[test]
     fn a_pixel_measures_what_the_view_shows_of_it() {
         // Perspective: the floor 10 units away, its points under two neighbouring pixels' centers.
         let view = floor_with_a_step();
@@ -406,13 +463,13 @@ mod tests {
         // From the floor just before the step, toward it: inside the step within two cells.
         let toward = Vec3::new(1.0, 0.0, 0.3).normalize();
         let (from, reach) = (Vec3::new(-0.2, 0.0, 0.0), 2.0 * cell);
-        let t = depth_contact(&view, from, Vec3::Z, toward, cell, reach, CONTACT_SAMPLES, 0.5, false, &mut loads);
+        let t = depth_contact(&view, from, Vec3::Z, toward, cell, reach, CONTACT_SAMPLES, 0.5, None, &mut loads);
         assert!(t.is_some_and(|t| t > 0.1 && t < 0.5), "{t:?}");
         // Away from it, and up: open.
         for dir in [Vec3::new(-1.0, 0.0, 0.3).normalize(), Vec3::Z, Vec3::new(0.0, 1.0, 0.2).normalize()] {
             for jitter in [0.0, 0.5, 0.99] {
                 let at = Vec3::new(-1.5, 0.3, 0.0);
-                let t = depth_contact(&view, at, Vec3::Z, dir, cell, reach, CONTACT_SAMPLES, jitter, false, &mut loads);
+                let t = depth_contact(&view, at, Vec3::Z, dir, cell, reach, CONTACT_SAMPLES, jitter, None, &mut loads);
                 assert_eq!(t, None);
             }
         }
@@ -449,5 +506,37 @@ mod tests {
         assert!(!grazing.behind(Vec3::new(0.5, 0.0, -0.3), 0.1, true, &mut loads));
         // Not asked to measure along the normal, it does not.
         assert!(!grazing.behind(Vec3::new(0.5, 0.0, 0.1), 0.1, false, &mut loads));
+    }
+
+    /// A contact point deeper along the view than the thickness, within it along the grazed surface's normal,
+    /// counts only inside that surface's voxels: a floor ray running under the step's edge stops there where
+    /// the step's side is voxelized, and not where the voxels are empty (as behind a bar thinner than a cell,
+    /// seen edge on), nor without the level.
+    #[test]
+    fn a_contact_along_the_grazed_normal_needs_the_voxels_there() {
+        use crate::cpu::grid::{VoxelGrid, VoxelOccupancy};
+        use crate::cpu::march::VoxelMips;
+        let view = floor_with_a_step();
+        let tilted = Vec3::new(0.97, 0.0, 0.243).normalize();
+        let grazing = ViewDepth { normals: view.normals.iter().map(|_| tilted).collect(), ..view };
+        // Cells of 0.1: the floor (z = 0) in the middle of layer 7, the step's side (x = 0) in column 16.
+        let grid = VoxelGrid::new(Vec3::new(-1.6, -1.6, -0.75), 0.1, glam::UVec3::splat(32)).unwrap();
+        let (side, empty) = (VoxelOccupancy::new(grid, false), VoxelOccupancy::new(grid, false));
+        for j in 0..32 {
+            for k in 7..=9 {
+                side.set(glam::UVec3::new(16, j, k));
+            }
+        }
+        let (side, empty) = (VoxelMips::new(&side, 4), VoxelMips::new(&empty, 4));
+        let level = |mips| TraceLevel { origin: grid.origin, cell_size: 0.1, window_min: glam::IVec3::ZERO, mips };
+        let (from, dir) = (Vec3::new(-0.05, 0.0, 0.0), Vec3::new(1.0, 0.0, 0.2).normalize());
+        let contact = |grazing_level: Option<&TraceLevel>| {
+            depth_contact(&grazing, from, Vec3::Z, dir, 0.1, 0.2, CONTACT_SAMPLES, 0.5, grazing_level, &mut 0)
+        };
+        // Its points past x = 0 lie 0.22-0.24 under the step's top: deeper than a cell (0.1) along the view.
+        let t = contact(Some(&level(&side)));
+        assert!(t.is_some_and(|t| (from + dir * t).x > 0.0), "{t:?}");
+        assert_eq!(contact(Some(&level(&empty))), None);
+        assert_eq!(contact(None), None);
     }
 }

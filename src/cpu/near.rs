@@ -13,7 +13,8 @@
 //! So where the view hides the march's start (it lies behind the surface the view shows there:
 //! [`hides_origin`]), two things change for each ray, and nowhere else:
 //! * the depth contacts measure their thickness along the normal of the surface the view shows rather than
-//!   along the view ([`super::contacts::CONTACT_GRAZING_COS`]);
+//!   along the view ([`super::contacts::CONTACT_GRAZING_COS`]), a point deeper than that thickness along
+//!   the view counting only where its voxel is occupied (behind a bar seen edge on it is not);
 //! * a ray the contacts do not stop is marched through its first cells from the surface point itself, in
 //!   the finest occupancy, past the cells the surface's tangent plane crosses ([`own_cell`]: its own, as far
 //!   as a point and a normal can tell); the first other occupied cell stops it ([`near_voxel_hit`]).
