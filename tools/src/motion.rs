@@ -35,6 +35,9 @@ pub enum PropPath {
     /// world units a frame, passing `center` at frame 0 going forward. With `roll_radius`, it rolls on the
     /// floor as a ball of that radius (no slipping); else it slides without turning.
     Shuttle { center: Vec3, direction: Vec3, half_length: f32, speed: f32, roll_radius: Option<f32> },
+    /// Up and down through `center` as a sine, `amplitude` either side, one cycle in `period` frames,
+    /// passing `center` at frame 0 going up (Bevy's `ssao` example: `sin(t / 1.7) * 0.7`).
+    Bob { center: Vec3, amplitude: f32, period: f32 },
 }
 
 impl PropPath {
@@ -52,12 +55,15 @@ impl PropPath {
                 }
                 t
             }
+            PropPath::Bob { center, amplitude, period } => {
+                Transform::from_translation(center + Vec3::Y * amplitude * (TAU * frame as f32 / period).sin())
+            }
         }
     }
 
     /// Whether it moves.
     pub fn moves(&self) -> bool {
-        matches!(self, PropPath::Shuttle { .. })
+        !matches!(self, PropPath::Still(_))
     }
 }
 
@@ -179,8 +185,9 @@ impl Character {
     }
 }
 
-/// The scenes by name: `contacts` (everything still) and `roll` (a sphere rolling, a box sliding).
-pub const MOTION_SCENES: [&str; 2] = ["contacts", "roll"];
+/// The scenes by name: `contacts` (everything still), `roll` (a sphere rolling, a box sliding) and `bob`
+/// (Bevy's own `ssao` example: three cubes and a sphere bobbing between them).
+pub const MOTION_SCENES: [&str; 3] = ["contacts", "roll", "bob"];
 
 /// Frames of one swing of the camera, to and fro.
 pub const CAMERA_PERIOD: i32 = 240;
@@ -211,8 +218,11 @@ fn ball() -> TriangleMesh {
 
 impl MotionScene {
     /// The scene `name` (one of [`MOTION_SCENES`]); in `contacts` the sphere is voxelized as `marker` says
-    /// (the moving props of `roll` are dynamic).
+    /// (the moving props of `roll` and `bob` are dynamic).
     pub fn named(name: &str, marker: Marker) -> Option<Self> {
+        if name == "bob" {
+            return Some(Self::bevy_ssao_example());
+        }
         let camera = Transform::from_xyz(0.4, 2.4, 4.0).looking_at(Vec3::new(0.0, 0.4, -0.6), Vec3::Y);
         let camera_center = Vec3::new(0.0, 0.4, -0.2);
         let props = match name {
@@ -264,6 +274,33 @@ impl MotionScene {
             character: None,
             solid_props: false,
         })
+    }
+
+    /// Bevy 0.19's `examples/3d/ssao.rs` as its scene stands: unit cubes at (0, 0, 1), (0, -1, 0) and
+    /// (1, 0, 0), a sphere of radius 0.4 (72 x 36) bobbing between them (`sin(t / 1.7) * 0.7` at 60 frames a
+    /// second: at most 0.41 m/s), the camera at (-2, 2, -2) looking at the origin. The example marks nothing:
+    /// the plugin promotes the moving sphere to dynamic on its first move, so here it is dynamic from the start.
+    fn bevy_ssao_example() -> Self {
+        let unit = |c: Vec3| cuboid(c - Vec3::splat(0.5), c + Vec3::splat(0.5));
+        Self {
+            statics: vec![
+                ("cube z", unit(Vec3::new(0.0, 0.0, 1.0))),
+                ("cube y", unit(Vec3::new(0.0, -1.0, 0.0))),
+                ("cube x", unit(Vec3::new(1.0, 0.0, 0.0))),
+            ],
+            props: vec![Prop {
+                name: "sphere",
+                mesh: sphere(0.4, 72, 36),
+                smooth: true,
+                marker: Marker::Dynamic,
+                path: PropPath::Bob { center: Vec3::ZERO, amplitude: 0.7, period: TAU * 1.7 * SCRIPT_FPS },
+            }],
+            camera: Transform::from_xyz(-2.0, 2.0, -2.0).looking_at(Vec3::ZERO, Vec3::Y),
+            camera_center: Vec3::ZERO,
+            camera_speed: 0.0,
+            character: None,
+            solid_props: false,
+        }
     }
 
     /// The room with `character` walking across the floor in front of the step at 1 m/s (and no props),
@@ -521,8 +558,12 @@ mod tests {
         for name in MOTION_SCENES {
             let scene = MotionScene::named(name, Marker::Dynamic).unwrap();
             for frame in [-16, 0, 15] {
-                for b in
-                    scene.props.iter().filter_map(|p| p.mesh.transformed(p.path.pose(frame).compute_affine()).bounds())
+                // (Bevy's ssao example bobs its sphere between the cubes, dipping into the lower one.)
+                for b in scene
+                    .props
+                    .iter()
+                    .filter(|_| name != "bob")
+                    .filter_map(|p| p.mesh.transformed(p.path.pose(frame).compute_affine()).bounds())
                 {
                     assert!(b.0.y.abs() < 0.01, "{name}: a prop floats or sinks: {b:?}");
                 }
@@ -530,6 +571,11 @@ mod tests {
             let moving = scene.props.iter().any(|p| p.path.moves());
             assert_eq!(scene.triangles_at(0) != scene.triangles_at(5), moving, "{name}");
         }
+        // The bob: at frame 0 through the origin going up, 0.7 m up a quarter period later (1.7 s x pi / 2).
+        let bob = &MotionScene::named("bob", Marker::Dynamic).unwrap().props[0].path;
+        assert!(bob.pose(0).translation.length() < 1e-6 && bob.pose(1).translation.y > 0.0);
+        let quarter = (1.7 * SCRIPT_FPS * TAU / 4.0).round() as i32;
+        assert!((bob.pose(quarter).translation.y - 0.7).abs() < 1e-3, "{}", bob.pose(quarter).translation);
         assert!(MotionScene::named("nothing", Marker::Static).is_none());
     }
 

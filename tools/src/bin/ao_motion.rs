@@ -11,8 +11,9 @@
 //! the floor at 1.5 m/s and a box sliding along the wall at 1 m/s (both `DynamicOccluder`); `walk`, the
 //! room with a skinned glTF character (`--character FILE`, its clip `--clip`, scaled to `--height` metres)
 //! walking across the floor at 1 m/s, posed by its clip at the script's time (the reference posed by the
-//! lab's own sampler and skinning of the file). `--motion DEG` swings the camera about the scene at up to
-//! DEG degrees a frame.
+//! lab's own sampler and skinning of the file); `bob`, Bevy 0.19's own `ssao` example (three unit cubes
+//! and a sphere of 0.4 m bobbing between them; run it with `--taa`, as the example has TAA and no MSAA).
+//! `--motion DEG` swings the camera about the scene at up to DEG degrees a frame.
 //!
 //! One headless app renders two cameras of the same view in the same frames: HAO on a camera as a user
 //! spawns it (Bevy's default MSAA, 4 samples; `--msaa 1` for none), and Bevy's SSAO (`High`, which needs
@@ -20,6 +21,10 @@
 //! until voxelized and converged (four times HAO's history, in motion as measured), then `--frames`
 //! consecutive frames (32) are read back, centred on the scene's nominal pose. Then the script stops at the
 //! last of them and HAO converges there: the same frame, still and converged, for comparison.
+//!
+//! With `AO_MOTION_DUMP=DIR` set, each measured frame's HAO and reference are written to `DIR/frameNN.f32`
+//! (little-endian f32, the HAO image then the reference's, row by row) and the last frame still and
+//! converged to `DIR/still.f32`.
 //!
 //! The reference traces `--rays` cosine-weighted rays per pixel against the frame's triangles (the props
 //! posed) from the positions and normals of each camera's own prepass, with HAO's maximum distance and
@@ -47,8 +52,9 @@ use clap::Parser;
 #[derive(Parser)]
 #[command(version)]
 struct Args {
-    /// The scene: contacts (everything still), roll (a sphere rolling, a box sliding) or walk (the
-    /// `--character` walking across the room).
+    /// The scene: contacts (everything still), roll (a sphere rolling, a box sliding), bob (Bevy's own
+    /// ssao example: three cubes, a sphere bobbing between them) or walk (the `--character` walking across
+    /// the room).
     #[arg(default_value = "contacts")]
     scene: String,
     /// In `walk`, the skinned glTF character (a .gltf or .glb file with a clip).
@@ -91,6 +97,18 @@ struct Args {
     /// The props voxelized filled (`VoxelFill::Solid`; they are closed meshes), not as surfaces.
     #[arg(long)]
     solid: bool,
+    /// The denoiser's width, texels of the trace (HybridAmbientOcclusion::denoise_radius; 0: off).
+    #[arg(long)]
+    denoise: Option<u32>,
+    /// HAO without its depth contacts (HybridAmbientOcclusion::depth_contacts off): the voxels alone.
+    #[arg(long)]
+    no_depth_contacts: bool,
+    /// HAO passing the voxel hits the depth prepass shows in free space, or not
+    /// (HybridAmbientOcclusion::depth_free_space; `--depth-free-space` alone is on; default: each preset's
+    /// own choice, on for High and Ultra).
+    #[arg(long, value_name = "on|off", num_args = 0..=1, default_missing_value = "on",
+        value_parser = clap::builder::BoolishValueParser::new())]
+    depth_free_space: Option<bool>,
     /// The PNG written.
     #[arg(long, default_value = "ao_motion.png")]
     out: String,
@@ -291,6 +309,9 @@ fn main() {
     let hao = HybridAmbientOcclusion {
         quality: args.quality.into(),
         still_accumulation_frames: args.still_accumulation,
+        denoise_radius: args.denoise.unwrap_or(HybridAmbientOcclusion::default().denoise_radius),
+        depth_contacts: !args.no_depth_contacts,
+        depth_free_space: args.depth_free_space,
         ..default()
     };
     let sanitized = hao.sanitized().0;
@@ -423,6 +444,22 @@ fn main() {
                     r
                 }
             };
+            // For a look at single pixels over the frames: HAO's frame then the reference, row by row.
+            if k == 0
+                && let Ok(dir) = std::env::var("AO_MOTION_DUMP")
+            {
+                let floats = |v: &[f32]| v.iter().flat_map(|x| x.to_le_bytes()).collect::<Vec<u8>>();
+                let mut files =
+                    vec![(format!("{dir}/frame{f:02}.f32"), floats(&[&view.ao[..], &reference[..]].concat()))];
+                if f + 1 == script_frames.len() {
+                    files.push((format!("{dir}/still.f32"), floats(&still_ao)));
+                }
+                for (file, bytes) in files {
+                    if let Err(e) = std::fs::write(&file, bytes) {
+                        eprintln!("warning: AO_MOTION_DUMP: {file}: {e}");
+                    }
+                }
+            }
             let near = |i: usize| props.iter().any(|b| box_distance(positions[i], *b) <= NEAR);
             let m = &mut measured[k];
             for i in (0..n).filter(|&i| view.shows(i)) {

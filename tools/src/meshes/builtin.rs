@@ -2,7 +2,8 @@
 //! star), a tetrahedron, a sphere, a torus, a procedural cathedral interior (the default scene of the
 //! examples), two furnished interiors of boxes, an apartment and an office hall, on which nothing was
 //! tuned, `ao_motion`'s room of contacts (a crate in a corner, a step, a leaning pole, a resting
-//! sphere) and the README's quick start (a sphere resting on a floor). All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
+//! sphere), the README's quick start (a sphere resting on a floor) and Bevy's own `ssao` example (three
+//! cubes and a sphere between them). All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
 //! tests check it).
 
 use bevy_hao::cpu::TriangleMesh;
@@ -10,7 +11,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 
 /// Names accepted by [`builtin`] (and by the examples as `builtin:NAME`).
-pub const BUILTIN_NAMES: [&str; 13] = [
+pub const BUILTIN_NAMES: [&str; 14] = [
     "windmill",
     "pyramid",
     "chamfer-box",
@@ -24,6 +25,7 @@ pub const BUILTIN_NAMES: [&str; 13] = [
     "office",
     "contacts",
     "quick-start",
+    "ssao-example",
 ];
 
 /// The names of the closed shapes among [`BUILTIN_NAMES`] (all but the windmill, whose blades are open
@@ -48,6 +50,8 @@ pub fn builtin(name: &str) -> Option<TriangleMesh> {
         // `ao_motion`'s room of contacts, still (`crate::motion`).
         "contacts" => crate::motion::MotionScene::named("contacts", crate::motion::Marker::Static)?.triangles_at(0),
         "quick-start" => quick_start(),
+        // Bevy's own `ssao` example, its sphere at the origin (`ao_motion bob` at frame 0).
+        "ssao-example" => crate::motion::MotionScene::named("bob", crate::motion::Marker::Dynamic)?.triangles_at(0),
         _ => return None,
     })
 }
