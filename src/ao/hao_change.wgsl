@@ -9,7 +9,7 @@
 
 // cpu/temporal.rs: CHANGE_RAYS_FROM, CHANGE_RAYS_SCALE
 const CHANGE_RAYS_SCALE: u32 = 4u;
-const CHANGE_RAYS_FROM: f32 = 0.005;
+const CHANGE_RAYS_FROM: f32 = 0.002;
 
 // cpu/temporal.rs: change_rays. The rays a trace texel traces: `rays`, or CHANGE_RAYS_SCALE times as many
 // where the occlusion at its pixel can have changed by at least CHANGE_RAYS_FROM since last frame.

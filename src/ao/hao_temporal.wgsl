@@ -203,13 +203,13 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
 #endif
     // Its own trace, filtered; or where its block traced another pixel, the traced neighbours on its surface
     // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
-    let stand_in_used = !traced && uses_stand_in(history_count, f32(settings.accumulation_frames), cap);
+    let max_count = f32(settings.accumulation_frames);
+    let limit = history_limit(max_count, f32(settings.still_accumulation_frames), still);
+    let stand_in_used = !traced && uses_stand_in(history_count, max_count, limit, cap);
     var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
     if traced {
         current = filtered[trace_index(settings, block)];
     }
-    let max_count = f32(settings.accumulation_frames);
-    let limit = history_limit(max_count, f32(settings.still_accumulation_frames), still);
     let blended = temporal_update(history_ao, history_count, window, traced, current, max_count, limit, cap);
     history_out[history_index(settings, pixel)] =
         pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));

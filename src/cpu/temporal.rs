@@ -28,9 +28,11 @@
 //!    occlusion of a sphere the size of the box, times the share of its distance the occluder moved), and
 //!    [`change_cap`] keeps the history that balances the lag it costs against the noise it removes: a
 //!    history of `n` frames lags a change of `c` a frame by about `c (n - 1) / 2`, and leaves a variance
-//!    of `s^2 / n` of the current frame's `s^2`; their sum is least near `n^3 = 2 s^2 / c^2`. So next to a
-//!    moving prop the history keeps [`CHANGED_COUNT`] frames and follows the shadow within a frame or two,
-//!    a metre away it keeps several, and far away, or around one that stands still, all of them.
+//!    of `s^2 / n` of the current frame's `s^2`; their sum is least near `n^3 = 2 s^2 / c^2`. A pixel whose
+//!    history the cap holds blends every frame, its own trace or its stand-in ([`uses_stand_in`]), so at
+//!    half resolution it does not wait four frames for its own. So next to a moving prop the history keeps
+//!    [`CHANGED_COUNT`] frames and follows the shadow within a frame or two, a metre away it keeps several,
+//!    and far away, or around one that stands still, all of them.
 //! 4. **Filter** ([`prefilter`]): the pixel's own trace is averaged with the trace's 3x3 texels around it
 //!    that show its surface, weighed by a bilateral weight (a Gaussian in distance over
 //!    `HybridAmbientOcclusion::denoise_radius` texels of the trace, and the depth and normal against the
@@ -136,9 +138,9 @@ pub fn occlusion_change(p: Vec3, n: Vec3, moved: &[MovedVoxels], max_distance: f
 pub const CHANGE_RAYS_SCALE: u32 = 4;
 
 /// The occlusion change ([`occlusion_change`]) from which a trace texel traces [`CHANGE_RAYS_SCALE`] times
-/// its rays: where [`change_cap`] leaves a history of under about 8 frames (2 to 12 with the
-/// neighbourhood's deviation), too short for a ray or two a frame to converge in.
-pub const CHANGE_RAYS_FROM: f32 = 0.005;
+/// its rays: where [`change_cap`] leaves a history of under 11 to 22 frames (with the neighbourhood's
+/// deviation), too short for a ray or two a frame to converge in.
+pub const CHANGE_RAYS_FROM: f32 = 0.002;
 
 /// The rays a trace texel traces (WGSL: `change_rays` in `hao_change.wgsl`): `rays`, or
 /// [`CHANGE_RAYS_SCALE`] times as many where the occlusion at its pixel can have changed by at least
@@ -182,7 +184,13 @@ pub const CHANGE_NOISE_SAMPLES: f32 = 4.0;
 /// ([`neighborhood_window`], whose half-width is two deviations and [`CLAMP_MARGIN`]): the `n` that
 /// balances lag and noise, `n^3 = 2 s^2 / c^2` with `s^2` the variance of the blended current AO (the
 /// deviation, at least [`CHANGE_NOISE_FLOOR`], squared over [`CHANGE_NOISE_SAMPLES`]), at least
-/// [`CHANGED_COUNT`]. Infinite where nothing changed.
+/// [`CHANGED_COUNT`]. Infinite where nothing changed. The pixel blends every frame while the cap holds it
+/// ([`uses_stand_in`]).
+///
+/// (The balance is a box average's: capped at `n`, the history is an exponential average of weight
+/// `1 / (n + 1)`, which lags twice as far and keeps half the noise, and whose balance is half as long,
+/// `n^3 = s^2 / (4 c^2)`. Measured, that halved cap lowered the error near moving props and raised their
+/// frame-to-frame change above Bevy's SSAO's: the change estimated is a bound, so it is kept long.)
 pub fn change_cap(change: f32, window: (f32, f32)) -> f32 {
     if !(change > 0.0) {
         return f32::INFINITY;
@@ -218,9 +226,11 @@ pub const STAND_IN_COUNT: f32 = CLAMPED_COUNT + 1.0;
 
 /// Whether a pixel without its own trace this frame blends its [`stand_in`] (WGSL: `uses_stand_in`): where
 /// its history holds fewer than [`STAND_IN_COUNT`] frames (or `max_count`, if lower), the voxels near it
-/// changed enough to cap its history under `max_count` ([`change_cap`]), or there is no accumulation.
-pub fn uses_stand_in(count: f32, max_count: f32, cap: f32) -> bool {
-    count < STAND_IN_COUNT.min(max_count) || cap < max_count || max_count <= 1.0
+/// changed enough to cap its history under `limit`, the most it keeps ([`change_cap`], [`history_limit`]),
+/// or there is no accumulation. Where the cap holds the history, the pixel follows the change every frame:
+/// waiting for its own trace (every fourth frame at half resolution) would lag it four times as far.
+pub fn uses_stand_in(count: f32, max_count: f32, limit: f32, cap: f32) -> bool {
+    count < STAND_IN_COUNT.min(max_count) || cap < limit || max_count <= 1.0
 }
 
 /// The relative view-depth tolerance of [`history_accepts`].
@@ -429,8 +439,8 @@ pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2,
 /// frames the history keeps ([`history_limit`]: more where the view stands still) and those it keeps where
 /// the voxels near it changed ([`change_cap`]). A frame without its own trace keeps the history as it is,
 /// unless the history is short, the voxels near it changed or there is no accumulation
-/// ([`uses_stand_in`], against `max_count`): then the stand-in is blended as a trace. Either way it keeps
-/// at most `limit` frames of weight: a frame that cuts the limit cuts every pixel's history.
+/// ([`uses_stand_in`]): then the stand-in is blended as a trace. Either way it keeps at most `limit` frames
+/// of weight: a frame that cuts the limit cuts every pixel's history.
 #[allow(clippy::too_many_arguments)]
 pub fn temporal_update(
     history: f32,
@@ -444,7 +454,9 @@ pub fn temporal_update(
 ) -> (f32, f32) {
     match own {
         Some(current) => temporal_blend(history, count, window, current, limit, cap),
-        None if uses_stand_in(count, max_count, cap) => temporal_blend(history, count, window, stand_in, limit, cap),
+        None if uses_stand_in(count, max_count, limit, cap) => {
+            temporal_blend(history, count, window, stand_in, limit, cap)
+        }
         // (Never more frames than the limit: a frame that cuts it, as a change of the settings does, cuts
         // every pixel's, traced or not.)
         None => (history, count.min(limit)),
@@ -812,7 +824,12 @@ mod tests {
         assert_eq!(temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, 16.0, NONE), (0.4, STAND_IN_COUNT));
         // A history the window clamped keeps its own (CLAMPED_COUNT + 1 frames are not a short history).
         let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, 16.0, NONE);
-        assert!(!uses_stand_in(clamped, 16.0, NONE));
+        assert!(!uses_stand_in(clamped, 16.0, 16.0, NONE));
+        // A still pixel (a limit of 127) whose cap is under its limit, though above `max_count`, follows the
+        // change every frame: it blends the stand-in, with the cap's weight.
+        assert!(uses_stand_in(100.0, 16.0, 127.0, 40.0) && !uses_stand_in(100.0, 16.0, 127.0, 127.0));
+        let (ao, c) = temporal_update(0.4, 100.0, window, None, 0.81, 16.0, 127.0, 40.0);
+        assert!((ao - (0.4 + 0.41 / 41.0)).abs() < 1e-6 && c == 41.0, "{ao} {c}");
         assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, 2.0, NONE), (0.4, 2.0));
         let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, 16.0, CHANGED_COUNT);
         assert!((ao - 0.6).abs() < 1e-6 && c == 3.0, "{ao} {c}");
