@@ -217,7 +217,7 @@ pub fn clamped_count(shift: f32, window: (f32, f32)) -> f32 {
     (current_variance(window) / (shift * shift)).max(CLAMPED_COUNT)
 }
 
-/// A pixel whose history holds fewer frames than this (or than the cap, if lower) blends its stand-in in the
+/// A pixel whose history holds fewer frames than this (or than `max_count`, if lower) blends its stand-in in the
 /// frames without its own trace ([`uses_stand_in`]): a new history is noisier than its neighbourhood's traces,
 /// and at half resolution a pixel waits up to 4 frames for its own (8 in a checkerboard). It is the least count a
 /// clamped history leaves with ([`CLAMPED_COUNT`] + 1), so that detail finer than the window, which a clamp
