@@ -253,9 +253,15 @@ fn history_limit(max_count: f32, still_count: f32, still: bool) -> f32 {
 
 // cpu/temporal.rs: uses_stand_in. Whether a pixel without its own trace this frame blends its stand-in: where
 // its history holds fewer than STAND_IN_COUNT frames (or max_count, if lower), the voxels near it changed
-// enough to cap its history (`change_cap`) under `limit` (`history_limit`), or nothing is accumulated.
-fn uses_stand_in(history_count: f32, max_count: f32, limit: f32, cap: f32) -> bool {
-    return history_count < min(STAND_IN_COUNT, max_count) || cap < limit || max_count <= 1.0;
+// enough to cap its history (`change_cap`) under max_count, or nothing is accumulated.
+fn uses_stand_in(history_count: f32, max_count: f32, cap: f32) -> bool {
+    return history_count < min(STAND_IN_COUNT, max_count) || cap < max_count || max_count <= 1.0;
+}
+
+// cpu/temporal.rs: waiting_cap. The cap of a pixel that blends only its own trace, one every
+// `frames_per_trace` frames: the balance of lag and noise for blends that far apart, n^3 = 2 s^2 / (T^2 c^2).
+fn waiting_cap(cap: f32, frames_per_trace: f32) -> f32 {
+    return cap / pow(max(frames_per_trace, 1.0), 2.0 / 3.0);
 }
 
 // cpu/temporal.rs: history_accepts. Whether a texel of view depth `history_depth` and normal along `direction`
@@ -307,11 +313,15 @@ fn temporal_blend(history: f32, history_count: f32, window: vec2<f32>, current: 
 
 // cpu/temporal.rs: temporal_update; returns (ao, frames of weight). `own`: the pixel was traced this frame
 // and `current` is its AO; else `current` is its stand-in, blended only where `uses_stand_in` (else the
-// history stays as it is). Either way it keeps at most `limit` frames (`history_limit`): a frame that cuts
-// the limit cuts every pixel's history, traced or not.
-fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, limit: f32, cap: f32) -> vec2<f32> {
-    if own || uses_stand_in(history_count, max_count, limit, cap) {
+// history stays as it is). Where it blends only its own trace, one every `frames_per_trace` frames, the cap
+// is `waiting_cap`'s. Either way it keeps at most `limit` frames (`history_limit`): a frame that cuts the
+// limit cuts every pixel's history, traced or not.
+fn temporal_update(history: f32, history_count: f32, window: vec2<f32>, own: bool, current: f32, max_count: f32, limit: f32, cap: f32, frames_per_trace: f32) -> vec2<f32> {
+    if uses_stand_in(history_count, max_count, cap) {
         return temporal_blend(history, history_count, window, current, limit, cap);
+    }
+    if own {
+        return temporal_blend(history, history_count, window, current, limit, waiting_cap(cap, frames_per_trace));
     }
     return vec2<f32>(history, min(history_count, limit));
 }

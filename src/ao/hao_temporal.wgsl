@@ -205,12 +205,14 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     // (the stand-in), read only where it is used: where the pixel has little history or must follow a change.
     let max_count = f32(settings.accumulation_frames);
     let limit = history_limit(max_count, f32(settings.still_accumulation_frames), still);
-    let stand_in_used = !traced && uses_stand_in(history_count, max_count, limit, cap);
+    let stand_in_used = !traced && uses_stand_in(history_count, max_count, cap);
     var current = stand_in(block, view_depth, normal, select(0, 9, stand_in_used));
     if traced {
         current = filtered[trace_index(settings, block)];
     }
-    let blended = temporal_update(history_ao, history_count, window, traced, current, max_count, limit, cap);
+    // Frames between a pixel's own traces.
+    let frames_per_trace = select(1.0, select(4.0, 8.0, checkerboard), half);
+    let blended = temporal_update(history_ao, history_count, window, traced, current, max_count, limit, cap, frames_per_trace);
     history_out[history_index(settings, pixel)] =
         pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
     store_ao(pixel, blended.x);

@@ -29,9 +29,10 @@
 //!    [`change_cap`] keeps the history that balances the lag it costs against the noise it removes: a
 //!    history of `n` frames lags a change of `c` a frame by about `c (n - 1) / 2`, and leaves a variance
 //!    of `s^2 / n` of the current frame's `s^2`; their sum is least near `n^3 = 2 s^2 / c^2`. A pixel whose
-//!    history the cap holds blends every frame, its own trace or its stand-in ([`uses_stand_in`]), so at
-//!    half resolution it does not wait four frames for its own. So next to a moving prop the history keeps
-//!    [`CHANGED_COUNT`] frames and follows the shadow within a frame or two, a metre away it keeps several,
+//!    cap is under `accumulation_frames` blends every frame, its stand-in between its own traces
+//!    ([`uses_stand_in`]); one whose cap is above blends only its own traces, every fourth frame at half
+//!    resolution, with the cap that balances blends that far apart ([`waiting_cap`]). So next to a moving
+//!    prop the history keeps [`CHANGED_COUNT`] frames and follows the shadow within a frame or two, a metre away it keeps several,
 //!    and far away, or around one that stands still, all of them.
 //! 4. **Filter** ([`prefilter`]): the pixel's own trace is averaged with the trace's 3x3 texels around it
 //!    that show its surface, weighed by a bilateral weight (a Gaussian in distance over
@@ -184,8 +185,8 @@ pub const CHANGE_NOISE_SAMPLES: f32 = 4.0;
 /// ([`neighborhood_window`], whose half-width is two deviations and [`CLAMP_MARGIN`]): the `n` that
 /// balances lag and noise, `n^3 = 2 s^2 / c^2` with `s^2` the variance of the blended current AO (the
 /// deviation, at least [`CHANGE_NOISE_FLOOR`], squared over [`CHANGE_NOISE_SAMPLES`]), at least
-/// [`CHANGED_COUNT`]. Infinite where nothing changed. The pixel blends every frame while the cap holds it
-/// ([`uses_stand_in`]).
+/// [`CHANGED_COUNT`]. Infinite where nothing changed. For a pixel that blends only its own traces, one every
+/// few frames, [`waiting_cap`] shortens it.
 ///
 /// (The balance is a box average's: capped at `n`, the history is an exponential average of weight
 /// `1 / (n + 1)`, which lags twice as far and keeps half the noise, and whose balance is half as long,
@@ -226,11 +227,19 @@ pub const STAND_IN_COUNT: f32 = CLAMPED_COUNT + 1.0;
 
 /// Whether a pixel without its own trace this frame blends its [`stand_in`] (WGSL: `uses_stand_in`): where
 /// its history holds fewer than [`STAND_IN_COUNT`] frames (or `max_count`, if lower), the voxels near it
-/// changed enough to cap its history under `limit`, the most it keeps ([`change_cap`], [`history_limit`]),
-/// or there is no accumulation. Where the cap holds the history, the pixel follows the change every frame:
-/// waiting for its own trace (every fourth frame at half resolution) would lag it four times as far.
-pub fn uses_stand_in(count: f32, max_count: f32, limit: f32, cap: f32) -> bool {
-    count < STAND_IN_COUNT.min(max_count) || cap < limit || max_count <= 1.0
+/// changed enough to cap its history under `max_count` ([`change_cap`]), or there is no accumulation.
+pub fn uses_stand_in(count: f32, max_count: f32, cap: f32) -> bool {
+    count < STAND_IN_COUNT.min(max_count) || cap < max_count || max_count <= 1.0
+}
+
+/// The cap of a pixel that blends only its own trace, one every `frames_per_trace` frames (4 at half
+/// resolution, 8 in `Low`'s checkerboard; WGSL: `waiting_cap`), from the cap [`change_cap`] gives a pixel
+/// that blends every frame: blends `T` frames apart lag `T` times as far, and the balance of lag and noise,
+/// `n^3 = 2 s^2 / (T^2 c^2)`, is `T^(2/3)` times shorter. (Waiting with the every-frame cap, the walls of
+/// Bevy's `ssao` example lagged a sphere's shadow creeping up them by up to 0.17; blending the stand-in
+/// every frame instead blurred the contact under a walking character's feet.)
+pub fn waiting_cap(cap: f32, frames_per_trace: f32) -> f32 {
+    cap / frames_per_trace.max(1.0).powf(2.0 / 3.0)
 }
 
 /// The relative view-depth tolerance of [`history_accepts`].
@@ -439,8 +448,9 @@ pub fn prefilter(trace: &[Option<TracedTexel>], trace_size: UVec2, texel: UVec2,
 /// frames the history keeps ([`history_limit`]: more where the view stands still) and those it keeps where
 /// the voxels near it changed ([`change_cap`]). A frame without its own trace keeps the history as it is,
 /// unless the history is short, the voxels near it changed or there is no accumulation
-/// ([`uses_stand_in`]): then the stand-in is blended as a trace. Either way it keeps at most `limit` frames
-/// of weight: a frame that cuts the limit cuts every pixel's history.
+/// ([`uses_stand_in`]): then the stand-in is blended as a trace. A pixel that blends only its own traces,
+/// one every `frames_per_trace` frames, keeps at most [`waiting_cap`] frames. Either way it keeps at most
+/// `limit` frames of weight: a frame that cuts the limit cuts every pixel's history.
 #[allow(clippy::too_many_arguments)]
 pub fn temporal_update(
     history: f32,
@@ -451,12 +461,13 @@ pub fn temporal_update(
     max_count: f32,
     limit: f32,
     cap: f32,
+    frames_per_trace: f32,
 ) -> (f32, f32) {
+    let every_frame = uses_stand_in(count, max_count, cap);
     match own {
-        Some(current) => temporal_blend(history, count, window, current, limit, cap),
-        None if uses_stand_in(count, max_count, limit, cap) => {
-            temporal_blend(history, count, window, stand_in, limit, cap)
-        }
+        Some(current) if every_frame => temporal_blend(history, count, window, current, limit, cap),
+        Some(current) => temporal_blend(history, count, window, current, limit, waiting_cap(cap, frames_per_trace)),
+        None if every_frame => temporal_blend(history, count, window, stand_in, limit, cap),
         // (Never more frames than the limit: a frame that cuts it, as a change of the settings does, cuts
         // every pixel's, traced or not.)
         None => (history, count.min(limit)),
@@ -544,7 +555,13 @@ pub fn accumulate_still(
             let stand_in = stand_in(&frame.texels, trace_size, texel, depth, normal, radius);
             // (The GPU caps only a pixel with history.)
             let cap = if count[i] > 0.0 { change_cap(change[i], window) } else { f32::INFINITY };
-            let (a, c) = temporal_update(ao[i], count[i], window, own, stand_in, max_count, limit, cap);
+            let frames_per_trace = match (half_resolution, frame.checkerboard) {
+                (false, _) => 1.0,
+                (true, false) => 4.0,
+                (true, true) => 8.0,
+            };
+            let (a, c) =
+                temporal_update(ao[i], count[i], window, own, stand_in, max_count, limit, cap, frames_per_trace);
             // As the GPU stores it (`HistoryTexel::stored`).
             let stored = HistoryTexel { ao: a, depth, normal, frames: c }.stored();
             (ao[i], count[i]) = (stored.ao, stored.frames);
@@ -813,28 +830,36 @@ mod tests {
     #[test]
     fn a_frame_without_the_pixels_own_trace_keeps_its_history() {
         let window = (0.0, 1.2);
-        assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, 16.0, NONE), (0.4, 6.0));
+        assert_eq!(temporal_update(0.4, 6.0, window, None, 0.9, 16.0, 16.0, NONE, 1.0), (0.4, 6.0));
         // Its own trace is blended; with no history, or near a change, the stand-in is.
-        assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, 16.0, NONE), (0.5, 4.0));
-        assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, 16.0, NONE), (0.9, 1.0));
+        assert_eq!(temporal_update(0.4, 3.0, window, Some(0.8), 0.9, 16.0, 16.0, NONE, 1.0), (0.5, 4.0));
+        assert_eq!(temporal_update(0.0, 0.0, window, None, 0.9, 16.0, 16.0, NONE, 1.0), (0.9, 1.0));
         // A short history (under STAND_IN_COUNT frames) blends the stand-in until the pixel's own trace
         // comes; not where the cap is that short itself.
-        let (ao, c) = temporal_update(0.4, 2.0, window, None, 0.9, 16.0, 16.0, NONE);
+        let (ao, c) = temporal_update(0.4, 2.0, window, None, 0.9, 16.0, 16.0, NONE, 1.0);
         assert!((ao - (0.4 + 0.5 / 3.0)).abs() < 1e-6 && c == 3.0, "{ao} {c}");
-        assert_eq!(temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, 16.0, NONE), (0.4, STAND_IN_COUNT));
+        assert_eq!(
+            temporal_update(0.4, STAND_IN_COUNT, window, None, 0.9, 16.0, 16.0, NONE, 1.0),
+            (0.4, STAND_IN_COUNT)
+        );
         // A history the window clamped keeps its own (CLAMPED_COUNT + 1 frames are not a short history).
-        let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, 16.0, NONE);
-        assert!(!uses_stand_in(clamped, 16.0, 16.0, NONE));
-        // A still pixel (a limit of 127) whose cap is under its limit, though above `max_count`, follows the
-        // change every frame: it blends the stand-in, with the cap's weight.
-        assert!(uses_stand_in(100.0, 16.0, 127.0, 40.0) && !uses_stand_in(100.0, 16.0, 127.0, 127.0));
-        let (ao, c) = temporal_update(0.4, 100.0, window, None, 0.81, 16.0, 127.0, 40.0);
-        assert!((ao - (0.4 + 0.41 / 41.0)).abs() < 1e-6 && c == 41.0, "{ao} {c}");
-        assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, 2.0, NONE), (0.4, 2.0));
-        let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, 16.0, CHANGED_COUNT);
+        let (_, clamped) = temporal_update(0.0, 16.0, (0.5, 1.0), Some(0.9), 0.9, 16.0, 16.0, NONE, 1.0);
+        assert!(!uses_stand_in(clamped, 16.0, NONE));
+        // A still pixel (a limit of 127) whose cap is above `max_count` waits for its own trace, 4 frames
+        // at half resolution, and blends it with the cap 4^(2/3) times shorter; at full resolution the cap.
+        assert!(!uses_stand_in(100.0, 16.0, 40.0));
+        assert_eq!(temporal_update(0.4, 100.0, window, None, 0.81, 16.0, 127.0, 40.0, 4.0), (0.4, 100.0));
+        let waiting = 40.0 / 4f32.powf(2.0 / 3.0);
+        let (ao, c) = temporal_update(0.4, 100.0, window, Some(0.81), 0.0, 16.0, 127.0, 40.0, 4.0);
+        assert!((ao - (0.4 + 0.41 / (waiting + 1.0))).abs() < 1e-6 && c == waiting + 1.0, "{ao} {c}");
+        assert_eq!(waiting_cap(40.0, 1.0), 40.0);
+        let (_, c) = temporal_update(0.4, 100.0, window, Some(0.81), 0.0, 16.0, 127.0, 40.0, 1.0);
+        assert_eq!(c, 41.0);
+        assert_eq!(temporal_update(0.4, 2.0, window, None, 0.9, 2.0, 2.0, NONE, 1.0), (0.4, 2.0));
+        let (ao, c) = temporal_update(0.4, 6.0, window, None, 1.0, 16.0, 16.0, CHANGED_COUNT, 1.0);
         assert!((ao - 0.6).abs() < 1e-6 && c == 3.0, "{ao} {c}");
         // No accumulation: the stand-in is the frame's AO.
-        assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, 1.0, NONE), (0.9, 1.0));
+        assert_eq!(temporal_update(0.4, 1.0, window, None, 0.9, 1.0, 1.0, NONE, 1.0), (0.9, 1.0));
     }
 
     #[test]
@@ -849,19 +874,19 @@ mod tests {
         // survives the texel's packing.
         let window = (-10.0, 10.0);
         let limit = history_limit(16.0, 127.0, true);
-        let (ao, c) = temporal_update(0.5, 127.0, window, Some(1.0), 0.0, 16.0, limit, NONE);
+        let (ao, c) = temporal_update(0.5, 127.0, window, Some(1.0), 0.0, 16.0, limit, NONE, 1.0);
         assert!((ao - (0.5 + 0.5 / 127.0)).abs() < 1e-6 && c == 127.0, "{ao} {c}");
         let stored = HistoryTexel { ao, depth: 10.0, normal: Vec3::Z, frames: c }.stored();
         assert_eq!(stored.frames, 127.0);
         // A frame without its own trace still keeps the history as it is: the stand-in follows
         // accumulation_frames, not the limit.
-        assert_eq!(temporal_update(0.5, 40.0, window, None, 0.0, 16.0, limit, NONE), (0.5, 40.0));
+        assert_eq!(temporal_update(0.5, 40.0, window, None, 0.0, 16.0, limit, NONE, 1.0), (0.5, 40.0));
         // A frame that cuts the limit (the settings changed, or the view moves) cuts the history of every
         // pixel, those without their own trace too, which would otherwise keep their 127 frames.
-        assert_eq!(temporal_update(0.5, 127.0, window, None, 0.0, 16.0, 16.0, NONE), (0.5, 16.0));
+        assert_eq!(temporal_update(0.5, 127.0, window, None, 0.0, 16.0, 16.0, NONE, 1.0), (0.5, 16.0));
         assert_eq!(history_limit(200.0, 127.0, true), 200.0, "no panic on a max_count past the texel's");
         // Near a change the change cap shortens it as before.
-        let (_, c) = temporal_update(0.5, 127.0, window, Some(1.0), 0.0, 16.0, limit, CHANGED_COUNT);
+        let (_, c) = temporal_update(0.5, 127.0, window, Some(1.0), 0.0, 16.0, limit, CHANGED_COUNT, 1.0);
         assert_eq!(c, CHANGED_COUNT + 1.0);
     }
 
