@@ -1175,7 +1175,7 @@ fn room() -> Vec<bevy_hao::cpu::TriangleMesh> {
 /// camera inside the room: the mean absolute error over the view.
 fn room_error(parts: Vec<bevy_hao::cpu::TriangleMesh>, volume: VoxelVolume) -> f32 {
     use bevy_hao_tools::meshes::builtin::cuboid;
-    use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
+    use bevy_hao_tools::reference::{OccluderView, ReferenceScene, reference_ao};
     let hao = HybridAmbientOcclusion::default();
     let camera = Transform::from_xyz(3.5, 1.7, 3.5).looking_at(Vec3::new(-3.0, 0.6, -3.0), Vec3::Y);
     let spawn_parts = parts.clone();
@@ -1224,7 +1224,7 @@ fn room_error(parts: Vec<bevy_hao::cpu::TriangleMesh>, volume: VoxelVolume) -> f
             hao.falloff,
             hao.intensity,
             1.0e-3,
-            |_| false,
+            |_, _| OccluderView::Seen,
         );
         sum += (ao[i] - r.ao).abs();
         n += 1;

@@ -167,7 +167,7 @@ fn the_walls_follow_a_sphere_bobbing_past_them_without_lag() {
 /// The converged AO (default settings, the scene still) at floor points `points` (normal +Y) of `scene`, and
 /// the reference's there (1024 rays on the scene's triangles).
 fn floor_profile<const N: usize>(scene: MotionScene, points: [Vec3; N]) -> ([f32; N], [f32; N]) {
-    use bevy_hao_tools::reference::{ReferenceScene, reference_ao};
+    use bevy_hao_tools::reference::{OccluderView, ReferenceScene, reference_ao};
     let hao = HybridAmbientOcclusion::default();
     let reference = ReferenceScene::new(&scene.triangles_at(0));
     let converged = (4 * hao.accumulation_frames * hao.frames_per_trace()) as usize + 30;
@@ -185,7 +185,10 @@ fn floor_profile<const N: usize>(scene: MotionScene, points: [Vec3; N]) -> ([f32
         ao[(y.min(SIZE.y - 1) * SIZE.x + x.min(SIZE.x - 1)) as usize]
     });
     let expected = points.map(|p| {
-        reference_ao(&reference, p, Vec3::Y, 1024, Vec2::ZERO, max_distance, falloff, 1.0, 1e-4, |_| false).ao
+        reference_ao(&reference, p, Vec3::Y, 1024, Vec2::ZERO, max_distance, falloff, 1.0, 1e-4, |_, _| {
+            OccluderView::Seen
+        })
+        .ao
     });
     (profile, expected)
 }

@@ -44,18 +44,51 @@ impl ReferenceScene {
             .ray_traverse(ray, &mut hit, |ray, id| triangle(id).intersect(ray))
             .then(|| (hit.t, Vec3::from(triangle(hit.primitive_id as usize).compute_normal()).normalize_or_zero()))
     }
+
+    /// Whether the line of sight from `eye` to `point` passes only the backs of faces (by their winding,
+    /// which the rasterizer culls), up to `epsilon` short of the point: whether a camera at `eye` would see
+    /// a face at `point` through everything in between.
+    pub fn seen_through_culled(&self, eye: Vec3, point: Vec3, epsilon: f32) -> bool {
+        let to = point - eye;
+        let (length, dir) = (to.length(), to.normalize_or_zero());
+        let mut t = 0.0;
+        // Past at most this many backs (a view through more is as good as blocked).
+        for _ in 0..16 {
+            match self.closest_hit_normal(eye, dir, t, length - epsilon) {
+                None => return true,
+                Some((hit, n)) if n.dot(dir) > 0.0 => t = hit + epsilon * 0.01,
+                Some(_) => return false,
+            }
+        }
+        false
+    }
+}
+
+/// What the view makes of an occluder a reference ray hits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OccluderView {
+    /// On screen, not behind what the view shows, and not a face the camera sees from behind.
+    Seen,
+    /// Off screen or behind what the view shows.
+    Hidden,
+    /// The back of a face (by its winding), in front of what the view shows: the camera looks through it, as
+    /// the rasterizer culls it. Where one mesh passes through another, a surface the view shows can lie just
+    /// behind such a face, every ray from it stopped by a face the picture never shows.
+    Culled,
 }
 
 /// The reference AO at one surface point.
 pub struct ReferenceAo {
     /// 1 = open, 0 = occluded.
     pub ao: f32,
-    /// The share of the occlusion that comes from occluders `hidden` says the view cannot see.
+    /// The share of the occlusion that comes from occluders the view cannot see ([`OccluderView::Hidden`]).
     pub hidden_share: f32,
+    /// The share of the occlusion that comes from faces the view culls ([`OccluderView::Culled`]).
+    pub culled_share: f32,
 }
 
-/// AO at `position` (world) with shading normal `normal`, from `rays` rays; `hidden(p)` tells whether a hit
-/// point is off screen or behind what the view shows.
+/// AO at `position` (world) with shading normal `normal`, from `rays` rays; `view(p, n)` tells what the view
+/// makes of the occluder hit at `p`, whose face has the unit normal `n`.
 #[allow(clippy::too_many_arguments)]
 pub fn reference_ao(
     scene: &ReferenceScene,
@@ -67,24 +100,27 @@ pub fn reference_ao(
     falloff: f32,
     intensity: f32,
     epsilon: f32,
-    hidden: impl Fn(Vec3) -> bool,
+    view: impl Fn(Vec3, Vec3) -> OccluderView,
 ) -> ReferenceAo {
     let origin = position + normal * epsilon;
-    let (mut occlusion, mut hidden_occlusion) = (0.0, 0.0);
+    let (mut occlusion, mut hidden_occlusion, mut culled_occlusion) = (0.0, 0.0, 0.0);
     let basis = orthonormal_basis(normal);
     for i in 0..rays {
         let dir = hemisphere_direction(basis, i, rays, rotation);
-        if let Some(t) = scene.closest_hit(origin, dir, epsilon, max_distance) {
+        if let Some((t, n)) = scene.closest_hit_normal(origin, dir, epsilon, max_distance) {
             let w = ao_falloff(t, max_distance, falloff);
             occlusion += w;
-            if hidden(origin + dir * t) {
-                hidden_occlusion += w;
+            match view(origin + dir * t, n) {
+                OccluderView::Seen => {}
+                OccluderView::Hidden => hidden_occlusion += w,
+                OccluderView::Culled => culled_occlusion += w,
             }
         }
     }
     ReferenceAo {
         ao: (1.0 - intensity * occlusion / rays as f32).clamp(0.0, 1.0),
         hidden_share: if occlusion > 0.0 { hidden_occlusion / occlusion } else { 0.0 },
+        culled_share: if occlusion > 0.0 { culled_occlusion / occlusion } else { 0.0 },
     }
 }
 
@@ -97,4 +133,56 @@ pub fn hash(mut x: u32) -> f32 {
     x = x.wrapping_mul(0x846c_a68b);
     x ^= x >> 16;
     (x >> 8) as f32 / (1u32 << 24) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A unit square at height `y`, facing up (counter-clockwise seen from above) or down.
+    fn square(y: f32, up: bool) -> TriangleMesh {
+        let p =
+            vec![Vec3::new(-1.0, y, -1.0), Vec3::new(1.0, y, -1.0), Vec3::new(1.0, y, 1.0), Vec3::new(-1.0, y, 1.0)];
+        let t = if up { vec![[0, 2, 1], [0, 3, 2]] } else { vec![[0, 1, 2], [0, 2, 3]] };
+        TriangleMesh::new(p, t)
+    }
+
+    #[test]
+    fn a_camera_sees_through_the_backs_of_faces_only() {
+        // Off the squares' diagonals (a ray along a shared edge may slip between its two triangles).
+        let eye = Vec3::new(0.3, 5.0, -0.1);
+        let floor = Vec3::new(0.3, 0.0, -0.1);
+        // A face turned away from the camera above the floor is culled: the camera sees the floor through it.
+        let mut scene = square(0.0, true);
+        scene.append(&square(0.01, false), Default::default());
+        let culled = ReferenceScene::new(&scene);
+        let (t, n) = culled.closest_hit_normal(eye, Vec3::NEG_Y, 0.0, 10.0).unwrap();
+        assert!((t - 4.99).abs() < 1e-4 && n.y == -1.0, "{t} {n}");
+        assert!(culled.seen_through_culled(eye, floor, 1e-4));
+        // One turned toward the camera hides the floor.
+        let mut scene = square(0.0, true);
+        scene.append(&square(0.01, true), Default::default());
+        assert!(!ReferenceScene::new(&scene).seen_through_culled(eye, floor, 1e-4));
+        // Nothing in between.
+        assert!(ReferenceScene::new(&square(0.0, true)).seen_through_culled(eye, floor, 1e-4));
+    }
+
+    #[test]
+    fn the_reference_counts_the_occlusion_the_view_culls_apart() {
+        // A floor under a face turned down (toward the floor, away from a camera above): every ray from the
+        // floor stops on it, and the view says it is culled.
+        let mut scene = square(0.0, true);
+        scene.append(&square(0.05, false), Default::default());
+        let scene = ReferenceScene::new(&scene);
+        let r =
+            reference_ao(&scene, Vec3::new(0.3, 0.0, -0.1), Vec3::Y, 64, Vec2::ZERO, 1.0, 1.0, 1.0, 1e-4, |_, n| {
+                if n.y < 0.0 { OccluderView::Culled } else { OccluderView::Seen }
+            });
+        assert!(r.ao < 0.1 && r.culled_share == 1.0 && r.hidden_share == 0.0, "{} {}", r.ao, r.culled_share);
+        let r =
+            reference_ao(&scene, Vec3::new(0.3, 0.0, -0.1), Vec3::Y, 64, Vec2::ZERO, 1.0, 1.0, 1.0, 1e-4, |_, _| {
+                OccluderView::Hidden
+            });
+        assert!(r.culled_share == 0.0 && r.hidden_share == 1.0);
+    }
 }

@@ -45,7 +45,7 @@ use bevy_hao::cpu::TriangleMesh;
 use bevy_hao::prelude::*;
 use bevy_hao_tools::harness::{self, args};
 use bevy_hao_tools::motion::{Character, Marker, MotionScene, MotionScript, MotionScriptPlugin, ScriptedCamera};
-use bevy_hao_tools::reference::{ReferenceScene, hash, reference_ao};
+use bevy_hao_tools::reference::{OccluderView, ReferenceScene, hash, reference_ao};
 use clap::Parser;
 
 /// Ambient occlusion in motion and at contacts: HAO and Bevy's SSAO against a ray-traced reference.
@@ -245,7 +245,7 @@ fn reference(
                                 falloff,
                                 1.0,
                                 epsilon,
-                                |_| false,
+                                |_, _| OccluderView::Seen,
                             );
                             r.ao
                         })
