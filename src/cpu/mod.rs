@@ -20,6 +20,9 @@
 //!   the depth prepass; [`near`]: of those first cells in the voxels where the march would start inside an
 //!   occluder; [`temporal`]: of its temporal accumulation and
 //!   filter; [`denoise`]: the filter's weights and the history's texel.
+//! * [`lighting`]: the light Bevy's lights put on a surface, in Bevy's units and by its PBR shader's
+//!   formulas: the first piece of the lighting volume for diffuse global illumination (planned:
+//!   docs/design-gi.md).
 //!
 //! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function
 //! names; the render tests hold the GPU against these. What the voxelizer is measured against (the exact
@@ -44,6 +47,7 @@ pub mod cascade;
 pub mod contacts;
 pub mod denoise;
 pub mod grid;
+pub mod lighting;
 pub mod march;
 pub mod mesh;
 pub mod near;
