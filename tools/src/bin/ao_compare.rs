@@ -629,7 +629,7 @@ fn main() {
             normals: normals.clone(),
         };
         let trace = bevy_hao_tools::harness::cpu_trace_settings(&sanitized);
-        print_bias(&scene, &levels, &view, &surfaces, &trace, epsilon);
+        print_bias(&scene, &levels, &view, &surfaces, &trace, epsilon, &occluder_view);
     }
 
     // The PNG: HAO | HAO + near field | SSAO | reference.
@@ -661,7 +661,8 @@ const BIAS_RAYS: u32 = 64;
 /// occluder the CPU twin of HAO's trace finds on `levels` against the reference's nearest triangle, their
 /// falloff weights compared by the reference's distance in cells of the level the ray starts in, and by
 /// that level. Each row's share of the mean AO difference (HAO - reference; positive: HAO lighter) sums
-/// to the twin's whole difference, the trace's bias before accumulation and the denoiser.
+/// to the twin's whole difference, the trace's bias before accumulation and the denoiser. `occluder_view`
+/// tells which of the reference's occluders the twin misses the view hides (which only the voxels can find).
 fn print_bias(
     scene: &ReferenceScene,
     levels: &[bevy_hao::cpu::march::TraceLevel],
@@ -669,6 +670,7 @@ fn print_bias(
     surfaces: &[(u32, Vec3, Vec3)],
     s: &bevy_hao::cpu::ao::TraceSettings,
     epsilon: f32,
+    occluder_view: &dyn Fn(Vec3, Vec3) -> OccluderView,
 ) {
     use bevy_hao::cpu::ao::{TraceWork, ao_falloff, hemisphere_direction, orthonormal_basis, ray_occluder};
     use bevy_hao::cpu::march::ray_start_level;
@@ -679,6 +681,8 @@ fn print_bias(
     struct Row {
         rays: u64,
         missed: u64,
+        // Of those, the rays whose reference occluder the view hides (off screen or behind what it shows).
+        missed_hidden: u64,
         found: u64,
         parallel: u64,
         reference: f64,
@@ -688,6 +692,7 @@ fn print_bias(
         fn add_assign(&mut self, o: Row) {
             (self.rays, self.missed, self.found, self.parallel) =
                 (self.rays + o.rays, self.missed + o.missed, self.found + o.found, self.parallel + o.parallel);
+            self.missed_hidden += o.missed_hidden;
             (self.reference, self.hao) = (self.reference + o.reference, self.hao + o.hao);
         }
     }
@@ -708,7 +713,8 @@ fn print_bias(
         for r in 0..BIAS_RAYS {
             let dir = hemisphere_direction(basis, r, BIAS_RAYS, rotation);
             let start = ray_start_level(levels, world, r, rotation);
-            let hit = scene.closest_hit_normal(world + normal * epsilon, dir, epsilon, s.max_distance);
+            let origin = world + normal * epsilon;
+            let hit = scene.closest_hit_normal(origin, dir, epsilon, s.max_distance);
             let reference = hit.map(|(t, _)| t);
             // An occluder on a surface within 25 degrees of parallel to the pixel's (its own surface curving
             // back, or a layer lying on it) rather than one across the ray's way.
@@ -730,6 +736,10 @@ fn print_bias(
             let ray = Row {
                 rays: 1,
                 missed: u64::from(reference.is_some() && hao.is_none()),
+                missed_hidden: u64::from(
+                    hao.is_none()
+                        && hit.is_some_and(|(t, n)| occluder_view(origin + dir * t, n) == OccluderView::Hidden),
+                ),
                 found: u64::from(reference.is_none() && hao.is_some()),
                 parallel: u64::from(parallel),
                 reference: f64::from(w_ref),
@@ -749,12 +759,13 @@ fn print_bias(
     let print = |name: String, row: &Row| {
         let n = row.rays.max(1) as f64;
         println!(
-            "| {name} | {:.1} % | {:.1} % | {:.3} | {:.3} | {:.1} % | {:.1} % | {:+.4} |",
+            "| {name} | {:.1} % | {:.1} % | {:.3} | {:.3} | {:.1} % | {:.0} % | {:.1} % | {:+.4} |",
             100.0 * row.rays as f64 / total,
             100.0 * row.parallel as f64 / n,
             row.reference / n,
             row.hao / n,
             100.0 * row.missed as f64 / n,
+            100.0 * row.missed_hidden as f64 / row.missed.max(1) as f64,
             100.0 * row.found as f64 / n,
             s.intensity as f64 * (row.reference - row.hao) / total,
         );
@@ -765,8 +776,8 @@ fn print_bias(
          reference's occluder distance, in cells of the level the ray starts in:\n",
         s.rays, s.steps
     );
-    let header = "| rays | reference occluder within 25 degrees of parallel to the pixel | mean reference occlusion | mean HAO occlusion | HAO finds none | HAO finds one where the reference has none | share of mean AO, HAO - reference |";
-    println!("| reference occluder {header}\n|---|---:|---:|---:|---:|---:|---:|---:|");
+    let header = "| rays | reference occluder within 25 degrees of parallel to the pixel | mean reference occlusion | mean HAO occlusion | HAO finds none | of those, the view hides the occluder | HAO finds one where the reference has none | share of mean AO, HAO - reference |";
+    println!("| reference occluder {header}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|");
     let mut sum = Row::default();
     for (name, row) in BINS.iter().zip(&by_distance) {
         print(name.to_string(), row);
@@ -785,7 +796,7 @@ fn print_bias(
         band.2 / band.1.max(1) as f64
     );
     println!(
-        "\nBy the level the ray starts in:\n\n| level (cell size) {header}\n|---|---:|---:|---:|---:|---:|---:|---:|"
+        "\nBy the level the ray starts in:\n\n| level (cell size) {header}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for (l, row) in by_level.iter().enumerate() {
         print(format!("{l} ({})", levels[l].cell_size), row);
