@@ -29,11 +29,6 @@ impl ReferenceScene {
         Self { bvh, triangles }
     }
 
-    /// The distance to the closest hit in `[t_min, t_max]`.
-    pub fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<f32> {
-        self.closest_hit_normal(origin, dir, t_min, t_max).map(|(t, _)| t)
-    }
-
     /// The distance to the closest hit in `[t_min, t_max]` and the unit normal of the triangle hit (by its
     /// winding; zero for a degenerate triangle).
     pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, Vec3)> {
