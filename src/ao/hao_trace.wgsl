@@ -23,7 +23,7 @@
     pack_history, pack_normal,
 }
 #import bevy_hao::voxel_grid::{
-    voxel_grid, ray_start_level, march_cascades, march_cascades_left, level_position, voxel_normal_at, safe_inverse, ray_box,
+    voxel_grid, ray_start_level, march_cascades_left, level_position, voxel_normal_at, safe_inverse, ray_box,
     voxel_occupied, MIN_OCCLUDING_CHORD,
 }
 #import bevy_hao::hao_change::{occlusion_change, change_rays, filters_wide}
@@ -105,6 +105,11 @@ fn shows_free_space(p: vec3<f32>, margin: f32) -> bool {
 const NEAR_FREE_SPACE_CELLS: f32 = 8.0;
 const NEAR_FREE_SPACE_PIXELS: f32 = 1.0;
 const MAX_NEAR_FREE_SPACE_PASSES: u32 = 8u;
+
+// The trace's passes past a voxel hit, in the order a ray takes them (cpu/ao.rs: voxel_ray_occluder's loops).
+const PASS_BACK_HITS: u32 = 0u;
+const PASS_NEAR_FREE_SPACE: u32 = 1u;
+const PASS_FREE_SPACE: u32 = 2u;
 
 // cpu/contacts.rs: CONTACT_LENGTH, CONTACT_THICKNESS, CONTACT_LIFT_PIXELS, CONTACT_LIFT_CELLS,
 // CONTACT_DEPTH_EPSILON
@@ -338,49 +343,74 @@ fn trace(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
         }
         let origin = world + normal * (settings.start_offset * cell);
-        var marched = march_cascades_left(origin, dir, start, settings.start_offset, settings.max_distance, settings.steps);
+        // The march, and the hits it passes (cpu/ao.rs: voxel_ray_occluder's three loops, in turn), in one
+        // loop around one march: devices that run every branch, taken or not (lavapipe), pay for each march
+        // written out, and a GPU warp runs as many marches as its busiest lane rather than each loop's
+        // busiest lane's in turn. Where the march resumes past the hit (the hit's level's cells), or -1 where
+        // the hit stops the ray; the steps it resumes with.
+        var from_level = start;
+        var from_t = settings.start_offset;
+        var budget = settings.steps;
+        var phase = PASS_BACK_HITS;
+        // The passes made in this phase.
+        var passes = 0u;
+        var marched = vec3<f32>(-1.0, 0.0, 0.0);
+        // A ray marches at most once, then once a pass (MAX_BACK_HITS, MAX_NEAR_FREE_SPACE_PASSES and
+        // MAX_FREE_SPACE_PASSES at most).
+        loop {
+            marched = march_cascades_left(origin, dir, from_level, from_t, settings.max_distance, budget);
+            if marched.x < 0.0 {
+                break;
+            }
+            var next = -1.0;
 #ifdef BACK_HITS
-        // Through the backs of surfaces, a few times at most (a variant of its own: without attributes or
-        // with `ignore_back_hits` off the loop would cost a march per ray on devices that run every branch,
-        // such as lavapipe, whether taken or not).
-        let back_hits = settings.back_hits != 0u && voxel_grid.attributes != 0u;
-        for (var k = 0u; k < MAX_BACK_HITS && back_hits && marched.x >= 0.0; k++) {
-            let exit = back_hit_exit(origin, dir, marched.xy);
-            if exit < 0.0 {
-                break;
+            // Through the backs of surfaces, a few times at most, each with the whole step budget (a variant
+            // of its own: without attributes or with `ignore_back_hits` off no ray takes it).
+            if phase == PASS_BACK_HITS && settings.back_hits != 0u && voxel_grid.attributes != 0u && passes < MAX_BACK_HITS {
+                next = back_hit_exit(origin, dir, marched.xy);
+                budget = settings.steps;
             }
-            marched = march_cascades_left(origin, dir, u32(marched.y), exit, settings.max_distance, settings.steps);
-        }
 #endif
-        // Past the cells near the surface that the view shows empty, by a pixel, where the trace takes their
-        // surface to be (`depth_contacts`); the march goes on with the steps it has left.
-        let near = NEAR_FREE_SPACE_CELLS * cell;
-        for (var k = 0u; k < MAX_NEAR_FREE_SPACE_PASSES && settings.depth_contacts != 0u && marched.x >= 0.0 && marched.z > 0.0; k++) {
-            // The point at the hit's distance on the ray from the surface itself, which the lift moved the
-            // march's off: near an occluder overhead the lifted ray crosses cells the ray misses.
-            let distance = length(origin + dir * (marched.x + 0.5 * voxel_grid.levels[u32(marched.y)].cell_size) - world);
-            if distance > near {
-                break;
+            if phase == PASS_BACK_HITS && next < 0.0 {
+                phase = PASS_NEAR_FREE_SPACE;
+                passes = 0u;
             }
-            let surface = world + dir * distance;
-            let margin = NEAR_FREE_SPACE_PIXELS * pixel_size((view.clip_from_world * vec4<f32>(surface, 1.0)).w);
-            if !shows_free_space(surface, margin) {
-                break;
+            // Past the cells near the surface that the view shows empty, by a pixel, where the trace takes
+            // their surface to be (`depth_contacts`); the march goes on with the steps it has left.
+            if phase == PASS_NEAR_FREE_SPACE {
+                // The point at the hit's distance on the ray from the surface itself, which the lift moved
+                // the march's off: near an occluder overhead the lifted ray crosses cells the ray misses.
+                let distance = length(origin + dir * (marched.x + 0.5 * voxel_grid.levels[u32(marched.y)].cell_size) - world);
+                let near = settings.depth_contacts != 0u && passes < MAX_NEAR_FREE_SPACE_PASSES && marched.z > 0.0
+                    && distance <= NEAR_FREE_SPACE_CELLS * cell;
+                let surface = world + dir * distance;
+                if near && shows_free_space(surface, NEAR_FREE_SPACE_PIXELS * pixel_size((view.clip_from_world * vec4<f32>(surface, 1.0)).w)) {
+                    next = cell_exit(origin, dir, marched.xy);
+                    budget = u32(marched.z);
+                } else {
+                    phase = PASS_FREE_SPACE;
+                    passes = 0u;
+                }
             }
-            marched = march_cascades_left(origin, dir, u32(marched.y), cell_exit(origin, dir, marched.xy), settings.max_distance, u32(marched.z));
-        }
-        var hit = marched.xy;
 #ifdef FREE_SPACE
-        // Past the cells the view shows empty where the trace takes their surface to be, a few times at most
-        // (a variant of its own, as BACK_HITS).
-        for (var k = 0u; k < MAX_FREE_SPACE_PASSES && hit.x >= 0.0; k++) {
-            let hit_cell = voxel_grid.levels[u32(hit.y)].cell_size;
-            if !shows_free_space(origin + dir * (hit.x + 0.5 * hit_cell), FREE_SPACE_MARGIN * hit_cell) {
+            // Past the cells the view shows empty where the trace takes their surface to be, a few times at
+            // most, each with the whole step budget (a variant of its own, as BACK_HITS).
+            if phase == PASS_FREE_SPACE && passes < MAX_FREE_SPACE_PASSES {
+                let hit_cell = voxel_grid.levels[u32(marched.y)].cell_size;
+                if shows_free_space(origin + dir * (marched.x + 0.5 * hit_cell), FREE_SPACE_MARGIN * hit_cell) {
+                    next = cell_exit(origin, dir, marched.xy);
+                    budget = settings.steps;
+                }
+            }
+#endif
+            if next < 0.0 {
                 break;
             }
-            hit = march_cascades(origin, dir, u32(hit.y), cell_exit(origin, dir, hit), settings.max_distance, settings.steps);
+            passes += 1u;
+            from_level = u32(marched.y);
+            from_t = next;
         }
-#endif
+        let hit = marched.xy;
         if hit.x >= 0.0 {
             // The surface lies somewhere in the first occupied cell, on average half a cell past its entry.
             let hit_cell = voxel_grid.levels[u32(hit.y)].cell_size;

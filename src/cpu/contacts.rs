@@ -154,6 +154,15 @@ impl ViewDepth {
         self.behind_clip(self.clip_from_world * p.extend(1.0), depth, thickness, eye, depth_loads) != Behind::No
     }
 
+    /// How far the world point `p` lies behind the surface the view shows at the pixel it projects to, in
+    /// view depth (world units; negative in front of it), or `None` off the view, behind the camera or over
+    /// the background: what [`ViewDepth::behind`] tests, for the lab's accounting of the contacts it misses.
+    pub fn depth_behind(&self, p: Vec3) -> Option<f32> {
+        let pixel = self.pixel_at(self.clip_from_world * p.extend(1.0))?;
+        let d = self.depth_at(pixel.as_ivec2());
+        (d > 0.0).then(|| -(self.view_from_world * p.extend(1.0)).z - self.surface_view_depth(d))
+    }
+
     /// The direction the view looks along at the world point `p` (WGSL: `eye_direction` in `trace`): from
     /// the near plane's point at its pixel position to it, for a perspective or an orthographic view alike.
     /// The GPU maps the near plane's point to world space with the view's `world_from_clip`; here it is found

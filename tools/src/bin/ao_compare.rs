@@ -49,6 +49,10 @@
 //! share of the mean AO difference sums to the twin's whole difference: the trace's bias, before the
 //! accumulation and the denoiser, which move the mean little (on the three interiors the twin's difference
 //! lies within 0.002 of the images').
+//! Of the rays whose reference occluder lies within a cell that the twin misses and the view does not hide, it
+//! prints where the first of the ray's contact samples past that occluder lies against the surface the view
+//! shows (in front of it: the occluder ends before the sample), and writes a map of them beside the PNG
+//! (`OUT.near-misses.png`: the reference in grey, red where a pixel's rays miss them).
 
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -629,7 +633,26 @@ fn main() {
             normals: normals.clone(),
         };
         let trace = bevy_hao_tools::harness::cpu_trace_settings(&sanitized);
-        print_bias(&scene, &levels, &view, &surfaces, &trace, epsilon, &occluder_view);
+        let misses = print_bias(&scene, &levels, &view, &surfaces, &trace, epsilon, &occluder_view);
+        // The reference in grey, red where the twin misses occluders within a cell that the view shows.
+        let map = image::RgbImage::from_fn(w, h, |x, y| {
+            let i = (y * w + x) as usize;
+            let grey = (reference[i].clamp(0.0, 1.0) * 200.0) as u8;
+            let red = (misses[i] as f32 / BIAS_RAYS as f32 * 4.0).min(1.0);
+            image::Rgb([
+                grey.saturating_add((red * 255.0) as u8),
+                (grey as f32 * (1.0 - red)) as u8,
+                (grey as f32 * (1.0 - red)) as u8,
+            ])
+        });
+        let path = std::path::Path::new(&args.out).with_extension("near-misses.png");
+        match map.save(&path) {
+            Ok(()) => eprintln!(
+                "wrote {} (red: rays whose occluder within a cell the view shows and HAO misses)",
+                path.display()
+            ),
+            Err(e) => eprintln!("error: writing {}: {e}", path.display()),
+        }
     }
 
     // The PNG: HAO | HAO + near field | SSAO | reference.
@@ -657,6 +680,49 @@ fn main() {
 /// Rays a pixel of the `--bias` table.
 const BIAS_RAYS: u32 = 64;
 
+/// How the first contact sample past a missed occluder lies against the view ([`near_miss_kind`]).
+const MISS_KINDS: [&str; 7] = [
+    "none (all before it)",
+    "off the view or over the background",
+    "in front of the view's surface",
+    "0-1 cell behind it",
+    "1-2 cells behind it",
+    "2-4 cells behind it",
+    "4+ cells behind it",
+];
+
+/// Which of [`MISS_KINDS`] ray `r` (direction `dir` from the surface point `world`, normal `normal`, `cell` the
+/// size of the level it starts in) falls in, its reference occluder at distance `reference`: its contact
+/// samples placed as the trace's twin places them (`cpu::contacts::depth_contact`, `pixel_jitter` turned for
+/// ray `r`).
+#[allow(clippy::too_many_arguments)]
+fn near_miss_kind(
+    view: &bevy_hao::cpu::contacts::ViewDepth,
+    world: Vec3,
+    normal: Vec3,
+    dir: Vec3,
+    cell: f32,
+    s: &bevy_hao::cpu::ao::TraceSettings,
+    pixel_jitter: f32,
+    r: u32,
+    reference: Option<f32>,
+) -> usize {
+    use bevy_hao::cpu::contacts::{CONTACT_LENGTH, contact_lift, ray_jitter};
+    let lift = contact_lift(view.pixel_size((view.clip_from_world * world.extend(1.0)).w), cell);
+    let length = CONTACT_LENGTH * s.start_offset * cell;
+    let jitter = ray_jitter(pixel_jitter, r);
+    let samples = s.contact_samples.max(1);
+    let reference = reference.unwrap_or(0.0);
+    let Some(t) = (0..samples).map(|k| length * (k as f32 + jitter) / samples as f32).find(|&t| t > reference) else {
+        return 0;
+    };
+    match view.depth_behind(world + normal * lift + dir * t) {
+        None => 1,
+        Some(d) if d <= 0.0 => 2,
+        Some(d) => 3 + [1.0, 2.0, 4.0].iter().take_while(|&&edge| d / cell >= edge).count(),
+    }
+}
+
 /// The `--bias` table: along `BIAS_RAYS` rays from each surface point (pixel, world position, normal), the
 /// occluder the CPU twin of HAO's trace finds on `levels` against the reference's nearest triangle, their
 /// falloff weights compared by the reference's distance in cells of the level the ray starts in, and by
@@ -671,8 +737,9 @@ fn print_bias(
     s: &bevy_hao::cpu::ao::TraceSettings,
     epsilon: f32,
     occluder_view: &dyn Fn(Vec3, Vec3) -> OccluderView,
-) {
+) -> Vec<u32> {
     use bevy_hao::cpu::ao::{TraceWork, ao_falloff, hemisphere_direction, orthonormal_basis, ray_occluder};
+    use bevy_hao::cpu::contacts::CONTACT_THICKNESS;
     use bevy_hao::cpu::march::ray_start_level;
     const BINS: [&str; 8] =
         ["no occluder", "0-1/4 cell", "1/4-1 cell", "1-2 cells", "2-4 cells", "4-8 cells", "8-16 cells", "16+ cells"];
@@ -697,6 +764,13 @@ fn print_bias(
         }
     }
     let mut by_distance = [Row::default(); BINS.len()];
+    // The rays whose reference occluder lies within a cell that the twin misses and the view does not hide:
+    // where the first contact sample past that occluder lies against the view's surface (`MISS_KINDS`).
+    let mut near_misses = [0u64; MISS_KINDS.len()];
+    // Of those, the rays whose occluder is the back of a face the camera looks through.
+    let mut near_misses_culled = [0u64; MISS_KINDS.len()];
+    // Those rays, per pixel (row by row).
+    let mut miss_map = vec![0u32; view.size.x as usize * view.size.y as usize];
     let mut by_level = vec![Row::default(); levels.len()];
     let mut work = TraceWork::default();
     // The mean absolute difference of the pixels' AO, from these rays.
@@ -745,6 +819,13 @@ fn print_bias(
                 reference: f64::from(w_ref),
                 hao: f64::from(w_hao),
             };
+            if ray.missed == 1 && ray.missed_hidden == 0 && (bin == 1 || bin == 2) {
+                let kind = near_miss_kind(view, world, normal, dir, levels[start].cell_size, s, jitter, r, reference);
+                near_misses[kind] += 1;
+                miss_map[i as usize] += 1;
+                near_misses_culled[kind] +=
+                    u64::from(hit.is_some_and(|(t, n)| occluder_view(origin + dir * t, n) == OccluderView::Culled));
+            }
             by_distance[bin] += ray;
             by_level[start] += ray;
         }
@@ -795,12 +876,25 @@ fn print_bias(
         band.0 / band.1.max(1) as f64,
         band.2 / band.1.max(1) as f64
     );
+    let misses = near_misses.iter().sum::<u64>().max(1) as f64;
+    println!(
+        "\nOf the rays whose reference occluder lies within a cell, those HAO misses and the view does not hide \
+         ({}): where the first of the ray's contact samples past the occluder lies against the surface the view \
+         shows at its pixel (in cells of the level the ray starts in; the contacts take 0-{CONTACT_THICKNESS} \
+         along the view):\n\n| first sample past the occluder | share | of those, the occluder a face's back the camera \
+         looks through |\n|---|---:|---:|",
+        near_misses.iter().sum::<u64>()
+    );
+    for ((kind, n), culled) in MISS_KINDS.iter().zip(near_misses).zip(near_misses_culled) {
+        println!("| {kind} | {:.1} % | {:.0} % |", 100.0 * n as f64 / misses, 100.0 * culled as f64 / n.max(1) as f64);
+    }
     println!(
         "\nBy the level the ray starts in:\n\n| level (cell size) {header}\n|---|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for (l, row) in by_level.iter().enumerate() {
         print(format!("{l} ({})", levels[l].cell_size), row);
     }
+    miss_map
 }
 
 #[cfg(test)]
