@@ -7,11 +7,15 @@
 //!   by [`distance_attenuation`] within `range`; a spot also by [`spot_attenuation`] (bevy_pbr
 //!   `render/light.rs`, `render/pbr_lighting.wgsl`).
 //!
-//! Shadows are not here: the lighting volume will march the voxels toward each light. Exposure is not here
-//! either: Bevy's shader multiplies all non-emissive light by the view's exposure at the end, irradiance
-//! volumes included.
+//! The lighting volume: each occupied voxel's outgoing diffuse radiance under the lights
+//! ([`voxel_radiance`]), each shadowed by a march through the voxel levels toward it ([`light_reaches`]), from
+//! the multi-valued voxels' average albedo and normal. Exposure is not here: Bevy's shader multiplies all
+//! non-emissive light by the view's exposure at the end, irradiance volumes included, so the volume keeps
+//! physical units.
 
-use glam::Vec3;
+use super::attributes::VoxelAttributes;
+use super::march::{TraceLevel, march_cascades};
+use glam::{IVec3, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI};
 
 /// A light, as Bevy's PBR shader sees it.
@@ -137,6 +141,65 @@ pub fn diffuse_radiance(albedo: Vec3, normal: Vec3, incident: &Incident) -> Vec3
     albedo / PI * incident.illuminance * normal.dot(incident.to_light).max(0.0)
 }
 
+/// How far off its voxel's centre a shadow ray starts, along the voxel's average normal, and how far along
+/// the ray its march starts, in cells of the voxel's level (WGSL, to come: `SHADOW_START_CELLS`): as the AO
+/// trace's rays start a cell off the surface and a cell along their way, so that the surface's own voxels
+/// (the voxel itself, its neighbours along a slanted floor) do not shadow it.
+pub const SHADOW_START_CELLS: f32 = 1.0;
+/// The most texel visits a shadow ray's march makes (WGSL, to come: `SHADOW_STEPS`): the AO trace's `High`
+/// budget. A march out of visits counts as lit: a light is more often seen than not where the march has
+/// stepped that far through empty space.
+pub const SHADOW_STEPS: u32 = 64;
+/// Below this length a voxel's average normal has no direction to start its shadow rays along (its points'
+/// normals cancel: the two faces of a thin wall), and they start at its centre.
+pub const SHADOW_NORMAL_MIN: f32 = 0.25;
+
+/// The centre of cell `cell` (of the level's window) in world space.
+pub fn cell_center(level: &TraceLevel, cell: IVec3) -> Vec3 {
+    level.origin + ((cell + level.window_min).as_vec3() + Vec3::splat(0.5)) * level.cell_size
+}
+
+/// Whether the light `incident` brings reaches the voxel at `center` (level `level` of `levels`, average
+/// normal `normal`) through the voxels (WGSL, to come: `light_reaches`): a march toward the light from
+/// [`SHADOW_START_CELLS`] off the centre along the normal and as many along the ray, to the light's distance,
+/// that no run of occupied cells stops within [`SHADOW_STEPS`] visits.
+pub fn light_reaches(levels: &[TraceLevel], level: usize, center: Vec3, normal: Vec3, incident: &Incident) -> bool {
+    let cell = levels[level].cell_size;
+    let lift = if normal.length() >= SHADOW_NORMAL_MIN { normal.normalize() } else { Vec3::ZERO };
+    let origin = center + lift * (SHADOW_START_CELLS * cell);
+    // The light's distance from the march's origin along the ray (a directional light's, as the debug view's
+    // rays, finite); a light nearer than the march's start lights the voxel.
+    let distance = incident.distance.min(1.0e30) - lift.dot(incident.to_light) * SHADOW_START_CELLS * cell;
+    if distance <= SHADOW_START_CELLS * cell {
+        return true;
+    }
+    march_cascades(levels, origin, incident.to_light, level, SHADOW_START_CELLS, distance, SHADOW_STEPS).is_none()
+}
+
+/// The outgoing diffuse radiance (cd/m^2 per colour channel, before exposure) of cell `cell` of level `level`
+/// (of its window) with average albedo and normal `attributes`, under `lights`, each shadowed by
+/// [`light_reaches`] (WGSL, to come: `voxel_radiance`): `albedo / pi * sum(E * max(n . l, 0))` with the
+/// average normal as it is. Where its points' normals disagree the average is shorter and so is the light
+/// (a voxel holding both faces of a thin wall, one of them lit, gets about none: the known cost of one normal
+/// a voxel).
+pub fn voxel_radiance(
+    levels: &[TraceLevel],
+    level: usize,
+    cell: IVec3,
+    attributes: &VoxelAttributes,
+    lights: &[Light],
+) -> Vec3 {
+    let center = cell_center(&levels[level], cell);
+    let normal = attributes.normal;
+    lights
+        .iter()
+        .filter_map(|light| light.incident(center))
+        .filter(|incident| normal.dot(incident.to_light) > 0.0)
+        .filter(|incident| light_reaches(levels, level, center, normal, incident))
+        .map(|incident| diffuse_radiance(attributes.albedo, normal, &incident))
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -204,5 +267,82 @@ mod tests {
         // An outer angle of pi/2 or more is clamped just below it; an inner one past it, to it.
         assert!(e(spot(2.0, 3.0), at(1.5)) > 0.0 && e(spot(2.0, 3.0), at(1.58)) == 0.0);
         assert!(spot_attenuation(1.0, 2.0, 3.0) == 1.0);
+    }
+
+    /// A floor of one layer of cells (y = 2 of a 32x16x32 grid of 0.25 m cells from the origin) under a roof
+    /// (y = 10) over x < 16, and the levels that trace it.
+    fn floor_under_a_roof() -> (crate::cpu::march::VoxelMips, Vec3) {
+        use crate::cpu::grid::{VoxelGrid, VoxelOccupancy};
+        use glam::UVec3;
+        let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(32, 16, 32)).unwrap();
+        let occupancy = VoxelOccupancy::new(grid, false);
+        for x in 0..32 {
+            for z in 0..32 {
+                occupancy.set(UVec3::new(x, 2, z));
+                if x < 16 {
+                    occupancy.set(UVec3::new(x, 10, z));
+                }
+            }
+        }
+        (crate::cpu::march::VoxelMips::new(&occupancy, 4), grid.origin)
+    }
+
+    #[test]
+    fn a_voxel_in_the_open_takes_its_lambertian_radiance_and_one_under_a_roof_none() {
+        let (mips, origin) = floor_under_a_roof();
+        let levels = [TraceLevel { origin, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
+        let floor = VoxelAttributes { albedo: Vec3::new(0.8, 0.5, 0.2), normal: Vec3::Y };
+        let sun = Light::Directional { direction: Vec3::NEG_Y, color: Vec3::ONE, illuminance: 10_000.0 };
+        let lit = voxel_radiance(&levels, 0, IVec3::new(24, 2, 16), &floor, &[sun]);
+        let expected = floor.albedo / PI * 10_000.0;
+        assert!(lit.distance(expected) < 1.0e-3 * expected.length(), "{lit} {expected}");
+        assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[sun]), Vec3::ZERO);
+        // A sun at 45 degrees from -x (the roof's side) casts the roof's shadow past its edge (x = 4 m): the
+        // floor a cell past it (x = 4.375), which the sun overhead lights, is in shadow; 2 m past it, lit.
+        let low = Light::Directional {
+            direction: Vec3::new(1.0, -1.0, 0.0).normalize(),
+            color: Vec3::ONE,
+            illuminance: 10_000.0,
+        };
+        let under = |x: i32| voxel_radiance(&levels, 0, IVec3::new(x, 2, 16), &floor, &[low]).x;
+        assert!(voxel_radiance(&levels, 0, IVec3::new(17, 2, 16), &floor, &[sun]).x > 0.0);
+        assert_eq!((under(12), under(17)), (0.0, 0.0));
+        assert!(close(under(24), 0.8 / PI * 10_000.0 / 2f32.sqrt()), "{}", under(24));
+        // The light of several adds up; from below the floor, none.
+        let twice = voxel_radiance(&levels, 0, IVec3::new(24, 2, 16), &floor, &[sun, sun]);
+        assert!(twice.distance(2.0 * expected) < 1.0e-3 * expected.length());
+        let below = Light::Directional { direction: Vec3::Y, color: Vec3::ONE, illuminance: 10_000.0 };
+        assert_eq!(voxel_radiance(&levels, 0, IVec3::new(24, 2, 16), &floor, &[below]), Vec3::ZERO);
+    }
+
+    #[test]
+    fn a_point_light_under_the_roof_lights_the_floor_below_it_and_a_bad_one_nothing() {
+        let (mips, origin) = floor_under_a_roof();
+        let levels = [TraceLevel { origin, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
+        let floor = VoxelAttributes { albedo: Vec3::ONE, normal: Vec3::Y };
+        // 2 m over the floor's top (y = 0.75) under the roof (y = 2.5): 1 candela.
+        let center = cell_center(&levels[0], IVec3::new(8, 2, 16));
+        let bulb = Light::Point {
+            position: center + Vec3::new(0.0, 1.5, 0.0),
+            color: Vec3::ONE,
+            intensity: 4.0 * PI,
+            range: 20.0,
+        };
+        let lit = voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[bulb]);
+        let expected = bulb.incident(center).unwrap().illuminance.x / PI;
+        assert!(close(lit.x, expected), "{lit} {expected}");
+        // Above the roof, the same bulb does not reach the floor.
+        let above = Light::Point {
+            position: center + Vec3::new(0.0, 3.0, 0.0),
+            color: Vec3::ONE,
+            intensity: 4.0 * PI,
+            range: 20.0,
+        };
+        assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[above]), Vec3::ZERO);
+        // Bad lights and a voxel whose normals cancel: no light, no NaN.
+        let bad = Light::Point { position: center + Vec3::Y, color: Vec3::ONE, intensity: f32::NAN, range: 20.0 };
+        assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[bad]), Vec3::ZERO);
+        let both_faces = VoxelAttributes { albedo: Vec3::ONE, normal: Vec3::ZERO };
+        assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &both_faces, &[bulb]), Vec3::ZERO);
     }
 }

@@ -236,9 +236,9 @@ enum Visit {
 ///
 /// The trace passes some hits (the backs of surfaces, the near hits and others the view shows in empty
 /// space) and goes on past them: [`March::resume`] from the cell's exit, as the WGSL calls
-/// `march_cascades_left` again from there, each pass a loop after the march before it. (Folding the passes
-/// into the march's own loop, one visit an iteration, cut the visits a warp pays by a sixth in `bench_ao`'s
-/// model, but made lavapipe's trace more than twice as long: docs/figures.md.)
+/// `march_cascades_left` again from there (one loop around one march, each pass saying where it resumes).
+/// (Folding the passes into the march's own loop, one visit an iteration, cut the visits a warp pays by a
+/// sixth in `bench_ao`'s model, but made lavapipe's trace more than twice as long: docs/figures.md.)
 pub struct March<'a, 'm> {
     levels: &'a [TraceLevel<'m>],
     origin: Vec3,

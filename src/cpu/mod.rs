@@ -21,7 +21,8 @@
 //!   occluder; [`temporal`]: of its temporal accumulation and
 //!   filter; [`denoise`]: the filter's weights and the history's texel.
 //! * [`lighting`]: the light Bevy's lights put on a surface, in Bevy's units and by its PBR shader's
-//!   formulas: the first piece of the lighting volume for diffuse global illumination (planned:
+//!   formulas, and the lighting volume: each voxel's outgoing diffuse radiance under them, shadowed by a
+//!   march through the voxels (the CPU twin of a pass still to come, for diffuse global illumination:
 //!   docs/design-gi.md).
 //!
 //! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function

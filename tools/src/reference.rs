@@ -1,43 +1,67 @@
 //! The CPU ray-traced ambient occlusion that HAO is measured against: many cosine-weighted rays per pixel
 //! against the scene's real triangles, through a BVH (obvhs), with the same maximum distance, falloff and
 //! intensity as the HAO settings and the same ray directions as the GPU's (`cpu::ao::hemisphere_direction`).
+//! And the indirect diffuse light that voxel global illumination will be measured against
+//! ([`reference_indirect`]): one bounce of Bevy's lights off the triangles' albedo, shadow rays included.
 
 use bevy::math::{Vec2, Vec3, Vec3A};
 use bevy_hao::cpu::TriangleMesh;
 use bevy_hao::cpu::ao::{ao_falloff, hemisphere_direction, orthonormal_basis};
+use bevy_hao::cpu::lighting::{Light, diffuse_radiance};
 use obvhs::BvhBuildParams;
 use obvhs::cwbvh::{CwBvh, builder::build_cwbvh_from_tris};
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 
-/// The scene's triangles in a BVH.
+/// The scene's triangles in a BVH, with each triangle's linear albedo.
 pub struct ReferenceScene {
     bvh: CwBvh,
     triangles: Vec<Triangle>,
+    albedo: Vec<Vec3>,
 }
 
 impl ReferenceScene {
-    /// Builds the BVH (skipping triangles with non-finite vertices).
+    /// Builds the BVH (skipping triangles with non-finite vertices), every triangle white.
     pub fn new(mesh: &TriangleMesh) -> Self {
-        let triangles: Vec<Triangle> = (0..mesh.triangle_count())
-            .filter_map(|t| mesh.triangle(t))
-            .filter(|v| v.iter().all(|p| p.is_finite()))
-            .map(|[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() })
-            .collect();
-        let bvh =
-            build_cwbvh_from_tris(&triangles, BvhBuildParams::medium_build(), &mut std::time::Duration::default());
-        Self { bvh, triangles }
+        Self::with_albedo(mesh, |_| Vec3::ONE)
     }
 
-    /// The distance to the closest hit in `[t_min, t_max]` and the unit normal of the triangle hit (by its
-    /// winding; zero for a degenerate triangle).
-    pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, Vec3)> {
+    /// Builds the BVH (skipping triangles with non-finite vertices), triangle `t` of `mesh` with the linear
+    /// albedo `albedo(t)`.
+    pub fn with_albedo(mesh: &TriangleMesh, albedo: impl Fn(usize) -> Vec3) -> Self {
+        let (triangles, albedo): (Vec<Triangle>, Vec<Vec3>) = (0..mesh.triangle_count())
+            .filter_map(|t| Some((mesh.triangle(t)?, t)))
+            .filter(|(v, _)| v.iter().all(|p| p.is_finite()))
+            .map(|([a, b, c], t)| (Triangle { v0: a.into(), v1: b.into(), v2: c.into() }, albedo(t)))
+            .unzip();
+        let bvh =
+            build_cwbvh_from_tris(&triangles, BvhBuildParams::medium_build(), &mut std::time::Duration::default());
+        Self { bvh, triangles, albedo }
+    }
+
+    /// The closest hit in `[t_min, t_max]`: its distance and the index of the triangle hit (among those
+    /// kept).
+    fn closest_hit(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, usize)> {
+        // Negative zeros made positive (-0 + 0 is +0): the traversal missed the triangles straight up a ray
+        // along an axis whose other components were -0 (a sun straight down, turned: `-Vec3::NEG_Y`).
+        let dir = dir + Vec3::ZERO;
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), t_min, t_max);
         let mut hit = RayHit::none();
         let triangle = |id: usize| &self.triangles[self.bvh.primitive_indices[id] as usize];
         self.bvh
             .ray_traverse(ray, &mut hit, |ray, id| triangle(id).intersect(ray))
-            .then(|| (hit.t, Vec3::from(triangle(hit.primitive_id as usize).compute_normal()).normalize_or_zero()))
+            .then(|| (hit.t, self.bvh.primitive_indices[hit.primitive_id as usize] as usize))
+    }
+
+    /// The distance to the closest hit in `[t_min, t_max]` and the unit normal of the triangle hit (by its
+    /// winding; zero for a degenerate triangle).
+    pub fn closest_hit_normal(&self, origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> Option<(f32, Vec3)> {
+        self.closest_hit(origin, dir, t_min, t_max).map(|(t, i)| (t, self.normal(i)))
+    }
+
+    /// The unit normal of kept triangle `i`, by its winding (zero for a degenerate triangle).
+    fn normal(&self, i: usize) -> Vec3 {
+        Vec3::from(self.triangles[i].compute_normal()).normalize_or_zero()
     }
 
     /// Whether the line of sight from `eye` to `point` passes only the backs of faces (by their winding,
@@ -119,6 +143,45 @@ pub fn reference_ao(
     }
 }
 
+/// The indirect diffuse irradiance (lux per colour channel, before exposure) at `position` (world) with
+/// shading normal `normal`: one bounce of `lights` off the scene's triangles, from `rays` cosine-weighted
+/// rays (`cpu::ao::hemisphere_direction`, turned by `rotation`). A ray that hits a triangle takes its
+/// outgoing radiance, `albedo / pi * E * max(n . l, 0)` for each light whose shadow ray reaches it (the face's
+/// normal turned toward the ray, as a two-sided surface); a ray that hits nothing takes `sky` (the radiance of
+/// the environment or `GlobalAmbientLight`). The irradiance is pi times the rays' mean radiance. `epsilon`
+/// (world units) lifts each ray's start off its surface.
+#[allow(clippy::too_many_arguments)]
+pub fn reference_indirect(
+    scene: &ReferenceScene,
+    lights: &[Light],
+    sky: Vec3,
+    position: Vec3,
+    normal: Vec3,
+    rays: u32,
+    rotation: Vec2,
+    epsilon: f32,
+) -> Vec3 {
+    let origin = position + normal * epsilon;
+    let basis = orthonormal_basis(normal);
+    let radiance: Vec3 = (0..rays)
+        .map(|i| {
+            let dir = hemisphere_direction(basis, i, rays, rotation);
+            let Some((t, triangle)) = scene.closest_hit(origin, dir, epsilon, f32::INFINITY) else { return sky };
+            let n = scene.normal(triangle);
+            let n = if n.dot(dir) > 0.0 { -n } else { n };
+            let hit = origin + dir * t + n * epsilon;
+            lights
+                .iter()
+                .filter_map(|light| light.incident(hit))
+                .filter(|incident| n.dot(incident.to_light) > 0.0)
+                .filter(|incident| scene.closest_hit(hit, incident.to_light, epsilon, incident.distance).is_none())
+                .map(|incident| diffuse_radiance(scene.albedo[triangle], n, &incident))
+                .sum()
+        })
+        .sum();
+    radiance * std::f32::consts::PI / rays.max(1) as f32
+}
+
 /// A hash of an integer to [0, 1): the tools' per-pixel ray rotations and jitters (the same pixel gets the
 /// same rays in every frame and every run).
 pub fn hash(mut x: u32) -> f32 {
@@ -179,5 +242,43 @@ mod tests {
                 OccluderView::Hidden
             });
         assert!(r.culled_share == 0.0 && r.hidden_share == 1.0);
+    }
+
+    #[test]
+    fn a_point_over_a_sunlit_floor_receives_the_floors_albedo_times_the_sun() {
+        // Facing down over a large floor of albedo 0.5 under a 1000 lux sun, every ray meets the floor:
+        // radiance 0.5 / pi * 1000 over the whole hemisphere, irradiance 500 lux.
+        let floor = {
+            let p = [(-1e3, -1e3), (1e3, -1e3), (1e3, 1e3), (-1e3, 1e3)].map(|(x, z)| Vec3::new(x, 0.0, z));
+            TriangleMesh::new(p.to_vec(), vec![[0, 2, 1], [0, 3, 2]])
+        };
+        let scene = ReferenceScene::with_albedo(&floor, |_| Vec3::new(0.5, 0.25, 0.0));
+        let sun = Light::Directional { direction: Vec3::NEG_Y, color: Vec3::ONE, illuminance: 1000.0 };
+        let e = reference_indirect(
+            &scene,
+            &[sun],
+            Vec3::ZERO,
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::NEG_Y,
+            256,
+            Vec2::ZERO,
+            1e-4,
+        );
+        assert!((e - Vec3::new(500.0, 250.0, 0.0)).abs().max_element() < 1.0, "{e}");
+        // A roof between the sun and the floor shades it: no bounce under it but the sky's.
+        let mut shaded = floor.clone();
+        let roof = [(-1e3, -1e3), (1e3, -1e3), (1e3, 1e3), (-1e3, 1e3)].map(|(x, z)| Vec3::new(x, 3.0, z));
+        shaded.append(&TriangleMesh::new(roof.to_vec(), vec![[0, 1, 2], [0, 2, 3]]), Default::default());
+        let scene = ReferenceScene::with_albedo(&shaded, |_| Vec3::new(0.5, 0.25, 0.0));
+        let e =
+            reference_indirect(&scene, &[sun], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y, 64, Vec2::ZERO, 1e-4);
+        assert_eq!(e, Vec3::ZERO);
+        // Facing up, toward the roof, under no light at all but a sky of radiance 1 that it hides: none.
+        let e = reference_indirect(&scene, &[], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 64, Vec2::ZERO, 1e-4);
+        assert_eq!(e, Vec3::ZERO);
+        // Facing up over the floor alone, every ray goes to the sky: pi times its radiance.
+        let open = ReferenceScene::new(&floor);
+        let e = reference_indirect(&open, &[sun], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 16, Vec2::ZERO, 1e-4);
+        assert!((e - Vec3::splat(std::f32::consts::PI)).abs().max_element() < 1e-4, "{e}");
     }
 }
