@@ -111,6 +111,22 @@ pub fn spawn_scene(
                 );
             }
         }
+        SceneSource::Builtin(name) if crate::meshes::gi_rooms::gi_parts(name).is_some() => {
+            let parts = crate::meshes::gi_rooms::gi_parts(name).expect("checked in the guard");
+            for (k, (albedo, mesh)) in parts.into_iter().enumerate() {
+                let color = Color::linear_rgb(albedo.x, albedo.y, albedo.z);
+                spawned.push(
+                    commands
+                        .spawn((
+                            Mesh3d(meshes.add(bevy_mesh(&mesh, false))),
+                            MeshMaterial3d(materials.add(StandardMaterial { base_color: color, ..default() })),
+                            bevy_hao::StaticOccluder,
+                            Name::new(format!("{name} part {k}")),
+                        ))
+                        .id(),
+                );
+            }
+        }
         SceneSource::Builtin(name) => {
             let mesh = crate::meshes::builtin(name).expect("checked in parse");
             let smooth = matches!(name.as_str(), "sphere" | "torus");

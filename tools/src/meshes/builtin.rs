@@ -3,7 +3,7 @@
 //! examples), two furnished interiors of boxes, an apartment and an office hall, on which nothing was
 //! tuned, `ao_motion`'s room of contacts (a crate in a corner, a step, a leaning pole, a resting
 //! sphere), the README's quick start (a sphere resting on a floor) and Bevy's own `ssao` example (three
-//! cubes and a sphere between them). All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
+//! cubes and a sphere between them), and the scenes of diffuse global illumination (`super::gi_rooms`). All in meters, Y up; every closed shape is a closed, consistently outward-wound surface (the
 //! tests check it).
 
 use bevy_hao::cpu::TriangleMesh;
@@ -11,7 +11,7 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::{PI, TAU};
 
 /// Names accepted by [`builtin`] (and by the examples as `builtin:NAME`).
-pub const BUILTIN_NAMES: [&str; 14] = [
+pub const BUILTIN_NAMES: [&str; 16] = [
     "windmill",
     "pyramid",
     "chamfer-box",
@@ -26,6 +26,8 @@ pub const BUILTIN_NAMES: [&str; 14] = [
     "contacts",
     "quick-start",
     "ssao-example",
+    "gi-room",
+    "thin-wall",
 ];
 
 /// The names of the closed shapes among [`BUILTIN_NAMES`] (all but the windmill, whose blades are open
@@ -52,6 +54,8 @@ pub fn builtin(name: &str) -> Option<TriangleMesh> {
         "quick-start" => quick_start(),
         // Bevy's own `ssao` example, its sphere at the origin (`ao_motion bob` at frame 0).
         "ssao-example" => crate::motion::MotionScene::named("bob", crate::motion::Marker::Dynamic)?.triangles_at(0),
+        // The scenes of diffuse global illumination, their parts as one mesh (`super::gi_rooms`).
+        "gi-room" | "thin-wall" => super::gi_rooms::gi_scene(name)?.0,
         _ => return None,
     })
 }

@@ -1,7 +1,9 @@
 //! Meshes for examples, tests and tools, with no Bevy types: the built-in shapes and the procedural
-//! cathedral ([`mod@builtin`]), and OBJ and glTF files read from disk ([`obj`], [`gltf_file`]).
+//! cathedral ([`mod@builtin`]), the scenes of diffuse global illumination with their albedo ([`gi_rooms`]),
+//! and OBJ and glTF files read from disk ([`obj`], [`gltf_file`]).
 
 pub mod builtin;
+pub mod gi_rooms;
 pub mod gltf_animation;
 pub mod gltf_file;
 pub mod obj;
