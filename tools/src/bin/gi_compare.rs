@@ -1,0 +1,193 @@
+//! The indirect diffuse light of a scene under a sun, ray-traced on its triangles, and the bar a real-time
+//! GI must clear there (docs/design-gi.md): the error of the best constant ambient light, the one uniform
+//! irradiance that comes closest to the reference over the view. The issue's goal for voxel GI is at most
+//! half that error.
+//!
+//! Each pixel's camera ray meets the scene's triangles (Bevy's default perspective, 45 degrees vertical);
+//! from that point `--rays` cosine-weighted rays gather one bounce of the sun off the triangles' albedo,
+//! shadow rays included, the sky's radiance where they miss (`bevy_hao_tools::reference::reference_indirect`).
+//! The built-in GI scenes (`builtin:gi-room`, `builtin:thin-wall`) carry their parts' albedo; any other scene
+//! is white. The best constant is, per colour channel, the median of the pixels' irradiance (the constant
+//! that minimises the mean absolute error). It prints both, with the error relative to the mean irradiance,
+//! and writes the reference, the constant and their difference side by side (`--out`). No GPU: the
+//! voxel GI's own column comes with its pass.
+//!
+//! ```sh
+//! cargo run --release -p bevy_hao_tools --bin gi_compare -- [SCENE] [--size 320x180] [--rays 1024]
+//!     [--sun X,Y,Z] [--illuminance LUX] [--sky R,G,B] [--camera X,Y,Z --look X,Y,Z] [--out gi_compare.png]
+//! ```
+
+use bevy::prelude::*;
+use bevy_hao::cpu::lighting::Light;
+use bevy_hao_tools::harness::args;
+use bevy_hao_tools::meshes::gi_rooms::gi_scene;
+use bevy_hao_tools::reference::{ReferenceScene, hash, reference_indirect};
+use bevy_hao_tools::scene::{SceneSource, default_camera};
+use clap::Parser;
+
+#[derive(Parser)]
+#[command(about = "The ray-traced indirect light of a scene under a sun, and the best constant ambient's error")]
+struct Args {
+    /// The scene: an OBJ or glTF path, or builtin:NAME.
+    #[arg(default_value = "builtin:gi-room")]
+    scene: String,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, value_parser = args::size, default_value = "320x180")]
+    size: UVec2,
+    /// Cosine-weighted rays a pixel.
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    rays: u32,
+    /// The way the sun's light travels, X,Y,Z (default: low, toward -x: in `builtin:gi-room` through the
+    /// ceiling's opening onto the red wall's foot and the floor before it).
+    #[arg(long, value_parser = args::vec3, default_value = "-1,-0.9,0.15")]
+    sun: Vec3,
+    /// The sun's illuminance, lux.
+    #[arg(long, default_value_t = 10_000.0)]
+    illuminance: f32,
+    /// The sky's radiance where a ray escapes, R,G,B (cd/m^2; Bevy's `GlobalAmbientLight` or environment).
+    #[arg(long, value_parser = args::vec3, default_value = "0,0,0")]
+    sky: Vec3,
+    /// Camera position X,Y,Z (with --look; default: inside, down the long axis).
+    #[arg(long, value_parser = args::vec3, requires = "look")]
+    camera: Option<Vec3>,
+    /// The point the camera looks at, X,Y,Z (with --camera).
+    #[arg(long, value_parser = args::vec3, requires = "camera")]
+    look: Option<Vec3>,
+    /// The PNG written: the reference, the best constant and their difference side by side.
+    #[arg(long, default_value = "gi_compare.png")]
+    out: String,
+}
+
+fn main() {
+    let args = Args::parse();
+    let sun_ok = args.sun.length() > 0.0 && args.sun.is_finite();
+    let illuminance_ok = args.illuminance.is_finite() && args.illuminance >= 0.0;
+    let sky_ok = args.sky.is_finite() && args.sky.min_element() >= 0.0;
+    if !(sun_ok && illuminance_ok && sky_ok) {
+        eprintln!(
+            "error: --sun must be a direction, --illuminance a finite number of lux and --sky finite radiances, \
+             neither below 0"
+        );
+        std::process::exit(2);
+    }
+    let source = SceneSource::parse(&args.scene).unwrap_or_else(|e| {
+        eprintln!("error: {e}");
+        std::process::exit(2);
+    });
+    let name = args.scene.strip_prefix("builtin:").unwrap_or("");
+    let (mesh, albedo) = match gi_scene(name) {
+        Some(scene) => scene,
+        None => {
+            let mesh = source.triangles().unwrap_or_else(|e| {
+                eprintln!("error: {e}");
+                std::process::exit(1);
+            });
+            let white = vec![Vec3::splat(0.8); mesh.triangle_count()];
+            (mesh, white)
+        }
+    };
+    let Some(bounds) = mesh.bounds() else {
+        eprintln!("error: {} has no triangles", args.scene);
+        std::process::exit(1);
+    };
+    let camera = match args.camera.zip(args.look) {
+        Some((eye, look)) => Transform::from_translation(eye).looking_at(look, Vec3::Y),
+        None => default_camera(bounds, true),
+    };
+    let scene = ReferenceScene::with_albedo(&mesh, |t| albedo[t]);
+    let sun = Light::Directional { direction: args.sun.normalize(), color: Vec3::ONE, illuminance: args.illuminance };
+    let (w, h) = (args.size.x, args.size.y);
+    let epsilon = 1e-4 * (bounds.1 - bounds.0).length().max(1.0);
+    // Bevy's default perspective: 45 degrees vertical.
+    let tan_half = (std::f32::consts::FRAC_PI_4 / 2.0).tan();
+    let aspect = w as f32 / h as f32;
+    let pixels: Vec<u32> = (0..w * h).collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let bar = bevy_hao_tools::harness::progress_bar(pixels.len() as u64, "reference");
+    // Each pixel's indirect irradiance (lux per channel), or None over the background.
+    let irradiance: Vec<Option<Vec3>> = std::thread::scope(|s| {
+        let handles: Vec<_> = pixels
+            .chunks(pixels.len().div_ceil(threads).max(1))
+            .map(|chunk| {
+                let (scene, bar, camera, args) = (&scene, &bar, &camera, &args);
+                s.spawn(move || {
+                    chunk
+                        .iter()
+                        .map(|&i| {
+                            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+                            let ndc = Vec2::new(x / w as f32 * 2.0 - 1.0, 1.0 - y / h as f32 * 2.0);
+                            let view_dir = Vec3::new(ndc.x * tan_half * aspect, ndc.y * tan_half, -1.0);
+                            let dir = (camera.rotation * view_dir).normalize();
+                            let hit = scene.closest_hit_normal(camera.translation, dir, 0.0, f32::INFINITY);
+                            bar.inc(1);
+                            hit.map(|(t, n)| {
+                                let n = if n.dot(dir) > 0.0 { -n } else { n };
+                                let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
+                                let p = camera.translation + dir * t;
+                                reference_indirect(scene, &[sun], args.sky, p, n, args.rays, rotation, epsilon)
+                            })
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles.into_iter().flat_map(|h| h.join().expect("a reference thread")).collect()
+    });
+    bar.finish_and_clear();
+    let shown: Vec<Vec3> = irradiance.iter().flatten().copied().collect();
+    if shown.is_empty() {
+        eprintln!("error: the view shows no surface");
+        std::process::exit(1);
+    }
+    let mean = shown.iter().copied().sum::<Vec3>() / shown.len() as f32;
+    let median = |c: usize| bevy_hao_tools::harness::median(shown.iter().map(|e| f64::from(e[c])).collect());
+    let constant = Vec3::from_array([0, 1, 2].map(|c| median(c).unwrap_or(0.0) as f32));
+    let error = shown.iter().map(|e| (*e - constant).abs()).sum::<Vec3>() / shown.len() as f32;
+    println!(
+        "{} ({} triangles), camera at {:.2} looking {:.2}; sun along {:.2}, {} lux; sky {}; {}x{}, {} rays a pixel",
+        args.scene,
+        mesh.triangle_count(),
+        camera.translation,
+        camera.forward().as_vec3(),
+        args.sun.normalize(),
+        args.illuminance,
+        args.sky,
+        w,
+        h,
+        args.rays
+    );
+    println!("\n| indirect irradiance, lux | red | green | blue |\n|---|---:|---:|---:|");
+    println!("| reference, mean over the view | {:.2} | {:.2} | {:.2} |", mean.x, mean.y, mean.z);
+    println!("| best constant ambient (the median) | {:.2} | {:.2} | {:.2} |", constant.x, constant.y, constant.z);
+    println!("| its mean absolute error | {:.2} | {:.2} | {:.2} |", error.x, error.y, error.z);
+    let relative = error / mean.max(Vec3::splat(1e-6));
+    println!("| its error relative to the mean | {:.3} | {:.3} | {:.3} |", relative.x, relative.y, relative.z);
+    println!(
+        "\nThe goal for voxel GI (docs/design-gi.md): a mean absolute error at most half the constant's, {:.2} lux \
+         summed over the channels.",
+        error.element_sum() / 2.0
+    );
+
+    // The PNG: reference | constant | |difference|, each scaled by twice the mean and tone-mapped x / (1 + x).
+    let scale = 1.0 / (2.0 * mean.max_element()).max(1e-6);
+    let tone = |e: Vec3| {
+        let v = e * scale;
+        let m = v / (Vec3::ONE + v);
+        image::Rgb(m.to_array().map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8))
+    };
+    let mut png = image::RgbImage::new(w * 3 + 8, h);
+    for (i, e) in irradiance.iter().enumerate() {
+        let (x, y) = (i as u32 % w, i as u32 / w);
+        let panels = e.map_or([Vec3::ZERO; 3], |e| [e, constant, (e - constant).abs()]);
+        for (k, v) in panels.into_iter().enumerate() {
+            png.put_pixel(k as u32 * (w + 4) + x, y, tone(v));
+        }
+    }
+    match png.save(&args.out) {
+        Ok(()) => eprintln!("wrote {} (left to right: the reference, the best constant, their difference)", args.out),
+        Err(e) => {
+            eprintln!("error: writing {}: {e}", args.out);
+            std::process::exit(1);
+        }
+    }
+}
