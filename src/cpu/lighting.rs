@@ -298,7 +298,8 @@ mod tests {
         assert!(lit.distance(expected) < 1.0e-3 * expected.length(), "{lit} {expected}");
         assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[sun]), Vec3::ZERO);
         // A sun at 45 degrees from -x (the roof's side) casts the roof's shadow past its edge (x = 4 m): the
-        // floor a cell past it (x = 4.375), which the sun overhead lights, is in shadow; 2 m past it, lit.
+        // floor a cell and a half past it (cell 17's centre, x = 4.375), which the sun overhead lights, is in
+        // shadow; 2 m past it, lit.
         let low = Light::Directional {
             direction: Vec3::new(1.0, -1.0, 0.0).normalize(),
             color: Vec3::ONE,
@@ -320,7 +321,7 @@ mod tests {
         let (mips, origin) = floor_under_a_roof();
         let levels = [TraceLevel { origin, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
         let floor = VoxelAttributes { albedo: Vec3::ONE, normal: Vec3::Y };
-        // 2 m over the floor's top (y = 0.75) under the roof (y = 2.5): 1 candela.
+        // 1.5 m over the floor voxel's centre (y = 0.625), under the roof (y = 2.5): 1 candela.
         let center = cell_center(&levels[0], IVec3::new(8, 2, 16));
         let bulb = Light::Point {
             position: center + Vec3::new(0.0, 1.5, 0.0),
@@ -331,6 +332,15 @@ mod tests {
         let lit = voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[bulb]);
         let expected = bulb.incident(center).unwrap().illuminance.x / PI;
         assert!(close(lit.x, expected), "{lit} {expected}");
+        // Just under the roof (7.5 cm): the shadow march ends at the light, measured from the march's origin a
+        // cell above the voxel; a cell further on it would have gone into the roof.
+        let high = Light::Point {
+            position: center + Vec3::new(0.0, 1.8, 0.0),
+            color: Vec3::ONE,
+            intensity: 4.0 * PI,
+            range: 20.0,
+        };
+        assert!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[high]).x > 0.0);
         // Above the roof, the same bulb does not reach the floor.
         let above = Light::Point {
             position: center + Vec3::new(0.0, 3.0, 0.0),
@@ -339,9 +349,14 @@ mod tests {
             range: 20.0,
         };
         assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[above]), Vec3::ZERO);
-        // Bad lights and a voxel whose normals cancel: no light, no NaN.
+        // Bad lights: no light, no NaN.
         let bad = Light::Point { position: center + Vec3::Y, color: Vec3::ONE, intensity: f32::NAN, range: 20.0 };
         assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &floor, &[bad]), Vec3::ZERO);
+        // A voxel whose normals nearly cancel (an average a tenth long, under SHADOW_NORMAL_MIN): a tenth of the
+        // light, its shadow ray from its centre; one whose normals cancel: none.
+        let mostly_cancelled = VoxelAttributes { albedo: Vec3::ONE, normal: Vec3::Y * 0.1 };
+        let short = voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &mostly_cancelled, &[bulb]);
+        assert!(close(short.x, 0.1 * expected), "{short} {expected}");
         let both_faces = VoxelAttributes { albedo: Vec3::ONE, normal: Vec3::ZERO };
         assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &both_faces, &[bulb]), Vec3::ZERO);
     }

@@ -685,7 +685,7 @@ const MISS_KINDS: [&str; 7] = [
     "none (all before it)",
     "off the view or over the background",
     "in front of the view's surface",
-    "0-1 cell behind it",
+    "on it, to the prepass's precision (CONTACT_DEPTH_EPSILON)",
     "1-2 cells behind it",
     "2-4 cells behind it",
     "4+ cells behind it",

@@ -60,9 +60,9 @@ fn gi_room() -> Vec<(Vec3, TriangleMesh)> {
     vec![(WHITE, white), (RED, red), (GREEN, green)]
 }
 
-/// Two rooms, each 4 x 3 x 4 m inside, side by side along x (x in -4..0 and 0..4, z in -2..2), walls 0.25 m
-/// thick but the one between them, [`THIN_WALL`] thick (x in -THIN_WALL..0): the room at x < 0 closed, the
-/// one at x > 0 without a ceiling, open to the sky and the sun. All white.
+/// Two rooms side by side along x, 3 m high and 4 m deep (z in -2..2) inside: x in -4..-THIN_WALL and 0..4,
+/// walls 0.25 m thick but the one between them, [`THIN_WALL`] thick (x in -THIN_WALL..0): the room at x < 0
+/// closed, the one at x > 0 without a ceiling, open to the sky and the sun. All white.
 fn thin_wall() -> Vec<(Vec3, TriangleMesh)> {
     let t = 0.25;
     let id = glam::Affine3A::IDENTITY;
