@@ -10,11 +10,14 @@
 //! is white. The best constant is, per colour channel, the median of the pixels' irradiance (the constant
 //! that minimises the mean absolute error). It prints both, with the error relative to the mean irradiance,
 //! and writes the reference, the constant and their difference side by side (`--out`). No GPU: the
-//! voxel GI's own column comes with its pass.
+//! voxel GI's own column comes with its pass. `--voxel-twin CELL` adds its planned one bounce run on the
+//! CPU, a prototype (the scene voxelized with its albedo in cells of CELL metres, each voxel lit by
+//! `cpu::lighting::voxel_radiance`, each pixel's rays marched through the voxels to the lit voxel they stop in).
 //!
 //! ```sh
 //! cargo run --release -p bevy_hao_tools --bin gi_compare -- [SCENE] [--size 320x180] [--rays 1024]
-//!     [--sun X,Y,Z] [--illuminance LUX] [--sky R,G,B] [--camera X,Y,Z --look X,Y,Z] [--out gi_compare.png]
+//!     [--sun X,Y,Z] [--illuminance LUX] [--sky R,G,B] [--camera X,Y,Z --look X,Y,Z] [--voxel-twin CELL]
+//!     [--out gi_compare.png]
 //! ```
 
 use bevy::prelude::*;
@@ -53,6 +56,13 @@ struct Args {
     /// The point the camera looks at, X,Y,Z (with --camera).
     #[arg(long, value_parser = args::vec3, requires = "camera")]
     look: Option<Vec3>,
+    /// Also the voxels' one bounce, on the CPU, as the voxel GI is planned (docs/design-gi.md): the scene
+    /// voxelized with its albedo in one grid of cells of this size (metres), each voxel lit by
+    /// `cpu::lighting::voxel_radiance`, each pixel gathering the lit voxels its cosine rays meet through
+    /// the voxels (`march_cascades`, from a cell off the surface). A prototype of the GPU's gather to come,
+    /// not its twin.
+    #[arg(long, value_name = "CELL")]
+    voxel_twin: Option<f32>,
     /// The PNG written: the reference, the best constant and their difference side by side.
     #[arg(long, default_value = "gi_compare.png")]
     out: String,
@@ -90,6 +100,13 @@ fn main() {
         eprintln!("error: {} has no triangles", args.scene);
         std::process::exit(1);
     };
+    if let Some(cell) = args.voxel_twin {
+        let cells = (bounds.1 - bounds.0) / cell;
+        if !(cell.is_finite() && cell > 0.0 && cells.max_element() <= 256.0) {
+            eprintln!("error: --voxel-twin takes a cell size in metres, above 0 and at least 1/256 of the scene");
+            std::process::exit(2);
+        }
+    }
     let camera = match args.camera.zip(args.look) {
         Some((eye, look)) => Transform::from_translation(eye).looking_at(look, Vec3::Y),
         None => default_camera(bounds, true),
@@ -134,6 +151,8 @@ fn main() {
         handles.into_iter().flat_map(|h| h.join().expect("a reference thread")).collect()
     });
     bar.finish_and_clear();
+    // The voxels' one bounce at the same points, where asked.
+    let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, &sun, &args, &camera, tan_half, aspect));
     let shown: Vec<Vec3> = irradiance.iter().flatten().copied().collect();
     if shown.is_empty() {
         eprintln!("error: the view shows no surface");
@@ -162,6 +181,22 @@ fn main() {
     println!("| its mean absolute error | {:.2} | {:.2} | {:.2} |", error.x, error.y, error.z);
     let relative = error / mean.max(Vec3::splat(1e-6));
     println!("| its error relative to the mean | {:.3} | {:.3} | {:.3} |", relative.x, relative.y, relative.z);
+    if let Some(voxel) = &voxel {
+        let pairs: Vec<(Vec3, Vec3)> = irradiance.iter().zip(voxel).filter_map(|(r, v)| Some(((*r)?, (*v)?))).collect();
+        let n = pairs.len().max(1) as f32;
+        let v_mean = pairs.iter().map(|p| p.1).sum::<Vec3>() / n;
+        let v_error = pairs.iter().map(|(r, v)| (*r - *v).abs()).sum::<Vec3>() / n;
+        let v_relative = v_error / mean.max(Vec3::splat(1e-6));
+        println!(
+            "| the voxels' one bounce (CPU prototype), mean | {:.2} | {:.2} | {:.2} |",
+            v_mean.x, v_mean.y, v_mean.z
+        );
+        println!("| its mean absolute error | {:.2} | {:.2} | {:.2} |", v_error.x, v_error.y, v_error.z);
+        println!(
+            "| its error relative to the mean | {:.3} | {:.3} | {:.3} |",
+            v_relative.x, v_relative.y, v_relative.z
+        );
+    }
     println!(
         "\nThe goal for voxel GI (docs/design-gi.md): a mean absolute error at most half the constant's, {:.2} lux \
          summed over the channels.",
@@ -190,4 +225,88 @@ fn main() {
             std::process::exit(1);
         }
     }
+}
+
+/// `--voxel-twin`: each pixel's one bounce through the scene's voxels (cells of `cell` metres, with their
+/// average albedo and normal), or `None` over the background.
+#[allow(clippy::too_many_arguments)]
+fn voxel_bounce(
+    mesh: &bevy_hao::cpu::TriangleMesh,
+    albedo: &[Vec3],
+    cell: f32,
+    sun: &Light,
+    args: &Args,
+    camera: &Transform,
+    tan_half: f32,
+    aspect: f32,
+) -> Vec<Option<Vec3>> {
+    use bevy_hao::cpu::ao::{hemisphere_direction, orthonormal_basis};
+    use bevy_hao::cpu::attributes::pack_albedo;
+    use bevy_hao::cpu::lighting::voxel_radiance;
+    use bevy_hao::cpu::march::{TraceLevel, VoxelMips, march_cascades};
+    use bevy_hao::cpu::voxelize::{InjectionRegion, VoxelizeSettings, voxelize_sampled_mesh_in_region};
+    use bevy_hao::cpu::{MeshAlbedo, VoxelGrid, VoxelOccupancy};
+    let (lo, hi) = mesh.bounds().expect("checked");
+    let origin = lo - Vec3::splat(2.0 * cell);
+    let dims = ((hi - lo) / cell).ceil().as_uvec3() + UVec3::splat(4);
+    let grid = VoxelGrid::new(origin, cell, dims).expect("a grid over the scene");
+    let occupancy = VoxelOccupancy::with_attributes(grid);
+    // One mesh a colour: the triangles of each albedo.
+    let mut colours: Vec<Vec3> = albedo.to_vec();
+    colours.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).unwrap_or(std::cmp::Ordering::Equal));
+    colours.dedup();
+    for colour in colours {
+        let triangles = mesh.triangles.iter().zip(albedo).filter(|(_, a)| **a == colour).map(|(t, _)| *t).collect();
+        let part = bevy_hao::cpu::TriangleMesh::new(mesh.positions.clone(), triangles);
+        let base = MeshAlbedo { base: pack_albedo(colour), vertex_colors: None };
+        let region = InjectionRegion::whole(dims);
+        voxelize_sampled_mesh_in_region(
+            &part,
+            &base,
+            grid.grid_from_world(),
+            &VoxelizeSettings::default(),
+            &region,
+            &occupancy,
+        );
+    }
+    let mips = VoxelMips::new(&occupancy, 4);
+    let levels = [TraceLevel { origin, cell_size: cell, window_min: IVec3::ZERO, mips: &mips }];
+    // Each occupied voxel's radiance.
+    let radiance: Vec<Vec3> = (0..grid.voxel_count() as u32)
+        .map(|i| {
+            let c = grid.cell_of_index(i);
+            occupancy.attributes(c).map_or(Vec3::ZERO, |a| voxel_radiance(&levels, 0, c.as_ivec3(), &a, &[*sun]))
+        })
+        .collect();
+    let scene = ReferenceScene::new(mesh);
+    let (w, h) = (args.size.x, args.size.y);
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            let ndc = Vec2::new(x / w as f32 * 2.0 - 1.0, 1.0 - y / h as f32 * 2.0);
+            let dir = (camera.rotation * Vec3::new(ndc.x * tan_half * aspect, ndc.y * tan_half, -1.0)).normalize();
+            let (t, n) = scene.closest_hit_normal(camera.translation, dir, 0.0, f32::INFINITY)?;
+            let n = if n.dot(dir) > 0.0 { -n } else { n };
+            let p = camera.translation + dir * t + n * cell;
+            let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
+            let basis = orthonormal_basis(n);
+            let rays = args.rays.min(256);
+            let sum: Vec3 = (0..rays)
+                .map(|k| {
+                    let d = hemisphere_direction(basis, k, rays, rotation);
+                    match march_cascades(&levels, p, d, 0, 1.0, 1.0e4, 512) {
+                        None => args.sky,
+                        Some((t, _)) => {
+                            let c = levels[0].level_position(p + d * (t + 0.01 * cell)).floor();
+                            if c.cmplt(Vec3::ZERO).any() || c.cmpge(dims.as_vec3()).any() {
+                                return Vec3::ZERO;
+                            }
+                            radiance[grid.linear_index(c.as_uvec3()) as usize]
+                        }
+                    }
+                })
+                .sum();
+            Some(sum * std::f32::consts::PI / rays as f32)
+        })
+        .collect()
 }
