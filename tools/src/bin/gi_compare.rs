@@ -12,7 +12,8 @@
 //! and writes the reference, the constant and their difference side by side (`--out`). No GPU: the
 //! voxel GI's own column comes with its pass. `--voxel-twin CELL` adds its planned one bounce run on the
 //! CPU, a prototype (the scene voxelized with its albedo in cells of CELL metres, each voxel lit by
-//! `cpu::lighting::voxel_radiance`, each pixel's rays marched through the voxels to the lit voxel they stop in).
+//! `cpu::lighting::voxel_radiance`, each pixel's rays marched through the voxels to the lit voxel they stop in,
+//! whose light they take only where its average normal faces them).
 //!
 //! ```sh
 //! cargo run --release -p bevy_hao_tools --bin gi_compare -- [SCENE] [--size 320x180] [--rays 1024]
@@ -301,7 +302,12 @@ fn voxel_bounce(
                             if c.cmplt(Vec3::ZERO).any() || c.cmpge(dims.as_vec3()).any() {
                                 return Vec3::ZERO;
                             }
-                            radiance[grid.linear_index(c.as_uvec3()) as usize]
+                            // A voxel's light only from its front: one seen from behind (its average normal along
+                            // the ray) holds faces the pixel does not see, such as a slab's sunlit top seen
+                            // from under it.
+                            let cell = c.as_uvec3();
+                            let facing = occupancy.attributes(cell).is_some_and(|a| a.normal.dot(d) < 0.0);
+                            if facing { radiance[grid.linear_index(cell) as usize] } else { Vec3::ZERO }
                         }
                     }
                 })
