@@ -119,6 +119,16 @@ fn main() {
     // Bevy's default perspective: 45 degrees vertical.
     let tan_half = (std::f32::consts::FRAC_PI_4 / 2.0).tan();
     let aspect = w as f32 / h as f32;
+    // Each pixel's surface point and normal (turned toward the camera), or None over the background.
+    let surfaces: Vec<Option<(Vec3, Vec3)>> = (0..w * h)
+        .map(|i| {
+            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+            let ndc = Vec2::new(x / w as f32 * 2.0 - 1.0, 1.0 - y / h as f32 * 2.0);
+            let dir = (camera.rotation * Vec3::new(ndc.x * tan_half * aspect, ndc.y * tan_half, -1.0)).normalize();
+            let (t, n) = scene.closest_hit_normal(camera.translation, dir, 0.0, f32::INFINITY)?;
+            Some((camera.translation + dir * t, if n.dot(dir) > 0.0 { -n } else { n }))
+        })
+        .collect();
     let pixels: Vec<u32> = (0..w * h).collect();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let bar = bevy_hao_tools::harness::progress_bar(pixels.len() as u64, "reference");
@@ -127,21 +137,14 @@ fn main() {
         let handles: Vec<_> = pixels
             .chunks(pixels.len().div_ceil(threads).max(1))
             .map(|chunk| {
-                let (scene, bar, camera, args) = (&scene, &bar, &camera, &args);
+                let (scene, bar, surfaces, args) = (&scene, &bar, &surfaces, &args);
                 s.spawn(move || {
                     chunk
                         .iter()
                         .map(|&i| {
-                            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-                            let ndc = Vec2::new(x / w as f32 * 2.0 - 1.0, 1.0 - y / h as f32 * 2.0);
-                            let view_dir = Vec3::new(ndc.x * tan_half * aspect, ndc.y * tan_half, -1.0);
-                            let dir = (camera.rotation * view_dir).normalize();
-                            let hit = scene.closest_hit_normal(camera.translation, dir, 0.0, f32::INFINITY);
                             bar.inc(1);
-                            hit.map(|(t, n)| {
-                                let n = if n.dot(dir) > 0.0 { -n } else { n };
+                            surfaces[i as usize].map(|(p, n)| {
                                 let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
-                                let p = camera.translation + dir * t;
                                 reference_indirect(scene, &[sun], args.sky, p, n, args.rays, rotation, epsilon)
                             })
                         })
@@ -153,7 +156,7 @@ fn main() {
     });
     bar.finish_and_clear();
     // The voxels' one bounce at the same points, where asked.
-    let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, &sun, &args, &camera, tan_half, aspect));
+    let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, &sun, &args, &surfaces));
     let shown: Vec<Vec3> = irradiance.iter().flatten().copied().collect();
     if shown.is_empty() {
         eprintln!("error: the view shows no surface");
@@ -228,18 +231,15 @@ fn main() {
     }
 }
 
-/// `--voxel-twin`: each pixel's one bounce through the scene's voxels (cells of `cell` metres, with their
-/// average albedo and normal), or `None` over the background.
-#[allow(clippy::too_many_arguments)]
+/// `--voxel-twin`: the one bounce through the scene's voxels (cells of `cell` metres, with their average
+/// albedo and normal) at each pixel's surface point and normal (`surfaces`), or `None` over the background.
 fn voxel_bounce(
     mesh: &bevy_hao::cpu::TriangleMesh,
     albedo: &[Vec3],
     cell: f32,
     sun: &Light,
     args: &Args,
-    camera: &Transform,
-    tan_half: f32,
-    aspect: f32,
+    surfaces: &[Option<(Vec3, Vec3)>],
 ) -> Vec<Option<Vec3>> {
     use bevy_hao::cpu::ao::{hemisphere_direction, orthonormal_basis};
     use bevy_hao::cpu::attributes::pack_albedo;
@@ -279,16 +279,10 @@ fn voxel_bounce(
             occupancy.attributes(c).map_or(Vec3::ZERO, |a| voxel_radiance(&levels, 0, c.as_ivec3(), &a, &[*sun]))
         })
         .collect();
-    let scene = ReferenceScene::new(mesh);
-    let (w, h) = (args.size.x, args.size.y);
-    (0..w * h)
+    (0..surfaces.len() as u32)
         .map(|i| {
-            let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
-            let ndc = Vec2::new(x / w as f32 * 2.0 - 1.0, 1.0 - y / h as f32 * 2.0);
-            let dir = (camera.rotation * Vec3::new(ndc.x * tan_half * aspect, ndc.y * tan_half, -1.0)).normalize();
-            let (t, n) = scene.closest_hit_normal(camera.translation, dir, 0.0, f32::INFINITY)?;
-            let n = if n.dot(dir) > 0.0 { -n } else { n };
-            let p = camera.translation + dir * t + n * cell;
+            let (surface, n) = surfaces[i as usize]?;
+            let p = surface + n * cell;
             let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
             let basis = orthonormal_basis(n);
             let rays = args.rays.min(256);
