@@ -382,7 +382,7 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 41] = [
+    let pairs: [(&str, &str, f64); 42] = [
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),
@@ -402,6 +402,7 @@ fn shared_constants_agree() {
         (hao, "CHANGE_NOISE_FLOOR", temporal::CHANGE_NOISE_FLOOR as f64),
         (hao, "CHANGE_NOISE_SAMPLES", temporal::CHANGE_NOISE_SAMPLES as f64),
         (hao, "WINDOW_Z", temporal::WINDOW_Z as f64),
+        (hao, "STABLE_Z", temporal::STABLE_Z as f64),
         ("src/ao/hao_change.wgsl", "CHANGE_RAYS_SCALE", temporal::CHANGE_RAYS_SCALE as f64),
         ("src/ao/hao_change.wgsl", "CHANGE_RAYS_FROM", temporal::CHANGE_RAYS_FROM as f64),
         ("src/ao/hao_neighborhood.wgsl", "CHANGED_FILTER_REACH", temporal::CHANGED_FILTER_REACH as f64),

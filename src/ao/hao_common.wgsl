@@ -241,6 +241,23 @@ fn clamped_count(shift: f32, window: vec2<f32>) -> f32 {
     return max(current_variance(window) / (shift * shift), CLAMPED_COUNT);
 }
 
+// cpu/temporal.rs: STABLE_Z. How many standard errors of a still pixel's history the AO it shows may stray.
+const STABLE_Z: f32 = 1.0;
+
+// cpu/temporal.rs: stable_ao. The AO a pixel shows and the frames of the history it was taken from, from
+// what it showed last frame (`last`: ao, frames; `has_last`: the view stands still there and the pixel has
+// a history) and its new history (ao, frames of weight): where the history is longer than `max_count`, the
+// change near it caps no history (`cap`, `change_cap`, at least MAX_HISTORY_FRAMES), it holds under twice
+// the frames of the one shown, and lies within STABLE_Z standard errors (the current AO's variance over
+// 2 count - 1) of what it showed, the same AO again; else the history's.
+fn stable_ao(last: vec2<f32>, has_last: bool, ao: f32, count: f32, max_count: f32, cap: f32, window: vec2<f32>) -> vec2<f32> {
+    let reach = STABLE_Z * sqrt(current_variance(window) / max(2.0 * count - 1.0, 1.0));
+    if has_last && count > max_count && cap >= MAX_HISTORY_FRAMES && count < 2.0 * last.y && abs(ao - last.x) <= reach {
+        return last;
+    }
+    return vec2<f32>(ao, count);
+}
+
 // cpu/temporal.rs: history_limit. The most frames a pixel's history keeps: max_count (accumulation_frames),
 // or where the view stands still there (`still`: its surface reprojects onto the pixel itself) still_count,
 // within [max_count, MAX_HISTORY_FRAMES]; without accumulation none either way.

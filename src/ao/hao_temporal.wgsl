@@ -12,13 +12,14 @@
 // reads (at target_pixel(p): the texture is the target's size); with the near field, into the plugin's result
 // texture with the minimum of Bevy's screen-space AO, which the apply pass then copies (Bevy's SSAO texture
 // cannot be read and written in one pass). Near voxels that changed (moving occluders) the history is kept
-// as short as the change there calls for (`change_cap`).
+// as short as the change there calls for (`change_cap`). Where the view stands still, a pixel whose long
+// history stays near the AO it showed last frame shows that again (`stable_ao`; the `shown` buffer).
 // CPU twin: `bevy_hao::cpu::temporal`. The voxel grid is bound at group 2.
 #import bevy_render::view::View
 #import bevy_hao::hao_common::{
     HaoSettings, history_accepts, history_index, history_limit, octahedral_encode, pack_history, pack_normal,
-    target_pixel, temporal_update, trace_index, uses_stand_in, traced_pixel, texel_traced, trace_turn,
-    unpack_direction, unpack_history, STILL_TOLERANCE,
+    stable_ao, target_pixel, temporal_update, trace_index, uses_stand_in, traced_pixel, texel_traced,
+    trace_turn, unpack_direction, unpack_history, MAX_HISTORY_FRAMES, STILL_TOLERANCE,
 }
 #import bevy_hao::hao_change::{occlusion_change, change_cap}
 
@@ -48,13 +49,17 @@ struct PreviousViewData {
 #endif
 @group(0) @binding(6) var<uniform> settings: HaoSettings;
 @group(0) @binding(7) var<storage, read_write> history_out: array<vec2<u32>>;
+// The AO each pixel showed last frame and the frames of weight of the history it was taken from
+// (`pack2x16unorm`: the frames over MAX_HISTORY_FRAMES), at `history_index`, read and written in place: each
+// pixel reads and writes its own (`stable_ao`).
+@group(0) @binding(8) var<storage, read_write> shown: array<u32>;
 #ifdef NEAR_FIELD
-@group(0) @binding(8) var screen_space_ao: texture_2d<f32>;
-@group(0) @binding(9) var ao_out: texture_storage_2d<r32float, write>;
+@group(0) @binding(9) var screen_space_ao: texture_2d<f32>;
+@group(0) @binding(10) var ao_out: texture_storage_2d<r32float, write>;
 #else ifdef USE_R16FLOAT
-@group(0) @binding(8) var ao_out: texture_storage_2d<r16float, write>;
+@group(0) @binding(9) var ao_out: texture_storage_2d<r16float, write>;
 #else
-@group(0) @binding(8) var ao_out: texture_storage_2d<r32float, write>;
+@group(0) @binding(9) var ao_out: texture_storage_2d<r32float, write>;
 #endif
 
 @group(1) @binding(0) var<uniform> view: View;
@@ -125,6 +130,7 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     if depth <= 0.0 {
         // Background: no history.
         history_out[history_index(settings, pixel)] = pack_history(vec4<f32>(1.0, 0.0, 0.0, 0.0));
+        shown[history_index(settings, pixel)] = pack2x16unorm(vec2<f32>(1.0, 0.0));
         store_ao(pixel, 1.0);
         return;
     }
@@ -215,5 +221,13 @@ fn temporal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let blended = temporal_update(history_ao, history_count, window, traced, current, max_count, limit, cap, frames_per_trace);
     history_out[history_index(settings, pixel)] =
         pack_history(vec4<f32>(blended.x, view_depth, pack_normal(octahedral_encode(normal)), blended.y));
-    store_ao(pixel, blended.x);
+    // Where the view stands still and the pixel has a history (of its own texel, on its surface), what it
+    // showed last frame may stay.
+    let at = history_index(settings, pixel);
+    let last = unpack2x16unorm(shown[at]) * vec2<f32>(1.0, MAX_HISTORY_FRAMES);
+    let ao = stable_ao(last, still && history_count > 0.0, blended.x, blended.y, max_count, cap, window);
+    let kept = pack2x16unorm(ao / vec2<f32>(1.0, MAX_HISTORY_FRAMES));
+    shown[at] = kept;
+    // As kept, so that the frames that show it again show exactly the same.
+    store_ao(pixel, unpack2x16unorm(kept).x);
 }

@@ -17,7 +17,8 @@
 //! 3. **temporal** (`hao_temporal.wgsl`, `hao/temporal`), at full resolution: the history reprojected,
 //!    checked, clamped to its window and blended with the pixel's own filtered trace (at half resolution
 //!    every fourth frame, every eighth in the checkerboard; a pixel without history takes its traced neighbours
-//!    on its surface meanwhile). It
+//!    on its surface meanwhile; where the view stands still, a pixel keeps showing the AO it showed while
+//!    its long history stays near it). It
 //!    writes the result into the texture Bevy's PBR reads AO from, so it dims indirect light only;
 //! 4. with the near field only, the temporal pass writes a texture of its own with the minimum of Bevy's
 //!    SSAO, and **apply** (`hao_apply.wgsl`, `hao/apply`) copies it into the texture PBR reads (which holds
@@ -391,7 +392,10 @@ pub struct HybridAmbientOcclusion {
     /// the pixel itself (a still camera, a still surface, no TAA jitter), the history is read exactly, with
     /// no resampling to blur it, and the voxel grid's list of moved occluders shortens it near every occluder
     /// that moves (see `bevy_hao::cpu::temporal`), so it may keep more than `accumulation_frames` and the AO of a
-    /// still view settles further: its frame-to-frame shimmer falls as one over the frames kept. Counted as
+    /// still view settles further. There a pixel whose history is longer than `accumulation_frames` shows
+    /// the AO it showed last frame while its history stays within a standard error of it, so a still view
+    /// does not shimmer (a history of up to half the frames shown; near occluders that move, the history
+    /// itself). Counted as
     /// `accumulation_frames` is (a pixel's own traces); at least `accumulation_frames` (a lower value acts
     /// as it), at most 127 (what the history's texel holds). Lower it for geometry HAO does not see move
     /// (a vertex shader's animation, a `NoVoxelOcclusion` mesh), whose AO a long history would follow more

@@ -23,6 +23,11 @@ use bevy::shader::ShaderDefVal;
 /// than it fetches a texel.
 pub(crate) const HISTORY_TEXEL_BYTES: u64 = 8;
 
+/// Bytes of a pixel of the AO it showed last frame, with the frames of the history it was taken from (two
+/// 16-bit unorms), which the temporal pass reads and writes in place (`stable_ao` in hao_common.wgsl), laid
+/// out as the history.
+pub(crate) const SHOWN_TEXEL_BYTES: u64 = 4;
+
 /// Bytes of the window of a texel of the trace that bounds the history (lower and upper bound, two floats),
 /// which the neighborhood pass writes and the temporal pass reads, in a buffer laid out as the trace's.
 pub(crate) const WINDOW_TEXEL_BYTES: u64 = 8;
@@ -243,8 +248,9 @@ fn prepass_readers(
             (depth, normal, uniform_buffer::<GpuHaoSettings>(false), storage_buffer_sized(false, None)),
         ),
     );
-    // The trace, its windows and filtered AO, the history read and written, the prepasses and the settings;
-    // then the texture PBR reads, or with the near field Bevy's SSAO and the result texture.
+    // The trace, its windows and filtered AO, the history read and written, the prepasses, the settings and
+    // the AO shown last frame; then the texture PBR reads, or with the near field Bevy's SSAO and the result
+    // texture.
     let common = BindGroupLayoutEntries::sequential(
         ShaderStages::COMPUTE,
         (
@@ -255,6 +261,7 @@ fn prepass_readers(
             depth,
             normal,
             uniform_buffer::<GpuHaoSettings>(false),
+            storage_buffer_sized(false, None),
             storage_buffer_sized(false, None),
         ),
     );

@@ -3,7 +3,8 @@
 use super::HybridAmbientOcclusion;
 use super::pbr_texture::PbrAoTexture;
 use super::pipelines::{
-    FILTERED_TEXEL_BYTES, HISTORY_TEXEL_BYTES, HaoPipelines, TRACE_TEXEL_BYTES, TraceVariant, WINDOW_TEXEL_BYTES,
+    FILTERED_TEXEL_BYTES, HISTORY_TEXEL_BYTES, HaoPipelines, SHOWN_TEXEL_BYTES, TRACE_TEXEL_BYTES, TraceVariant,
+    WINDOW_TEXEL_BYTES,
 };
 use crate::voxel::bindings::GpuVoxelGrid;
 use crate::voxel::extract::ExtractedVoxelGrid;
@@ -139,6 +140,10 @@ pub struct HaoViewResources {
     pub history: Buffer,
     /// The temporal history this frame writes, same layout.
     pub history_out: Buffer,
+    /// The AO each pixel showed last frame and the frames of the history it was taken from, which the
+    /// temporal pass reads and writes in place (two 16-bit unorms a pixel, laid out as the history;
+    /// `stable_ao` in hao_common.wgsl).
+    pub shown: Buffer,
     /// With the near field: the AO combined with Bevy's SSAO, which apply copies into the texture PBR reads
     /// (without, the temporal pass writes there itself).
     pub result: Option<CachedTexture>,
@@ -256,7 +261,7 @@ pub fn prepare_hao_textures(
         let [a, b] = buffers.history.clone();
         let (history, history_out) = if (*frame).is_multiple_of(2) { (a, b) } else { (b, a) };
         let (noisy, window, filtered) = (buffers.noisy.clone(), buffers.window.clone(), buffers.filtered.clone());
-        let settings = buffers.settings.clone();
+        let (settings, shown) = (buffers.settings.clone(), buffers.shown.clone());
         let pbr_texture = (origin != UVec2::ZERO)
             .then(|| texture(&mut texture_cache, "hao_pbr_ao_texture", origin + view_size, pipelines.ao_format));
         let near_field = hao.near_field && super::near_field_can_run(samples, origin);
@@ -323,6 +328,7 @@ pub fn prepare_hao_textures(
             filtered,
             history,
             history_out,
+            shown,
             result,
             settings,
             trace_size,
@@ -358,6 +364,7 @@ const _: () = assert!(
     TRACE_TEXEL_BYTES <= HISTORY_TEXEL_BYTES
         && WINDOW_TEXEL_BYTES <= HISTORY_TEXEL_BYTES
         && FILTERED_TEXEL_BYTES <= HISTORY_TEXEL_BYTES
+        && SHOWN_TEXEL_BYTES <= HISTORY_TEXEL_BYTES
 );
 
 /// A view's buffers (see `HaoViewResources`), for the view size and trace size of its `ViewHistory`.
@@ -367,6 +374,7 @@ pub struct ViewBuffers {
     window: Buffer,
     filtered: Buffer,
     history: [Buffer; 2],
+    shown: Buffer,
 }
 
 impl ViewBuffers {
@@ -393,6 +401,7 @@ impl ViewBuffers {
                 buffer("hao_history_a_buffer", view_size, HISTORY_TEXEL_BYTES),
                 buffer("hao_history_b_buffer", view_size, HISTORY_TEXEL_BYTES),
             ],
+            shown: buffer("hao_shown_buffer", view_size, SHOWN_TEXEL_BYTES),
         }
     }
 }
@@ -456,6 +465,7 @@ pub fn prepare_hao_bind_groups(
             normal,
             res.settings.as_entire_binding(),
             res.history_out.as_entire_binding(),
+            res.shown.as_entire_binding(),
             ssao_view,
         ));
         let (temporal, apply) = match &res.result {

@@ -47,7 +47,9 @@
 //!    history is read from the pixel's own texel, exactly, and the cap is
 //!    `HybridAmbientOcclusion::still_accumulation_frames` ([`history_limit`]): nothing resamples that
 //!    history, and the change cap (3.) shortens it near anything that moves, so a still view settles
-//!    further, its frame-to-frame change falling as one over the frames kept.
+//!    further, its frame-to-frame change falling as one over the frames kept. There a pixel shows the AO
+//!    it showed last frame while its history, longer than `accumulation_frames` and out of reach of
+//!    anything that moved, stays within a standard error of it ([`stable_ao`]): a still view holds still.
 //!
 //! The history is kept at full resolution. A half-resolution trace traces one pixel of each 2x2 block a
 //! frame, each pixel in turn (`cpu::ao::traced_pixel`), so every pixel accumulates its own rays, one trace
@@ -315,6 +317,59 @@ pub fn temporal_blend(
     (if count <= 1.0 { current } else { h + (current - h) / count }, count)
 }
 
+/// How many standard errors of a still pixel's history the AO it shows may stray from the history
+/// ([`stable_ao`]; WGSL: `STABLE_Z`).
+pub const STABLE_Z: f32 = 1.0;
+
+/// The AO a pixel shows and the frames of weight of the history it was taken from (WGSL: `stable_ao`),
+/// from what it showed last frame (`shown`: `None` where the view does not stand still there,
+/// [`history_limit`], or the pixel has no history) and its new history's AO and frames of weight (`ao`,
+/// `count`; [`temporal_update`]), with `max_count` (`HybridAmbientOcclusion::accumulation_frames`) and the
+/// window of its neighbourhood's trace, and the cap the occluders that moved near it put on its history
+/// ([`change_cap`]). Where the history is longer than a moving view keeps (`count > max_count`: the view
+/// stands still), nothing that moved could change it enough to cap it (`cap` at least
+/// [`MAX_HISTORY_FRAMES`]: it changes by under a ten-thousandth a frame), holds less than twice the frames
+/// of the one shown (a history that doubled knows enough more to be shown) and lies within [`STABLE_Z`]
+/// standard errors of what the pixel showed (the current AO's variance, [`current_variance`], over
+/// `2 count - 1`, an exponential average's), the pixel shows the same AO again; else the history's. Each
+/// new trace moves a converged history by a 127th of its difference from it, a flicker Bevy's SSAO, whose
+/// noise does not move, has not: the pixel keeps one of its history's past values instead, about as likely
+/// right as the present one, until the history leaves it or doubles. Anywhere the history is cut or
+/// follows a change (near a moving occluder, after a clamp, in a moving view) it shows the history.
+pub fn stable_ao(
+    shown: Option<(f32, f32)>,
+    ao: f32,
+    count: f32,
+    max_count: f32,
+    cap: f32,
+    window: (f32, f32),
+) -> (f32, f32) {
+    match shown {
+        Some((shown, shown_count))
+            if count > max_count
+                && cap >= MAX_HISTORY_FRAMES
+                && count < 2.0 * shown_count
+                && (ao - shown).abs() <= stable_reach(count, window) =>
+        {
+            (shown, shown_count)
+        }
+        _ => (ao, count),
+    }
+}
+
+/// What the GPU keeps of [`stable_ao`]'s result (WGSL: `pack2x16unorm` in the temporal pass): the AO and the
+/// frames over [`MAX_HISTORY_FRAMES`], to 1/65535 each.
+pub fn shown_stored((ao, count): (f32, f32)) -> (f32, f32) {
+    let unorm16 = |v: f32| (v.clamp(0.0, 1.0) * 65535.0).round() / 65535.0;
+    (unorm16(ao), unorm16(count / MAX_HISTORY_FRAMES) * MAX_HISTORY_FRAMES)
+}
+
+/// How far [`stable_ao`] lets a pixel's shown AO stray from its history of `count` frames: [`STABLE_Z`]
+/// standard errors of the history (WGSL: in `stable_ao`).
+fn stable_reach(count: f32, window: (f32, f32)) -> f32 {
+    STABLE_Z * (current_variance(window) / (2.0 * count - 1.0).max(1.0)).sqrt()
+}
+
 /// A texel of the trace: the AO traced from a pixel, with that pixel's view depth and normal.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TracedTexel {
@@ -520,8 +575,8 @@ impl TraceFrame {
 /// GPU test holds the temporal pass to. `pixels` are the view's (`view_size`), each with its view depth and
 /// normal (`None`: background), and how much its occlusion can have changed each frame (`change`,
 /// [`occlusion_change`]: the voxels are the same, the occluders near it move); `frames` the trace of each
-/// frame, at half resolution or not. The result is each pixel's AO after the last frame (NaN for the
-/// background). Each pixel's own trace is filtered ([`prefilter`]) with the filter's `radius`
+/// frame, at half resolution or not. The result is the AO each pixel shows after the last frame
+/// ([`stable_ao`]; NaN for the background). Each pixel's own trace is filtered ([`prefilter`]) with the filter's `radius`
 /// (`HybridAmbientOcclusion::denoise_radius`). Every pixel's history keeps up to `still_count` frames
 /// (`still_accumulation_frames`: [`history_limit`]), the view being still; `max_count` is
 /// `accumulation_frames`.
@@ -540,6 +595,7 @@ pub fn accumulate_still(
     let trace_size = if half_resolution { (view_size + UVec2::ONE) / 2 } else { view_size };
     let mut ao = vec![f32::NAN; pixels.len()];
     let mut count = vec![0.0f32; pixels.len()];
+    let mut shown = vec![(f32::NAN, 0.0); pixels.len()];
     for frame in frames {
         for (i, pixel) in pixels.iter().enumerate() {
             let Some((depth, normal)) = *pixel else { continue };
@@ -562,12 +618,14 @@ pub fn accumulate_still(
             };
             let (a, c) =
                 temporal_update(ao[i], count[i], window, own, stand_in, max_count, limit, cap, frames_per_trace);
+            // The view stands still: what the pixel showed last frame, where it had a history.
+            shown[i] = shown_stored(stable_ao((count[i] > 0.0).then_some(shown[i]), a, c, max_count, cap, window));
             // As the GPU stores it (`HistoryTexel::stored`).
             let stored = HistoryTexel { ao: a, depth, normal, frames: c }.stored();
             (ao[i], count[i]) = (stored.ao, stored.frames);
         }
     }
-    ao
+    shown.into_iter().map(|(ao, _)| ao).collect()
 }
 
 #[cfg(test)]
@@ -1042,5 +1100,66 @@ mod tests {
         // No texel shows geometry: no window, the stand-in open.
         assert_eq!(trace_window(&[None; 9], size, UVec2::ONE, 1), (-1.0, 2.0));
         assert_eq!(stand_in(&[None; 9], size, UVec2::ONE, 10.0, Vec3::Z, 1), 1.0);
+    }
+
+    #[test]
+    fn a_converged_still_pixel_shows_the_same_ao_until_its_history_leaves_it() {
+        // Window (0.5, 0.9): the current AO's deviation 0.05 (its floor, 0.1, halved), so a history of 100
+        // frames may stray 0.05 / sqrt(199), about 0.0035, from what the pixel shows.
+        let window = (0.5, 0.9);
+        assert!((stable_reach(100.0, window) - 0.05 / 199f32.sqrt()).abs() < 1e-6);
+        assert_eq!(stable_ao(Some((0.6, 60.0)), 0.603, 100.0, 16.0, NONE, window), (0.6, 60.0));
+        assert_eq!(stable_ao(Some((0.6, 60.0)), 0.597, 100.0, 16.0, NONE, window), (0.6, 60.0));
+        assert_eq!(stable_ao(Some((0.6, 60.0)), 0.605, 100.0, 16.0, NONE, window), (0.605, 100.0));
+        // A history that doubled since is shown.
+        assert_eq!(stable_ao(Some((0.6, 50.0)), 0.603, 100.0, 16.0, NONE, window), (0.603, 100.0));
+        // A history no longer than a moving view keeps (cut by a change near the pixel or a clamp), or a
+        // pixel that showed nothing of its surface (a moving view, no history): the history.
+        assert_eq!(stable_ao(Some((0.6, 12.0)), 0.603, 16.0, 16.0, NONE, window), (0.603, 16.0));
+        assert_eq!(stable_ao(None, 0.603, 100.0, 16.0, NONE, window), (0.603, 100.0));
+        // Near an occluder that moved enough to cap a history of 127 frames, the history.
+        assert_eq!(stable_ao(Some((0.6, 60.0)), 0.603, 100.0, 16.0, 100.0, window), (0.603, 100.0));
+        assert_eq!(stable_ao(Some((0.6, 60.0)), 0.603, 100.0, 16.0, 127.0, window), (0.6, 60.0));
+        // A noisier neighbourhood, a longer reach (0.125 / sqrt(199), about 0.0089); NaN shown (never
+        // written) is never kept.
+        assert_eq!(stable_ao(Some((0.6, 60.0)), 0.608, 100.0, 16.0, NONE, (0.0, 1.2)), (0.6, 60.0));
+        assert_eq!(stable_ao(Some((f32::NAN, 60.0)), 0.603, 100.0, 16.0, NONE, window), (0.603, 100.0));
+        // As the GPU keeps it.
+        assert_eq!(shown_stored((0.5, 127.0)), (32768.0 / 65535.0, 127.0));
+    }
+
+    #[test]
+    fn a_still_pixel_flickers_less_and_is_as_right() {
+        // A pixel of AO 0.7 traced every frame with noise of deviation 0.058 (uniform within 0.1), its history
+        // up to 127 frames: after it converged, the history moves every frame, what the pixel shows seldom,
+        // and the one is about as far from the truth as the other.
+        let (window, truth) = ((0.5, 0.9), 0.7);
+        let mut seed = 12345u32;
+        let mut noise = move || {
+            seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 * 0.2 - 0.1
+        };
+        let (mut ao, mut count, mut shown): (f32, f32, Option<(f32, f32)>) = (0.0, 0.0, None);
+        let (mut history_moves, mut shown_moves, mut history_error, mut shown_error) = (0, 0, 0.0, 0.0);
+        for frame in 0..4000 {
+            let before = (ao, shown);
+            (ao, count) = temporal_blend(ao, count, window, truth + noise(), 127.0, NONE);
+            let s = stable_ao(shown, ao, count, 16.0, NONE, window);
+            shown = Some(s);
+            let s = s.0;
+            if frame >= 1000 {
+                history_moves += (ao != before.0) as u32;
+                shown_moves += (Some(s) != before.1.map(|b| b.0)) as u32;
+                history_error += (ao - truth).abs();
+                shown_error += (s - truth).abs();
+            }
+        }
+        let (history_error, shown_error) = (history_error / 3000.0, shown_error / 3000.0);
+        println!(
+            "moves in 3000 frames: history {history_moves}, shown {shown_moves}; error {history_error:.5}, {shown_error:.5}"
+        );
+        assert_eq!(history_moves, 3000);
+        assert!(shown_moves < 150, "{shown_moves}");
+        assert!(shown_error < 1.25 * history_error, "{shown_error} against {history_error}");
     }
 }
