@@ -12,8 +12,9 @@
 //! and writes the reference, the constant and their difference side by side (`--out`). No GPU: the
 //! voxel GI's own column comes with its pass. `--voxel-twin CELL` adds its planned one bounce run on the
 //! CPU, a prototype (the scene voxelized with its albedo in cells of CELL metres, each voxel lit by
-//! `cpu::lighting::voxel_radiance`, each pixel's rays marched through the voxels to the lit voxel they stop in,
-//! whose light they take only where its average normal faces them).
+//! `cpu::lighting::voxel_radiance`, each pixel's `--rays` rays marched through the voxels to the lit voxel they
+//! stop in, whose light they take only where its average normal faces them), and a second row to the PNG: the
+//! voxels' bounce, its difference from the reference, and where it is brighter (red) or darker (blue).
 //!
 //! ```sh
 //! cargo run --release -p bevy_hao_tools --bin gi_compare -- [SCENE] [--size 320x180] [--rays 1024]
@@ -214,16 +215,34 @@ fn main() {
         let m = v / (Vec3::ONE + v);
         image::Rgb(m.to_array().map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8))
     };
-    let mut png = image::RgbImage::new(w * 3 + 8, h);
+    // With `--voxel-twin`, a second row: the voxels' bounce, its difference from the reference, and where it
+    // is brighter (red) or darker (blue) than the reference, by the difference of the channels' sum.
+    let rows = if voxel.is_some() { 2 } else { 1 };
+    let mut png = image::RgbImage::new(w * 3 + 8, h * rows + 4 * (rows - 1));
     for (i, e) in irradiance.iter().enumerate() {
         let (x, y) = (i as u32 % w, i as u32 / w);
         let panels = e.map_or([Vec3::ZERO; 3], |e| [e, constant, (e - constant).abs()]);
         for (k, v) in panels.into_iter().enumerate() {
             png.put_pixel(k as u32 * (w + 4) + x, y, tone(v));
         }
+        if let Some(voxel) = &voxel {
+            let (e, v) = (e.unwrap_or(Vec3::ZERO), voxel[i].unwrap_or(Vec3::ZERO));
+            let excess = (v - e).element_sum();
+            let sign = if excess > 0.0 { Vec3::X } else { Vec3::Z } * excess.abs() / 3.0;
+            for (k, v) in [v, (v - e).abs(), sign].into_iter().enumerate() {
+                png.put_pixel(k as u32 * (w + 4) + x, h + 4 + y, tone(v));
+            }
+        }
     }
+    let second = if voxel.is_some() {
+        "; below: the voxels' bounce, its difference, where it is brighter (red) or darker (blue)"
+    } else {
+        ""
+    };
     match png.save(&args.out) {
-        Ok(()) => eprintln!("wrote {} (left to right: the reference, the best constant, their difference)", args.out),
+        Ok(()) => {
+            eprintln!("wrote {} (left to right: the reference, the best constant, their difference{second})", args.out)
+        }
         Err(e) => {
             eprintln!("error: writing {}: {e}", args.out);
             std::process::exit(1);
@@ -285,7 +304,7 @@ fn voxel_bounce(
             let p = surface + n * cell;
             let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
             let basis = orthonormal_basis(n);
-            let rays = args.rays.min(256);
+            let rays = args.rays;
             let sum: Vec3 = (0..rays)
                 .map(|k| {
                     let d = hemisphere_direction(basis, k, rays, rotation);
