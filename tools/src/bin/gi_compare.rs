@@ -18,7 +18,7 @@
 //!
 //! ```sh
 //! cargo run --release -p bevy_hao_tools --bin gi_compare -- [SCENE] [--size 320x180] [--rays 1024]
-//!     [--sun X,Y,Z] [--illuminance LUX] [--sky R,G,B] [--camera X,Y,Z --look X,Y,Z] [--voxel-twin CELL]
+//!     [--sun X,Y,Z] [--illuminance LUX] [--sky R,G,B] [--camera X,Y,Z --look X,Y,Z] [--voxel-twin CELL [--probes M]]
 //!     [--out gi_compare.png]
 //! ```
 
@@ -65,6 +65,12 @@ struct Args {
     /// not its twin.
     #[arg(long, value_name = "CELL")]
     voxel_twin: Option<f32>,
+    /// With --voxel-twin: gather at probes instead of at the pixels, as Bevy's irradiance volume would
+    /// hold them: a grid of this spacing (metres) over the scene, each probe's six faces gathered from its
+    /// centre through the voxels, each pixel reading the eight probes around it (trilinear, as Bevy samples
+    /// the volume's texture) along its normal (the ambient cube).
+    #[arg(long, value_name = "SPACING", requires = "voxel_twin")]
+    probes: Option<f32>,
     /// The PNG written: the reference, the best constant and their difference side by side.
     #[arg(long, default_value = "gi_compare.png")]
     out: String,
@@ -106,6 +112,13 @@ fn main() {
         let cells = (bounds.1 - bounds.0) / cell;
         if !(cell.is_finite() && cell > 0.0 && cells.max_element() <= 256.0) {
             eprintln!("error: --voxel-twin takes a cell size in metres, above 0 and at least 1/256 of the scene");
+            std::process::exit(2);
+        }
+    }
+    if let Some(spacing) = args.probes {
+        let probes = (bounds.1 - bounds.0) / spacing;
+        if !(spacing.is_finite() && spacing > 0.0 && probes.max_element() <= 256.0) {
+            eprintln!("error: --probes takes a spacing in metres, above 0 and at least 1/256 of the scene");
             std::process::exit(2);
         }
     }
@@ -157,7 +170,7 @@ fn main() {
     });
     bar.finish_and_clear();
     // The voxels' one bounce at the same points, where asked.
-    let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, &sun, &args, &surfaces));
+    let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, args.probes, &sun, &args, &surfaces));
     let shown: Vec<Vec3> = irradiance.iter().flatten().copied().collect();
     if shown.is_empty() {
         eprintln!("error: the view shows no surface");
@@ -251,11 +264,13 @@ fn main() {
 }
 
 /// `--voxel-twin`: the one bounce through the scene's voxels (cells of `cell` metres, with their average
-/// albedo and normal) at each pixel's surface point and normal (`surfaces`), or `None` over the background.
+/// albedo and normal) at each pixel's surface point and normal (`surfaces`), or `None` over the background;
+/// gathered at each pixel, or with `probes` at a grid of probes of that spacing, which the pixels read.
 fn voxel_bounce(
     mesh: &bevy_hao::cpu::TriangleMesh,
     albedo: &[Vec3],
     cell: f32,
+    probes: Option<f32>,
     sun: &Light,
     args: &Args,
     surfaces: &[Option<(Vec3, Vec3)>],
@@ -298,34 +313,72 @@ fn voxel_bounce(
             occupancy.attributes(c).map_or(Vec3::ZERO, |a| voxel_radiance(&levels, 0, c.as_ivec3(), &a, &[*sun]))
         })
         .collect();
-    (0..surfaces.len() as u32)
-        .map(|i| {
-            let (surface, n) = surfaces[i as usize]?;
-            let p = surface + n * cell;
-            let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
-            let basis = orthonormal_basis(n);
-            let rays = args.rays;
-            let sum: Vec3 = (0..rays)
-                .map(|k| {
-                    let d = hemisphere_direction(basis, k, rays, rotation);
-                    match march_cascades(&levels, p, d, 0, 1.0, 1.0e4, 512) {
-                        None => args.sky,
-                        Some((t, _)) => {
-                            let c = levels[0].level_position(p + d * (t + 0.01 * cell)).floor();
-                            if c.cmplt(Vec3::ZERO).any() || c.cmpge(dims.as_vec3()).any() {
-                                return Vec3::ZERO;
-                            }
-                            // A voxel's light only from its front: one seen from behind (its average normal along
-                            // the ray) holds faces the pixel does not see, such as a slab's sunlit top seen
-                            // from under it.
-                            let cell = c.as_uvec3();
-                            let facing = occupancy.attributes(cell).is_some_and(|a| a.normal.dot(d) < 0.0);
-                            if facing { radiance[grid.linear_index(cell) as usize] } else { Vec3::ZERO }
+    // The irradiance at `p` about `n`: pi times the mean radiance of `rays` cosine rays marched through the
+    // voxels (their noise rotated by `seed`).
+    let gather = |p: Vec3, n: Vec3, seed: u32| -> Vec3 {
+        let rotation = Vec2::new(hash(seed * 2 + 1), hash(seed * 2 + 2));
+        let basis = orthonormal_basis(n);
+        let rays = args.rays;
+        let sum: Vec3 = (0..rays)
+            .map(|k| {
+                let d = hemisphere_direction(basis, k, rays, rotation);
+                match march_cascades(&levels, p, d, 0, 1.0, 1.0e4, 512) {
+                    None => args.sky,
+                    Some((t, _)) => {
+                        let c = levels[0].level_position(p + d * (t + 0.01 * cell)).floor();
+                        if c.cmplt(Vec3::ZERO).any() || c.cmpge(dims.as_vec3()).any() {
+                            return Vec3::ZERO;
                         }
+                        // A voxel's light only from its front: one seen from behind (its average normal along
+                        // the ray) holds faces the pixel does not see, such as a slab's sunlit top seen
+                        // from under it.
+                        let cell = c.as_uvec3();
+                        let facing = occupancy.attributes(cell).is_some_and(|a| a.normal.dot(d) < 0.0);
+                        if facing { radiance[grid.linear_index(cell) as usize] } else { Vec3::ZERO }
                     }
-                })
-                .sum();
-            Some(sum * std::f32::consts::PI / rays as f32)
+                }
+            })
+            .sum();
+        sum * std::f32::consts::PI / rays as f32
+    };
+    let Some(spacing) = probes else {
+        // At each pixel, from a cell off its surface.
+        return (0..surfaces.len() as u32)
+            .map(|i| surfaces[i as usize].map(|(surface, n)| gather(surface + n * cell, n, i)))
+            .collect();
+    };
+    // Probes at the centres of a grid of `spacing` over the scene, each the irradiance of its six faces
+    // (+x, -x, +y, -y, +z, -z), an ambient cube as Bevy's irradiance volume holds it.
+    let counts = ((hi - lo) / spacing).ceil().as_uvec3().max(UVec3::ONE);
+    let probe_index = |c: UVec3| ((c.z * counts.y + c.y) * counts.x + c.x) as usize;
+    let axes = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
+    let faces: Vec<[Vec3; 6]> = (0..counts.x * counts.y * counts.z)
+        .map(|i| {
+            let c = UVec3::new(i % counts.x, i / counts.x % counts.y, i / (counts.x * counts.y));
+            let at = lo + (c.as_vec3() + 0.5) * spacing;
+            std::array::from_fn(|k| gather(at, axes[k], 1_000_003 + i * 6 + k as u32))
+        })
+        .collect();
+    // Each pixel: the eight probes around its point, trilinear (as Bevy samples the volume's texture, clamped
+    // at its edges), read along its normal (the sum of n_i^2 times the face its sign picks).
+    surfaces
+        .iter()
+        .map(|s| {
+            let (p, n) = (*s)?;
+            let u = ((p - lo) / spacing - 0.5).clamp(Vec3::ZERO, (counts - 1).as_vec3());
+            let base = u.floor().as_uvec3().min(counts - 1);
+            let f = u - base.as_vec3();
+            let mut e = Vec3::ZERO;
+            for corner in 0..8u32 {
+                let o = UVec3::new(corner & 1, corner >> 1 & 1, corner >> 2);
+                let c = (base + o).min(counts - 1);
+                let w = Vec3::select(o.cmpeq(UVec3::ONE), f, Vec3::ONE - f).element_product();
+                let face = &faces[probe_index(c)];
+                let cube = n * n;
+                let along = |axis: usize, positive: bool| face[axis * 2 + usize::from(!positive)];
+                e += w * (cube.x * along(0, n.x > 0.0) + cube.y * along(1, n.y > 0.0) + cube.z * along(2, n.z > 0.0));
+            }
+            Some(e)
         })
         .collect()
 }
