@@ -4,6 +4,7 @@
 mod ao;
 pub mod cpu;
 mod debug;
+mod gi;
 mod gpu;
 #[cfg(feature = "inspector")]
 pub mod inspector;
@@ -14,6 +15,7 @@ mod wgsl_tests;
 
 pub use ao::{HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin, MIN_VIEWPORT_PIXELS};
 pub use debug::{HaoDebugImages, HaoDebugView, HaoDebugViewPlugin};
+pub use gi::{GiAssets, MAX_LIGHTING_FRAMES, VoxelGlobalIllumination, VoxelGlobalIlluminationPlugin};
 pub use voxel::components::*;
 pub use voxel::{
     CascadeLevelStats, LevelBytes, RebuildStaticVoxels, VOXEL_GRID_GROUP, VoxelGridAssets, VoxelGridBindings,
@@ -28,7 +30,12 @@ pub struct HaoPlugin;
 
 impl Plugin for HaoPlugin {
     fn build(&self, app: &mut App) {
-        app.add_plugins((voxel::VoxelizationPlugin, ao::HybridAmbientOcclusionPlugin, debug::HaoDebugViewPlugin));
+        app.add_plugins((
+            voxel::VoxelizationPlugin,
+            ao::HybridAmbientOcclusionPlugin,
+            gi::VoxelGlobalIlluminationPlugin,
+            debug::HaoDebugViewPlugin,
+        ));
     }
 }
 
@@ -36,5 +43,5 @@ impl Plugin for HaoPlugin {
 pub mod prelude {
     pub use crate::HaoPlugin;
     pub use crate::voxel::components::*;
-    pub use crate::{HaoDebugImages, HaoDebugView, HaoQuality, HybridAmbientOcclusion};
+    pub use crate::{HaoDebugImages, HaoDebugView, HaoQuality, HybridAmbientOcclusion, VoxelGlobalIllumination};
 }

@@ -14,6 +14,7 @@ const MODULES: &[&str] = &[
     "src/voxel/voxel_grid.wgsl",
     "src/ao/hao_common.wgsl",
     "src/ao/hao_change.wgsl",
+    "src/gi/gi_common.wgsl",
 ];
 
 /// Bevy's modules our shaders import, relative to the `bevy_render` crate's root.
@@ -78,6 +79,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/ao/hao_apply.wgsl", vec![vec![("USE_R16FLOAT", ShaderDefValue::Bool(true))], vec![]]),
         ("src/debug/debug_images.wgsl", multisampled),
         ("src/debug/debug_view.wgsl", vec![vec![]]),
+        ("src/gi/gi_lighting.wgsl", vec![vec![]]),
     ]
 }
 
@@ -184,6 +186,7 @@ macro_rules! layout {
 fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
     use crate::ao::prepare::GpuHaoSettings;
     use crate::debug::{GpuDebugCopy, GpuDebugSettings};
+    use crate::gi::lighting::{GpuGiLight, GpuGiLightingParams};
     use crate::voxel::pipelines::{GpuLevelRegion, GpuOccluderInstance, GpuSlabGroup, GpuVoxelizeParams};
     vec![
         layout!(
@@ -220,6 +223,29 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
         ),
         layout!("src/debug/debug_view.wgsl", "DebugSettings", GpuDebugSettings, [mode, sample_words, has_ao, _pad]),
         layout!("src/debug/debug_images.wgsl", "DebugCopy", GpuDebugCopy, [ao_origin, prepass_origin]),
+        layout!(
+            "src/gi/gi_lighting.wgsl",
+            "GiLightingParams",
+            GpuGiLightingParams,
+            [light_count, phase, phases, blocks_z]
+        ),
+        layout!(
+            "src/gi/gi_lighting.wgsl",
+            "GiLight",
+            GpuGiLight,
+            [
+                position,
+                kind,
+                direction,
+                inverse_range_squared,
+                intensity,
+                spot_scale,
+                spot_offset,
+                _pad_a,
+                _pad_b,
+                _pad_c
+            ]
+        ),
         layout!(
             "src/voxel/voxelize_classify.wgsl",
             "OccluderInstance",
@@ -350,6 +376,7 @@ fn uploaded_structs_match_their_wgsl_layouts() {
     encased_as_in_memory::<crate::voxel::pipelines::GpuVoxelizeParams>();
     encased_as_in_memory::<crate::voxel::pipelines::GpuLevelRegion>();
     encased_as_in_memory::<crate::voxel::pipelines::GpuSlabGroup>();
+    encased_as_in_memory::<crate::gi::lighting::GpuGiLightingParams>();
     let (_, grid_size) = wgsl_layout(&module("src/ao/hao_trace.wgsl"), "VoxelGrid").expect("VoxelGrid");
     assert_eq!(grid_size as u64, crate::voxel::bindings::GpuVoxelGrid::min_size().get(), "VoxelGrid size");
     let (_, big) = wgsl_layout(&module("src/voxel/voxelize_expand.wgsl"), "BigTriangle").expect("BigTriangle");
@@ -382,7 +409,16 @@ fn shared_constants_agree() {
     use crate::voxel::{bindings, pipelines};
     let common = "src/voxel/voxelize_common.wgsl";
     let hao = "src/ao/hao_common.wgsl";
-    let pairs: [(&str, &str, f64); 42] = [
+    let gi = "src/gi/gi_common.wgsl";
+    let lighting = "src/gi/gi_lighting.wgsl";
+    let pairs: [(&str, &str, f64); 49] = [
+        (gi, "GI_LIGHT_DIRECTIONAL", crate::cpu::lighting::LightKind::Directional as u32 as f64),
+        (gi, "GI_LIGHT_POINT", crate::cpu::lighting::LightKind::Point as u32 as f64),
+        (gi, "GI_LIGHT_SPOT", crate::cpu::lighting::LightKind::Spot as u32 as f64),
+        (gi, "RGB9E5_MAX", crate::cpu::lighting::RGB9E5_MAX as f64),
+        (lighting, "SHADOW_START_CELLS", crate::cpu::lighting::SHADOW_START_CELLS as f64),
+        (lighting, "SHADOW_STEPS", crate::cpu::lighting::SHADOW_STEPS as f64),
+        (lighting, "SHADOW_NORMAL_MIN", crate::cpu::lighting::SHADOW_NORMAL_MIN as f64),
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),

@@ -88,51 +88,138 @@ pub fn distance_attenuation(distance_squared: f32, inverse_range_squared: f32) -
 /// of the spot's axis, 0 beyond `outer_angle`, `cos_angle` the cosine of the angle from the axis. Bevy
 /// clamps `outer_angle` just below pi/2 and `inner_angle` to at most `outer_angle`; so does this.
 pub fn spot_attenuation(cos_angle: f32, inner_angle: f32, outer_angle: f32) -> f32 {
-    let outer = if outer_angle >= FRAC_PI_2 { FRAC_PI_2 - 1.0e-4 } else { outer_angle };
-    let inner = inner_angle.min(outer);
-    let cos_outer = outer.cos();
-    let scale = 1.0 / (inner.cos() - cos_outer).max(1.0e-4);
-    let a = (cos_angle * scale - cos_outer * scale).clamp(0.0, 1.0);
+    let (scale, offset) = spot_scale_offset(inner_angle, outer_angle);
+    let a = (cos_angle * scale + offset).clamp(0.0, 1.0);
     a * a
 }
 
 impl Light {
     /// The light this one brings to the point `p`, or `None` where it brings none (behind a spot's cone,
-    /// out of range, a zero or non-finite intensity, a degenerate direction).
+    /// out of range, a zero or non-finite intensity, a degenerate direction): [`Light::prepare`], then
+    /// [`PreparedLight::incident`], as the GPU takes it.
     pub fn incident(&self, p: Vec3) -> Option<Incident> {
-        let (to_light, distance, illuminance) = match *self {
-            Light::Directional { direction, color, illuminance } => {
-                (-direction.normalize_or_zero(), f32::INFINITY, color * illuminance)
-            }
-            Light::Point { position, color, intensity, range } => {
-                let (to_light, d2) = toward(p, position);
-                (to_light, d2.sqrt(), color * point_illuminance(intensity, range, d2))
-            }
+        self.prepare()?.incident(p)
+    }
+
+    /// The light in the form the GPU's lighting pass takes it (WGSL `GiLight`), its constants folded as
+    /// Bevy's renderer folds them when it uploads its lights, or `None` for a light that brings no light
+    /// anywhere (a zero, negative or non-finite intensity, colour or range, a zero direction), which is then
+    /// never uploaded: the GPU sees no NaN.
+    pub fn prepare(&self) -> Option<PreparedLight> {
+        let bright = |v: Vec3| v.is_finite() && v.min_element() >= 0.0 && v.max_element() > 0.0;
+        let (prepared, range) = match *self {
+            Light::Directional { direction, color, illuminance } => (
+                PreparedLight {
+                    kind: LightKind::Directional,
+                    position: Vec3::ZERO,
+                    direction: direction.normalize_or_zero(),
+                    intensity: color * illuminance,
+                    inverse_range_squared: 0.0,
+                    spot_scale: 0.0,
+                    spot_offset: 0.0,
+                },
+                1.0,
+            ),
+            Light::Point { position, color, intensity, range } => (
+                PreparedLight {
+                    kind: LightKind::Point,
+                    position,
+                    direction: Vec3::ZERO,
+                    intensity: color * (intensity / (4.0 * PI)),
+                    inverse_range_squared: 1.0 / (range * range),
+                    spot_scale: 0.0,
+                    spot_offset: 0.0,
+                },
+                range,
+            ),
             Light::Spot { position, direction, color, intensity, range, inner_angle, outer_angle } => {
-                let (to_light, d2) = toward(p, position);
-                let cone = spot_attenuation(direction.normalize_or_zero().dot(-to_light), inner_angle, outer_angle);
-                (to_light, d2.sqrt(), color * point_illuminance(intensity, range, d2) * cone)
+                let (spot_scale, spot_offset) = spot_scale_offset(inner_angle, outer_angle);
+                (
+                    PreparedLight {
+                        kind: LightKind::Spot,
+                        position,
+                        direction: direction.normalize_or_zero(),
+                        intensity: color * (intensity / (4.0 * PI)),
+                        inverse_range_squared: 1.0 / (range * range),
+                        spot_scale,
+                        spot_offset,
+                    },
+                    range,
+                )
             }
         };
-        let lit = to_light != Vec3::ZERO && illuminance.is_finite() && illuminance.max_element() > 0.0;
+        let range_ok = range > 0.0 && range.is_finite();
+        let direction_ok = prepared.kind == LightKind::Point || prepared.direction != Vec3::ZERO;
+        let spot_ok = prepared.spot_scale.is_finite() && prepared.spot_offset.is_finite();
+        let ok = bright(prepared.intensity) && range_ok && direction_ok && prepared.position.is_finite() && spot_ok;
+        ok.then_some(prepared)
+    }
+}
+
+/// Bevy's spot cone as its renderer uploads it (`spot_light_scale`, `spot_light_offset`): the cosine of
+/// the angle from the axis times the scale plus the offset, saturated and squared, is the cone's factor
+/// ([`spot_attenuation`]). The outer angle is clamped just below pi/2 and the inner one to it.
+pub fn spot_scale_offset(inner_angle: f32, outer_angle: f32) -> (f32, f32) {
+    let outer = if outer_angle >= FRAC_PI_2 { FRAC_PI_2 - 1.0e-4 } else { outer_angle };
+    let inner = inner_angle.min(outer);
+    let cos_outer = outer.cos();
+    let scale = 1.0 / (inner.cos() - cos_outer).max(1.0e-4);
+    (scale, -cos_outer * scale)
+}
+
+/// What kind of light a [`PreparedLight`] is (WGSL: `GI_LIGHT_DIRECTIONAL`, `GI_LIGHT_POINT`,
+/// `GI_LIGHT_SPOT`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum LightKind {
+    /// A `DirectionalLight`.
+    Directional = 0,
+    /// A `PointLight`.
+    Point = 1,
+    /// A `SpotLight`.
+    Spot = 2,
+}
+
+/// A light in the form the lighting pass takes it (WGSL `GiLight`; made by [`Light::prepare`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedLight {
+    /// Its kind.
+    pub kind: LightKind,
+    /// World position (point and spot lights).
+    pub position: Vec3,
+    /// The way its light travels, unit length (directional lights), or the way a spot points.
+    pub direction: Vec3,
+    /// Per colour channel: a directional light's illuminance (lux), a point or spot light's luminous
+    /// intensity (candela: lumens over 4 pi).
+    pub intensity: Vec3,
+    /// `1 / range^2` (point and spot lights).
+    pub inverse_range_squared: f32,
+    /// The spot cone's scale ([`spot_scale_offset`]).
+    pub spot_scale: f32,
+    /// The spot cone's offset ([`spot_scale_offset`]).
+    pub spot_offset: f32,
+}
+
+impl PreparedLight {
+    /// The light this one brings to the point `p`, or `None` where it brings none (WGSL `light_incident`).
+    pub fn incident(&self, p: Vec3) -> Option<Incident> {
+        let (to_light, distance, illuminance) = match self.kind {
+            LightKind::Directional => (-self.direction, f32::INFINITY, self.intensity),
+            LightKind::Point | LightKind::Spot => {
+                let d = self.position - p;
+                let d2 = d.length_squared();
+                let to_light = d.normalize_or_zero();
+                let mut e = self.intensity * distance_attenuation(d2, self.inverse_range_squared);
+                if self.kind == LightKind::Spot {
+                    let a = (self.direction.dot(-to_light) * self.spot_scale + self.spot_offset).clamp(0.0, 1.0);
+                    e *= a * a;
+                }
+                (to_light, d2.sqrt(), e)
+            }
+        };
+        let lit = to_light != Vec3::ZERO && illuminance.max_element() > 0.0;
         lit.then_some(Incident { to_light, distance, illuminance })
     }
-}
-
-/// The unit direction from `p` to `position` and the squared distance.
-fn toward(p: Vec3, position: Vec3) -> (Vec3, f32) {
-    let d = position - p;
-    (d.normalize_or_zero(), d.length_squared())
-}
-
-/// A point light's illuminance at squared distance `d2`, facing it: its luminous intensity (lumens over
-/// 4 pi) times [`distance_attenuation`]. A range that is zero, negative or NaN gives none, as Bevy's
-/// `1 / range^2` does.
-fn point_illuminance(intensity: f32, range: f32, d2: f32) -> f32 {
-    if !(range > 0.0) {
-        return 0.0;
-    }
-    intensity / (4.0 * PI) * distance_attenuation(d2, 1.0 / (range * range))
 }
 
 /// The outgoing diffuse radiance (cd/m^2 per colour channel) of a Lambertian surface of linear albedo
@@ -142,11 +229,11 @@ pub fn diffuse_radiance(albedo: Vec3, normal: Vec3, incident: &Incident) -> Vec3
 }
 
 /// How far off its voxel's centre a shadow ray starts, along the voxel's average normal, and how far along
-/// the ray its march starts, in cells of the voxel's level (WGSL, to come: `SHADOW_START_CELLS`): as the AO
+/// the ray its march starts, in cells of the voxel's level (WGSL `SHADOW_START_CELLS`): as the AO
 /// trace's rays start a cell off the surface and a cell along their way, so that the surface's own voxels
 /// (the voxel itself, its neighbours along a slanted floor) do not shadow it.
 pub const SHADOW_START_CELLS: f32 = 1.0;
-/// The most texel visits a shadow ray's march makes (WGSL, to come: `SHADOW_STEPS`): the AO trace's `High`
+/// The most texel visits a shadow ray's march makes (WGSL `SHADOW_STEPS`): the AO trace's `High`
 /// budget. A march out of visits counts as lit: a light is more often seen than not where the march has
 /// stepped that far through empty space.
 pub const SHADOW_STEPS: u32 = 64;
@@ -160,7 +247,7 @@ pub fn cell_center(level: &TraceLevel, cell: IVec3) -> Vec3 {
 }
 
 /// Whether the light `incident` brings reaches the voxel at `center` (level `level` of `levels`, average
-/// normal `normal`) through the voxels (WGSL, to come: `light_reaches`): a march toward the light from
+/// normal `normal`) through the voxels (WGSL `light_reaches`): a march toward the light from
 /// [`SHADOW_START_CELLS`] off the centre along the normal and as many along the ray, to the light's distance,
 /// that no run of occupied cells stops within [`SHADOW_STEPS`] visits.
 pub fn light_reaches(levels: &[TraceLevel], level: usize, center: Vec3, normal: Vec3, incident: &Incident) -> bool {
@@ -178,7 +265,7 @@ pub fn light_reaches(levels: &[TraceLevel], level: usize, center: Vec3, normal: 
 
 /// The outgoing diffuse radiance (cd/m^2 per colour channel, before exposure) of cell `cell` of level `level`
 /// (of its window) with average albedo and normal `attributes`, under `lights`, each shadowed by
-/// [`light_reaches`] (WGSL, to come: `voxel_radiance`): `albedo / pi * sum(E * max(n . l, 0))` with the
+/// [`light_reaches`] (WGSL `voxel_radiance`): `albedo / pi * sum(E * max(n . l, 0))` with the
 /// average normal as it is. Where its points' normals disagree the average is shorter and so is the light
 /// (a voxel holding both faces of a thin wall, one of them lit, gets about none: the known cost of one normal
 /// a voxel).
@@ -198,6 +285,40 @@ pub fn voxel_radiance(
         .filter(|incident| light_reaches(levels, level, center, normal, incident))
         .map(|incident| diffuse_radiance(attributes.albedo, normal, &incident))
         .sum()
+}
+
+/// The largest value [`pack_rgb9e5`] holds: `(511 / 512) * 2^16`. Brighter radiance is clamped to it.
+pub const RGB9E5_MAX: f32 = 65_408.0;
+
+/// `2^e` for an integer `e` in the normal range of `f32`, exact.
+fn exp2i(e: i32) -> f32 {
+    f32::from_bits(((e + 127) as u32) << 23)
+}
+
+/// A colour of non-negative channels as a shared-exponent `rgb9e5` word (WGSL `pack_rgb9e5`; the encoding of
+/// `TextureFormat::Rgb9e5Ufloat`, which is no storage format, so the lighting volume holds it in an
+/// `R32Uint` texture): three 9-bit mantissas, red in the low bits, and a 5-bit exponent on top, each
+/// channel rounded to nearest. A 4-byte radiance a voxel with a relative precision of 1/512 of its largest
+/// channel; NaN and negative channels give 0, channels past [`RGB9E5_MAX`] are clamped to it.
+pub fn pack_rgb9e5(c: Vec3) -> u32 {
+    let c = Vec3::from_array(c.to_array().map(|x| if x > 0.0 { x.min(RGB9E5_MAX) } else { 0.0 }));
+    let m = c.max_element();
+    // floor(log2(m)) from the float's exponent bits (exact; 0 and denormals read as -127).
+    let floor_log2 = ((m.to_bits() >> 23) & 0xff) as i32 - 127;
+    let mut exponent = floor_log2.max(-16) + 16;
+    let mut scale = exp2i(24 - exponent);
+    if (m * scale + 0.5).floor() >= 512.0 {
+        exponent += 1;
+        scale *= 0.5;
+    }
+    let q = (c * scale + Vec3::splat(0.5)).floor().as_uvec3().min(glam::UVec3::splat(511));
+    q.x | (q.y << 9) | (q.z << 18) | ((exponent as u32) << 27)
+}
+
+/// The colour of an `rgb9e5` word (WGSL `unpack_rgb9e5`).
+pub fn unpack_rgb9e5(p: u32) -> Vec3 {
+    let q = glam::UVec3::new(p & 511, (p >> 9) & 511, (p >> 18) & 511).as_vec3();
+    q * exp2i((p >> 27) as i32 - 24)
 }
 
 #[cfg(test)]
@@ -359,5 +480,72 @@ mod tests {
         assert!(close(short.x, 0.1 * expected), "{short} {expected}");
         let both_faces = VoxelAttributes { albedo: Vec3::ONE, normal: Vec3::ZERO };
         assert_eq!(voxel_radiance(&levels, 0, IVec3::new(8, 2, 16), &both_faces, &[bulb]), Vec3::ZERO);
+    }
+
+    #[test]
+    fn rgb9e5_round_trips_within_its_precision_and_takes_bad_values_as_zero() {
+        for c in [
+            Vec3::new(1.0, 0.5, 0.25),
+            Vec3::new(3183.1, 1591.5, 636.6),
+            Vec3::new(0.0, 1.0e-3, 7.0),
+            Vec3::splat(RGB9E5_MAX),
+            Vec3::new(511.9, 0.0, 0.0),
+            Vec3::new(1.0e-6, 2.0e-6, 0.0),
+        ] {
+            let back = unpack_rgb9e5(pack_rgb9e5(c));
+            // Each channel within a step of the largest channel's exponent (1/512 of it, rounded), and no finer
+            // than the smallest exponent's step (2^-24).
+            let step = (c.max_element() / 256.0).max(1.0 / 16_777_216.0);
+            assert!((back - c).abs().max_element() <= step, "{c} -> {back}");
+        }
+        // Exact values stay exact; the encoding's own examples.
+        assert_eq!(unpack_rgb9e5(pack_rgb9e5(Vec3::new(1.0, 0.5, 0.0))), Vec3::new(1.0, 0.5, 0.0));
+        assert_eq!(pack_rgb9e5(Vec3::ZERO), 0);
+        assert_eq!(unpack_rgb9e5(pack_rgb9e5(Vec3::splat(1.0e9))), Vec3::splat(RGB9E5_MAX));
+        assert_eq!(pack_rgb9e5(Vec3::new(f32::NAN, -1.0, f32::NEG_INFINITY)), 0);
+        assert_eq!(unpack_rgb9e5(pack_rgb9e5(Vec3::new(f32::INFINITY, 0.0, 0.0))).x, RGB9E5_MAX);
+        // A value whose mantissa rounds up to 512 moves to the next exponent.
+        let back = unpack_rgb9e5(pack_rgb9e5(Vec3::splat(511.9)));
+        assert_eq!(back, Vec3::splat(512.0));
+    }
+
+    #[test]
+    fn prepared_lights_bring_the_same_light_and_bad_ones_are_not_prepared() {
+        let spot = Light::Spot {
+            position: Vec3::new(1.0, 3.0, -2.0),
+            direction: Vec3::new(0.2, -1.0, 0.1),
+            color: Vec3::new(1.0, 0.8, 0.6),
+            intensity: 8000.0,
+            range: 12.0,
+            inner_angle: 0.3,
+            outer_angle: 0.7,
+        };
+        let p = Vec3::new(2.6, 0.0, -2.0);
+        let i = spot.incident(p).unwrap();
+        let cone = spot_attenuation(Vec3::new(0.2, -1.0, 0.1).normalize().dot(-i.to_light), 0.3, 0.7);
+        assert!(cone > 0.0 && cone < 1.0, "{cone}: between the cones");
+        let d2 = (Vec3::new(1.0, 3.0, -2.0) - p).length_squared();
+        let e = 8000.0 / (4.0 * PI) * distance_attenuation(d2, 1.0 / 144.0) * cone;
+        assert!(close(i.illuminance.x, e) && close(i.illuminance.z, 0.6 * e), "{} {e}", i.illuminance);
+        let bad = [
+            Light::Directional { direction: Vec3::ZERO, color: Vec3::ONE, illuminance: 1.0 },
+            Light::Directional { direction: Vec3::Y, color: Vec3::new(1.0, f32::NAN, 0.0), illuminance: 1.0 },
+            Light::Directional { direction: Vec3::Y, color: Vec3::ONE, illuminance: f32::INFINITY },
+            Light::Point { position: Vec3::NAN, color: Vec3::ONE, intensity: 1.0, range: 1.0 },
+            Light::Point { position: Vec3::ZERO, color: Vec3::ONE, intensity: 1.0, range: f32::INFINITY },
+            Light::Point { position: Vec3::ZERO, color: Vec3::ZERO, intensity: 1.0, range: 1.0 },
+            Light::Spot {
+                position: Vec3::ZERO,
+                direction: Vec3::ZERO,
+                color: Vec3::ONE,
+                intensity: 1.0,
+                range: 1.0,
+                inner_angle: 0.1,
+                outer_angle: 0.2,
+            },
+        ];
+        for light in bad {
+            assert_eq!(light.prepare(), None, "{light:?}");
+        }
     }
 }

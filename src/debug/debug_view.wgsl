@@ -4,7 +4,9 @@
 #import bevy_render::view::View
 #import bevy_hao::voxel_grid::{
     voxel_grid, finest_level_containing, march_cascades, level_position, voxel_albedo_at, voxel_normal_at,
+    voxel_texel,
 }
+#import bevy_hao::gi_common::unpack_rgb9e5
 
 struct DebugSettings {
     mode: u32,
@@ -21,6 +23,7 @@ const MODE_STATIC_DYNAMIC: u32 = 4u;
 const MODE_CASCADES: u32 = 5u;
 const MODE_ALBEDO: u32 = 6u;
 const MODE_NORMALS: u32 = 7u;
+const MODE_LIT: u32 = 8u;
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> occupancy: array<u32>;
@@ -29,6 +32,8 @@ const MODE_NORMALS: u32 = 7u;
 @group(0) @binding(4) var ambient_occlusion: texture_2d<f32>;
 @group(0) @binding(5) var<uniform> settings: DebugSettings;
 @group(0) @binding(6) var source: texture_2d<f32>;
+// Voxel GI's lighting volume (rgb9e5 words laid out as the voxel texture's mip 0), or a 1x1x1 placeholder.
+@group(0) @binding(7) var radiance: texture_3d<u32>;
 // The voxel levels are bound at group 2 (`bevy_hao::voxel_grid`).
 
 struct FullscreenVertexOutput {
@@ -124,6 +129,14 @@ fn fragment(in: FullscreenVertexOutput) -> @location(0) vec4<f32> {
                 return vec4<f32>((voxel_normal_at(level, vec3<i32>(cell)) * 0.5 + 0.5) * edge, 1.0);
             }
         }
+    }
+    if settings.mode == MODE_LIT {
+        if textureDimensions(radiance).x <= 1u {
+            return vec4<f32>(vec3<f32>(0.5) * shade * edge, 1.0);
+        }
+        // Unshaded: the light in the voxel as the view's exposure shows it, tone-mapped.
+        let r = unpack_rgb9e5(textureLoad(radiance, voxel_texel(level, vec3<i32>(cell)), 0).r) * view.exposure;
+        return vec4<f32>((r / (vec3<f32>(1.0) + r) + vec3<f32>(0.02)) * edge, 1.0);
     }
     return vec4<f32>(color * shade * edge, 1.0);
 }

@@ -22,7 +22,9 @@ use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 use bevy::render::extract_component::{ExtractComponent, ExtractComponentPlugin};
 use bevy::render::render_asset::RenderAssets;
-use bevy::render::render_resource::binding_types::{storage_buffer_read_only_sized, texture_2d, uniform_buffer};
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, texture_2d, texture_3d, uniform_buffer,
+};
 use bevy::render::render_resource::*;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderQueue, ViewQuery};
 use bevy::render::storage::GpuShaderBuffer;
@@ -54,11 +56,15 @@ pub enum HaoDebugView {
     /// Voxels colored by their average normal (`n * 0.5 + 0.5`, unshaded; toward grey where the points'
     /// normals cancel; black for a voxel without points). Needs `VoxelVolume::attributes`.
     Normals,
+    /// Voxels colored by the light of Bevy's lights in them, the lighting volume of
+    /// [`crate::VoxelGlobalIllumination`] (their outgoing diffuse radiance times the view's exposure,
+    /// `x / (1 + x)`, unshaded; near black where unlit; grey without voxel GI).
+    LitVoxels,
 }
 
 impl HaoDebugView {
     /// All views, in the inspector's order.
-    pub const ALL: [HaoDebugView; 8] = [
+    pub const ALL: [HaoDebugView; 9] = [
         Self::Final,
         Self::AmbientOcclusion,
         Self::Voxels,
@@ -67,6 +73,7 @@ impl HaoDebugView {
         Self::Cascades,
         Self::Albedo,
         Self::Normals,
+        Self::LitVoxels,
     ];
 
     fn mode(self) -> u32 {
@@ -79,6 +86,7 @@ impl HaoDebugView {
             Self::Cascades => 5,
             Self::Albedo => 6,
             Self::Normals => 7,
+            Self::LitVoxels => 8,
         }
     }
 }
@@ -123,6 +131,7 @@ pub struct DebugViewPipelines {
     empty_layout: BindGroupLayoutDescriptor,
     pipelines: HashMap<TextureFormat, CachedRenderPipelineId>,
     empty_2d: TextureView,
+    empty_radiance: TextureView,
     empty_buffer: Buffer,
 }
 
@@ -130,7 +139,7 @@ impl FromWorld for DebugViewPipelines {
     fn from_world(world: &mut World) -> Self {
         let device = world.resource::<RenderDevice>();
         let queue = world.resource::<RenderQueue>();
-        let texture = |dimension: TextureDimension| {
+        let texture = |dimension: TextureDimension, format: TextureFormat| {
             device
                 .create_texture_with_data(
                     queue,
@@ -140,7 +149,7 @@ impl FromWorld for DebugViewPipelines {
                         mip_level_count: 1,
                         sample_count: 1,
                         dimension,
-                        format: TextureFormat::R32Float,
+                        format,
                         usage: TextureUsages::TEXTURE_BINDING,
                         view_formats: &[],
                     },
@@ -162,6 +171,7 @@ impl FromWorld for DebugViewPipelines {
                     texture_2d(unfilterable),
                     uniform_buffer::<GpuDebugSettings>(false),
                     texture_2d(unfilterable),
+                    texture_3d(TextureSampleType::Uint),
                 ),
             ),
         );
@@ -177,7 +187,8 @@ impl FromWorld for DebugViewPipelines {
             vertex: world.resource::<FullscreenShader>().to_vertex_state(),
             empty_layout: BindGroupLayoutDescriptor::new("hao_debug_view_empty_layout", &[]),
             pipelines: HashMap::default(),
-            empty_2d: texture(TextureDimension::D2),
+            empty_2d: texture(TextureDimension::D2, TextureFormat::R32Float),
+            empty_radiance: texture(TextureDimension::D3, TextureFormat::R32Uint),
             empty_buffer,
         }
     }
@@ -243,6 +254,8 @@ fn debug_view(
     grid: Option<Res<ExtractedVoxelGrid>>,
     voxel_grid: Option<Res<VoxelGridBindings>>,
     buffers: Res<RenderAssets<GpuShaderBuffer>>,
+    images: Res<RenderAssets<bevy::render::texture::GpuImage>>,
+    gi: Option<Res<crate::gi::extract::ExtractedGi>>,
     view_uniforms: Res<ViewUniforms>,
     mut ctx: RenderContext,
 ) {
@@ -261,6 +274,11 @@ fn debug_view(
     let static_occupancy = buffer(g.map(|g| &g.static_occupancy)).unwrap_or_else(|| pipelines.empty_buffer.clone());
     let counts = buffer(g.and_then(|g| g.point_counts.as_ref())).unwrap_or_else(|| pipelines.empty_buffer.clone());
     let ao = ssao.map(|s| &s.screen_space_ambient_occlusion_texture.default_view).unwrap_or(&pipelines.empty_2d);
+    let radiance = gi
+        .as_ref()
+        .and_then(|g| g.gi.as_ref())
+        .and_then(|(_, a)| images.get(&a.radiance))
+        .map_or(&pipelines.empty_radiance, |i| &i.texture_view);
     let post = target.post_process_write();
     let bind_group = ctx.render_device().create_bind_group(
         "hao_debug_view_bind_group",
@@ -273,6 +291,7 @@ fn debug_view(
             ao,
             res.settings.as_entire_binding(),
             post.source,
+            radiance,
         )),
     );
     let empty = ctx.render_device().create_bind_group(

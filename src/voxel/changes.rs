@@ -150,6 +150,7 @@ pub(crate) fn track_occluders(
     mut material_events: MessageReader<AssetEvent<StandardMaterial>>,
     mut image_events: MessageReader<AssetEvent<Image>>,
     volumes: Query<&VoxelVolume>,
+    wanted: Res<super::volume::AttributesWanted>,
     mut had_attributes: Local<bool>,
     stats: Res<VoxelizationStats>,
 ) {
@@ -157,7 +158,7 @@ pub(crate) fn track_occluders(
     let changes = &mut *changes;
     changes.changed.clear();
     // Albedo comes from materials only where the volume keeps attributes.
-    let attributes = volumes.iter().next().is_some_and(|v| v.attributes);
+    let attributes = volumes.iter().next().is_some_and(|v| v.attributes) || wanted.0;
     changes.changed.extend(changed.mesh.iter());
     changes.changed.extend(changed.markers.iter());
     changes.changed.extend(changed.animation.iter());
@@ -224,6 +225,7 @@ mod tests {
             .init_asset::<Mesh>()
             .init_asset::<Image>()
             .init_resource::<OccluderChanges>()
+            .init_resource::<crate::voxel::volume::AttributesWanted>()
             .init_resource::<VoxelizationStats>()
             .add_systems(PostUpdate, track_occluders.after(bevy::transform::TransformSystems::Propagate));
         app

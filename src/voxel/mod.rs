@@ -29,7 +29,7 @@ mod calibration;
 mod changes;
 pub mod components;
 pub(crate) mod extract;
-mod pass;
+pub(crate) mod pass;
 pub(crate) mod pipelines;
 mod prepare;
 pub(crate) mod stats;
@@ -118,6 +118,7 @@ impl Plugin for VoxelizationPlugin {
         let stats = stats::VoxelizationStats::default();
         app.insert_resource(stats.clone())
             .init_resource::<volume::VoxelVolumeFocus>()
+            .init_resource::<volume::AttributesWanted>()
             .init_resource::<calibration::GammaForTarget>()
             .init_resource::<changes::OccluderChanges>()
             .add_systems(

@@ -76,6 +76,11 @@ pub struct VoxelGridAssets {
     pub generation: u64,
 }
 
+/// Set by the rooms above the voxel grid that read its attributes (voxel GI): while `true`, the grid keeps
+/// them as if [`VoxelVolume::attributes`] were on.
+#[derive(Resource, Clone, Copy, Default, Debug, PartialEq, Eq)]
+pub struct AttributesWanted(pub bool);
+
 /// The world position the cascades are centred on this frame (the camera's), or `None`.
 #[derive(Resource, Clone, Copy, Default, Debug, PartialEq)]
 pub struct VoxelVolumeFocus(pub Option<Vec3>);
@@ -142,7 +147,7 @@ pub(crate) fn update_voxel_volume(
     mut images: ResMut<Assets<Image>>,
     readbacks: Query<Entity, With<VoxelCountersReadback>>,
     stats: Res<VoxelizationStats>,
-    gamma_for_target: Res<super::calibration::GammaForTarget>,
+    (gamma_for_target, wanted): (Res<super::calibration::GammaForTarget>, Res<AttributesWanted>),
     mut reported: Local<ReportedVolume>,
     mut warned: Local<bevy::platform::collections::HashSet<String>>,
     mut generation: Local<u64>,
@@ -253,7 +258,7 @@ pub(crate) fn update_voxel_volume(
         remove(&mut commands);
         return;
     }
-    let mut attributes = volume.attributes;
+    let mut attributes = volume.attributes || wanted.0;
     let attribute_bytes = voxel_bytes * SAMPLE_WORDS as u64;
     // Fallbacks, not refusals: warned once each (the grid is still built).
     let mut fallback = |msg: String| {

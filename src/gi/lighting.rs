@@ -1,0 +1,185 @@
+//! The lighting pass (`gi_lighting.wgsl`): each occupied voxel's outgoing diffuse radiance under the lights,
+//! into the lighting volume, one slab of each level a frame.
+
+use super::extract::ExtractedGi;
+use crate::cpu::lighting::PreparedLight;
+use crate::gpu::queue_compute;
+use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
+use bevy::asset::load_embedded_asset;
+use bevy::prelude::*;
+use bevy::render::diagnostic::RecordDiagnostics;
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_resource::binding_types::{
+    storage_buffer_read_only_sized, texture_storage_3d, uniform_buffer,
+};
+use bevy::render::render_resource::*;
+use bevy::render::renderer::{RenderContext, RenderDevice};
+use bevy::render::texture::GpuImage;
+use bytemuck::{Pod, Zeroable};
+
+/// The workgroup edge of the lighting pass (4x4x4 voxels).
+pub(crate) const LIGHTING_WORKGROUP: u32 = 4;
+
+/// A light as the lighting pass takes it (WGSL `GiLight`; CPU twin [`PreparedLight`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub(crate) struct GpuGiLight {
+    pub(crate) position: [f32; 3],
+    pub(crate) kind: u32,
+    pub(crate) direction: [f32; 3],
+    pub(crate) inverse_range_squared: f32,
+    pub(crate) intensity: [f32; 3],
+    pub(crate) spot_scale: f32,
+    pub(crate) spot_offset: f32,
+    pub(crate) _pad_a: f32,
+    pub(crate) _pad_b: f32,
+    pub(crate) _pad_c: f32,
+}
+
+impl From<&PreparedLight> for GpuGiLight {
+    fn from(l: &PreparedLight) -> Self {
+        Self {
+            position: l.position.to_array(),
+            kind: l.kind as u32,
+            direction: l.direction.to_array(),
+            inverse_range_squared: l.inverse_range_squared,
+            intensity: l.intensity.to_array(),
+            spot_scale: l.spot_scale,
+            spot_offset: l.spot_offset,
+            _pad_a: 0.0,
+            _pad_b: 0.0,
+            _pad_c: 0.0,
+        }
+    }
+}
+
+/// WGSL `GiLightingParams`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, ShaderType)]
+pub(crate) struct GpuGiLightingParams {
+    pub(crate) light_count: u32,
+    pub(crate) phase: u32,
+    pub(crate) phases: u32,
+    pub(crate) blocks_z: u32,
+}
+
+/// The lighting pass's pipeline and layout.
+#[derive(Resource)]
+pub struct GiLightingPipeline {
+    layout: BindGroupLayoutDescriptor,
+    pipeline: CachedComputePipelineId,
+}
+
+impl FromWorld for GiLightingPipeline {
+    fn from_world(world: &mut World) -> Self {
+        let layout = BindGroupLayoutDescriptor::new(
+            "hao_gi_lighting_layout",
+            &BindGroupLayoutEntries::sequential(
+                ShaderStages::COMPUTE,
+                (
+                    uniform_buffer::<GpuGiLightingParams>(false),
+                    storage_buffer_read_only_sized(false, None),
+                    texture_storage_3d(TextureFormat::R32Uint, StorageTextureAccess::WriteOnly),
+                ),
+            ),
+        );
+        let shader = load_embedded_asset!(world, "gi_lighting.wgsl");
+        let empty = BindGroupLayoutDescriptor::new("hao_gi_empty_layout", &[]);
+        let pipeline = queue_compute(
+            world.resource::<PipelineCache>(),
+            "hao_gi_lighting",
+            vec![layout.clone(), empty, voxel_grid_layout()],
+            shader,
+            "light_voxels",
+            vec![],
+        );
+        Self { layout, pipeline }
+    }
+}
+
+/// This frame's lighting pass: its bind groups and workgroups.
+#[derive(Resource)]
+pub struct GiLightingFrame {
+    bind_group: BindGroup,
+    empty: BindGroup,
+    workgroups: UVec3,
+}
+
+/// Workgroups of the lighting pass over `levels` levels of `dims` cells, one of `phases` slabs of each:
+/// `(x, y, z)` with `z = levels * ceil(ceil(dims.z / 4) / phases)`, and the rows of 4 cells along z.
+pub(crate) fn lighting_workgroups(dims: UVec3, levels: u32, phases: u32) -> (UVec3, u32) {
+    let blocks = (dims + UVec3::splat(LIGHTING_WORKGROUP - 1)) / LIGHTING_WORKGROUP;
+    (UVec3::new(blocks.x, blocks.y, levels * blocks.z.div_ceil(phases)), blocks.z)
+}
+
+/// Prepares the lighting pass: the lights, this frame's slab, and the lighting volume as a storage texture.
+pub fn prepare_gi_lighting(
+    mut commands: Commands,
+    device: Res<RenderDevice>,
+    cache: Res<PipelineCache>,
+    pipeline: Res<GiLightingPipeline>,
+    extracted: Res<ExtractedGi>,
+    voxel_grid: Option<Res<VoxelGridBindings>>,
+    images: Res<RenderAssets<GpuImage>>,
+    mut frame: Local<u32>,
+) {
+    commands.remove_resource::<GiLightingFrame>();
+    let (Some((settings, assets)), Some(voxel_grid)) = (&extracted.gi, voxel_grid) else { return };
+    let grid = &voxel_grid.grid;
+    let Some(radiance) = images.get(&assets.radiance) else { return };
+    if grid.level_count == 0 || grid.attributes == 0 {
+        return;
+    }
+    let phases = settings.lighting_frames.max(1);
+    let (workgroups, blocks_z) = lighting_workgroups(grid.levels[0].dims, grid.level_count, phases);
+    let params =
+        GpuGiLightingParams { light_count: extracted.lights.len() as u32, phase: *frame % phases, phases, blocks_z };
+    *frame = frame.wrapping_add(1);
+    let params = crate::gpu::uniform_buffer(&device, "hao_gi_lighting_params", &params, BufferUsages::UNIFORM);
+    // At least one light's worth: a storage binding is never empty.
+    let mut lights: Vec<GpuGiLight> = extracted.lights.iter().map(GpuGiLight::from).collect();
+    if lights.is_empty() {
+        lights.push(GpuGiLight::zeroed());
+    }
+    let lights = device.create_buffer_with_data(&BufferInitDescriptor {
+        label: Some("hao_gi_lights"),
+        contents: bytemuck::cast_slice(&lights),
+        usage: BufferUsages::STORAGE,
+    });
+    let bind_group = device.create_bind_group(
+        "hao_gi_lighting_bind_group",
+        &cache.get_bind_group_layout(&pipeline.layout),
+        &BindGroupEntries::sequential((params.as_entire_binding(), lights.as_entire_binding(), &radiance.texture_view)),
+    );
+    let empty = device.create_bind_group(
+        "hao_gi_empty_bind_group",
+        &cache.get_bind_group_layout(&BindGroupLayoutDescriptor::new("hao_gi_empty_layout", &[])),
+        &[],
+    );
+    commands.insert_resource(GiLightingFrame { bind_group, empty, workgroups });
+}
+
+/// Lights the voxels: one slab of each level this frame.
+pub fn gi_lighting(
+    frame: Option<Res<GiLightingFrame>>,
+    pipeline: Res<GiLightingPipeline>,
+    voxel_grid: Option<Res<VoxelGridBindings>>,
+    cache: Res<PipelineCache>,
+    mut ctx: RenderContext,
+) {
+    let (Some(frame), Some(voxel_grid)) = (frame, voxel_grid) else { return };
+    let Some(compute) = cache.get_compute_pipeline(pipeline.pipeline) else { return };
+    let diagnostics = ctx.diagnostic_recorder();
+    let diagnostics = diagnostics.as_deref();
+    let encoder = ctx.command_encoder();
+    let mut pass =
+        encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_gi_lighting"), timestamp_writes: None });
+    let span = diagnostics.pass_span(&mut pass, "hao/gi_lighting");
+    pass.set_pipeline(compute);
+    pass.set_bind_group(0, &frame.bind_group, &[]);
+    pass.set_bind_group(1, &frame.empty, &[]);
+    pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
+    let w = frame.workgroups;
+    pass.dispatch_workgroups(w.x, w.y, w.z);
+    span.end(&mut pass);
+}
