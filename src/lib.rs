@@ -15,7 +15,10 @@ mod wgsl_tests;
 
 pub use ao::{HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin, MIN_VIEWPORT_PIXELS};
 pub use debug::{HaoDebugImages, HaoDebugView, HaoDebugViewPlugin};
-pub use gi::{GiAssets, MAX_LIGHTING_FRAMES, VoxelGlobalIllumination, VoxelGlobalIlluminationPlugin};
+pub use gi::{
+    CHANGED_HISTORY, GiAssets, GiIrradianceVolume, GiProbeWindow, MAX_LIGHTING_FRAMES, MAX_PROBES,
+    VoxelGlobalIllumination, VoxelGlobalIlluminationPlugin,
+};
 pub use voxel::components::*;
 pub use voxel::{
     CascadeLevelStats, LevelBytes, RebuildStaticVoxels, VOXEL_GRID_GROUP, VoxelGridAssets, VoxelGridBindings,

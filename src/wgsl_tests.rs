@@ -80,6 +80,7 @@ fn shaders() -> Vec<(&'static str, Vec<Vec<(&'static str, ShaderDefValue)>>)> {
         ("src/debug/debug_images.wgsl", multisampled),
         ("src/debug/debug_view.wgsl", vec![vec![]]),
         ("src/gi/gi_lighting.wgsl", vec![vec![]]),
+        ("src/gi/gi_probes.wgsl", vec![vec![]]),
     ]
 }
 
@@ -187,6 +188,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
     use crate::ao::prepare::GpuHaoSettings;
     use crate::debug::{GpuDebugCopy, GpuDebugSettings};
     use crate::gi::lighting::{GpuGiLight, GpuGiLightingParams};
+    use crate::gi::probes::GpuProbeParams;
     use crate::voxel::pipelines::{GpuLevelRegion, GpuOccluderInstance, GpuSlabGroup, GpuVoxelizeParams};
     vec![
         layout!(
@@ -228,6 +230,12 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
             "GiLightingParams",
             GpuGiLightingParams,
             [light_count, phase, phases, blocks_z]
+        ),
+        layout!(
+            "src/gi/gi_probes.wgsl",
+            "ProbeParams",
+            GpuProbeParams,
+            [window_min, rays, counts, phase, spacing, phases, max_frames, seed]
         ),
         layout!(
             "src/gi/gi_lighting.wgsl",
@@ -377,6 +385,9 @@ fn uploaded_structs_match_their_wgsl_layouts() {
     encased_as_in_memory::<crate::voxel::pipelines::GpuLevelRegion>();
     encased_as_in_memory::<crate::voxel::pipelines::GpuSlabGroup>();
     encased_as_in_memory::<crate::gi::lighting::GpuGiLightingParams>();
+    encased_as_in_memory::<crate::gi::probes::GpuProbeParams>();
+    let (_, record) = wgsl_layout(&module("src/gi/gi_probes.wgsl"), "ProbeRecord").expect("ProbeRecord");
+    assert_eq!(record as u64, crate::gi::probes::PROBE_RECORD_BYTES, "ProbeRecord size");
     let (_, grid_size) = wgsl_layout(&module("src/ao/hao_trace.wgsl"), "VoxelGrid").expect("VoxelGrid");
     assert_eq!(grid_size as u64, crate::voxel::bindings::GpuVoxelGrid::min_size().get(), "VoxelGrid size");
     let (_, big) = wgsl_layout(&module("src/voxel/voxelize_expand.wgsl"), "BigTriangle").expect("BigTriangle");
@@ -411,7 +422,12 @@ fn shared_constants_agree() {
     let hao = "src/ao/hao_common.wgsl";
     let gi = "src/gi/gi_common.wgsl";
     let lighting = "src/gi/gi_lighting.wgsl";
-    let pairs: [(&str, &str, f64); 49] = [
+    let probes = "src/gi/gi_probes.wgsl";
+    let pairs: [(&str, &str, f64); 53] = [
+        (probes, "PROBE_STEPS", crate::cpu::probes::PROBE_STEPS as f64),
+        (probes, "PROBE_MAX_DISTANCE", crate::cpu::probes::PROBE_MAX_DISTANCE as f64),
+        (probes, "RELOCATE_MAX", crate::cpu::probes::RELOCATE_MAX as f64),
+        (probes, "SHADOW_NORMAL_MIN", crate::cpu::lighting::SHADOW_NORMAL_MIN as f64),
         (gi, "GI_LIGHT_DIRECTIONAL", crate::cpu::lighting::LightKind::Directional as u32 as f64),
         (gi, "GI_LIGHT_POINT", crate::cpu::lighting::LightKind::Point as u32 as f64),
         (gi, "GI_LIGHT_SPOT", crate::cpu::lighting::LightKind::Spot as u32 as f64),

@@ -5,17 +5,22 @@ use bevy::camera::RenderTarget;
 use bevy::prelude::*;
 use bevy_hao::cpu::VoxelAttributes;
 use bevy_hao::cpu::lighting::{Light, unpack_rgb9e5, voxel_radiance};
+use bevy_hao::cpu::probes::{LitVoxels, gather_probe, probe_rotation, relocate_probe};
 use bevy_hao::prelude::*;
 use bevy_hao_tools::harness::*;
 
 const SIZE: UVec2 = UVec2::new(64, 48);
+
+/// The render target of the room's camera.
+#[derive(Resource, Clone)]
+struct Target(Handle<Image>);
 
 #[derive(Component)]
 struct Bulb;
 
 /// A room of parts in their colours: a floor, a roof over half of it, a box on the floor and a red wall; a
 /// sun, a point light under the roof and a spot light; a camera with voxel GI.
-fn lit_room(volume: VoxelVolume, lighting_frames: u32) -> App {
+fn lit_room(volume: VoxelVolume, gi: VoxelGlobalIllumination) -> App {
     headless_app(move |app| {
         app.add_systems(
             Startup,
@@ -50,11 +55,12 @@ fn lit_room(volume: VoxelVolume, lighting_frames: u32) -> App {
                     Transform::from_xyz(1.0, 2.5, -1.5).looking_at(Vec3::new(1.2, -2.0, -1.0), Vec3::Y),
                 ));
                 let color = target_image(&mut images, SIZE);
+                commands.insert_resource(Target(color.clone()));
                 commands.spawn((
                     Camera3d::default(),
                     RenderTarget::Image(color.into()),
                     Transform::from_xyz(0.0, 1.0, 3.5).looking_at(Vec3::new(0.0, -1.5, 0.0), Vec3::Y),
-                    VoxelGlobalIllumination { lighting_frames },
+                    gi.clone(),
                 ));
             },
         );
@@ -187,7 +193,7 @@ fn the_lighting_volume_on_the_gpu_equals_its_cpu_twin() {
     };
     for (name, volume) in [("one grid", single), ("cascades", cascades)] {
         let lighting_frames = 3;
-        let mut app = lit_room(volume, lighting_frames);
+        let mut app = lit_room(volume, VoxelGlobalIllumination { lighting_frames, ..default() });
         run(&mut app, 10);
         let p = lighting_parity(&mut app);
         println!(
@@ -207,4 +213,229 @@ fn the_lighting_volume_on_the_gpu_equals_its_cpu_twin() {
         assert!(after.agree * 1000 >= after.voxels * 995, "{name}: {} of {} agree", after.agree, after.voxels);
         assert!(take_render_errors().is_empty());
     }
+}
+
+/// The lighting volume and the voxels' normals as read back, for the probes' CPU twin.
+struct ReadVoxels<'a> {
+    levels: &'a [bevy_hao::cpu::march::TraceLevel<'a>],
+    windows: Vec<IVec3>,
+    size: UVec3,
+    width: u32,
+    height: u32,
+    radiance: Vec<u8>,
+    normal: Vec<u8>,
+}
+
+impl ReadVoxels<'_> {
+    /// The byte offset of a level's cell in the textures (levels stacked along z, windows stored
+    /// toroidally).
+    fn texel(&self, level: usize, cell: IVec3) -> usize {
+        let dims = self.levels[level].mips.dims();
+        let wrap = self.windows[level].rem_euclid(dims.as_ivec3()).as_uvec3();
+        let s = (cell.as_uvec3() + wrap) % dims + UVec3::new(0, 0, level as u32 * self.size.z);
+        (((s.z * self.height + s.y) * self.width + s.x) * 4) as usize
+    }
+}
+
+impl LitVoxels for ReadVoxels<'_> {
+    fn voxel(&self, level: usize, cell: IVec3) -> (Vec3, Vec3) {
+        let t = self.texel(level, cell);
+        let radiance = unpack_rgb9e5(u32::from_le_bytes(self.radiance[t..t + 4].try_into().unwrap()));
+        let snorm = |b: u8| (b as i8).max(-127) as f32 / 127.0;
+        let n = &self.normal[t..t + 3];
+        (radiance, Vec3::new(snorm(n[0]), snorm(n[1]), snorm(n[2])))
+    }
+}
+
+/// The probes' records and the irradiance volume, copied in the same frame (the irradiance volume without
+/// its rows' padding).
+fn read_records_and_volume(app: &mut App, assets: &bevy_hao::GiAssets) -> (Vec<u8>, Vec<u8>) {
+    use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+    use std::sync::{Arc, Mutex};
+    let slots: [Arc<Mutex<Option<Vec<u8>>>>; 2] = Default::default();
+    let readbacks = [Readback::buffer(assets.probe_records.clone()), Readback::texture(assets.irradiance.clone())];
+    let entities: Vec<Entity> = readbacks
+        .into_iter()
+        .zip(slots.clone())
+        .map(|(readback, slot)| {
+            app.world_mut()
+                .spawn(readback)
+                .observe(move |ev: On<ReadbackComplete>| {
+                    slot.lock().unwrap().get_or_insert_with(|| ev.data.clone());
+                })
+                .id()
+        })
+        .collect();
+    for _ in 0..20 {
+        app.update();
+        wait_for_gpu(app);
+        if slots.iter().all(|s| s.lock().unwrap().is_some()) {
+            break;
+        }
+    }
+    for e in entities {
+        app.world_mut().despawn(e);
+    }
+    let [records, volume] = slots.map(|s| s.lock().unwrap().take().expect("a readback within 20 frames"));
+    // Rows of 12 texels of 8 bytes, padded to 256 bytes.
+    let volume = volume.chunks(256).flat_map(|row| row[..96].to_vec()).collect();
+    (records, volume)
+}
+
+/// A probe's record as the GPU wrote it: six faces, its lattice point, its updates, its last seed.
+fn record(bytes: &[u8], slot: u32) -> ([Vec3; 6], IVec3, u32, u32) {
+    let at = slot as usize * 128;
+    let f = |k: usize| f32::from_le_bytes(bytes[at + 4 * k..at + 4 * k + 4].try_into().unwrap());
+    let u = |k: usize| u32::from_le_bytes(bytes[at + 4 * k..at + 4 * k + 4].try_into().unwrap());
+    let faces = std::array::from_fn(|j| Vec3::new(f(4 * j), f(4 * j + 1), f(4 * j + 2)));
+    (faces, IVec3::new(u(24) as i32, u(25) as i32, u(26) as i32), u(27), u(28))
+}
+
+/// The probes on the GPU equal their CPU twin, and Bevy's PBR applies them: with a history of one update,
+/// every probe of the window holds what `cpu::probes::gather_probe` gathers from where
+/// `cpu::probes::relocate_probe` puts it, with the rays of its own seed, through the lighting volume and the
+/// normals the GPU has (within float rounding, but for a few probes whose rays graze a voxel); the
+/// irradiance volume holds each probe's faces in Bevy's layout (in f16); a probe in the floor moves out of
+/// it; the room shows more light with the volume's intensity 1 than 0.
+#[test]
+fn the_probes_on_the_gpu_equal_their_cpu_twin_and_light_the_room() {
+    let _gpu = gpu_lock();
+    let volume = VoxelVolume {
+        bounds: VolumeBounds::FollowCamera { cascades: 2, cells: 64, finest_cell_size: 0.125 },
+        ..default()
+    };
+    let gi = VoxelGlobalIllumination {
+        probe_counts: UVec3::new(12, 8, 12),
+        probe_spacing: 0.5,
+        rays: 32,
+        probe_frames: 2,
+        accumulation_frames: 1,
+        lighting_frames: 2,
+        ..default()
+    };
+    let mut app = lit_room(volume, gi.clone());
+    run(&mut app, 12);
+    let grid = grid_assets(&app).expect("a voxel grid");
+    let assets = app.world().get_resource::<bevy_hao::GiAssets>().cloned().expect("voxel GI's assets");
+    let window = app.world().resource::<bevy_hao::GiProbeWindow>().0.expect("a probe window");
+    // Read back in the order the GPU wrote them, from one frame: the records, then what they were made from
+    // (the scene is still: the lighting volume does not change any more).
+    let (records, irradiance) = read_records_and_volume(&mut app, &assets);
+    let (iw, ih, itexel) = (12, 16, 8);
+    let (w, h, _, radiance) = read_image(&mut app, assets.radiance.clone(), 0);
+    let [_, normal_image] = grid.attributes.clone().unwrap();
+    let (_, _, _, normal) = read_image(&mut app, normal_image, 0);
+    let voxels = read_trace_voxels(&mut app);
+    let levels = trace_levels(&voxels);
+    let windows = stats(&app).cascades.iter().map(|c| c.window_min).collect();
+    let read = ReadVoxels { levels: &levels, windows, size: grid.texture_size, width: w, height: h, radiance, normal };
+    assert_eq!(irradiance.len(), (iw * ih * 36 * itexel) as usize);
+    let (mut agree, mut lit, mut moved) = (0, 0, 0);
+    for i in 0..window.len() {
+        let q = window.lattice(i);
+        let slot = window.slot(q);
+        let (faces, lattice, frames, seed) = record(&records, slot);
+        assert_eq!((lattice, frames), (q, 1), "probe {q}: its record");
+        let at = window.position(q);
+        let p = relocate_probe(&levels, &read, at, window.spacing);
+        moved += (p != at) as u32;
+        let cpu = gather_probe(&levels, &read, p, gi.rays, probe_rotation(slot, seed));
+        let scale = cpu.iter().chain(&faces).map(|f| f.max_element()).fold(1.0e-3, f32::max);
+        let worst = (0..6).map(|k| (faces[k] - cpu[k]).abs().max_element()).fold(0.0, f32::max) / scale;
+        agree += (worst < 1.0e-3) as u32;
+        lit += (cpu.iter().any(|f| f.max_element() > 0.0)) as u32;
+        // Bevy's layout: +x, -x in the first and second half of y; x, y, z faces in the thirds of z.
+        let c = (q - window.min).as_uvec3();
+        for (k, face) in faces.iter().enumerate() {
+            let texel = UVec3::new(c.x, c.y + (k as u32 & 1) * 8, c.z + (k as u32 >> 1) * 12);
+            let t = (((texel.z * ih + texel.y) * iw + texel.x) * 8) as usize;
+            let stored = Vec3::new(f16_at(&irradiance, t), f16_at(&irradiance, t + 2), f16_at(&irradiance, t + 4));
+            let tolerance = face.abs() * 1.0e-3 + Vec3::splat(1.0e-4);
+            assert!((stored - *face).abs().cmple(tolerance).all(), "probe {q} face {k}: {stored} against {face}");
+        }
+    }
+    println!("{} probes: {lit} see light, {agree} agree with the CPU twin, {moved} moved out of a voxel", window.len());
+    assert!(lit * 2 > window.len(), "{lit} of {} probes see light", window.len());
+    assert!(moved > 0, "no probe moved out of a voxel");
+    assert!(agree * 100 >= window.len() * 98, "{agree} of {} probes agree", window.len());
+    assert!(take_render_errors().is_empty());
+
+    // Bevy's PBR applies the irradiance volume: with it the room's shadowed surfaces (the box's side, the
+    // floor under the roof; dark with its intensity 0) take the light the sunlit floor and walls send them.
+    let render = |gi: VoxelGlobalIllumination| {
+        let mut app = lit_room(volume, gi);
+        run(&mut app, 16);
+        let target = app.world().resource::<Target>().0.clone();
+        let (_, _, _, bytes) = read_image(&mut app, target, 2);
+        if let Ok(dir) = std::env::var("GI_DUMP") {
+            let name = format!("{dir}/room_{}.ppm", bytes.iter().map(|b| *b as u64).sum::<u64>());
+            let mut ppm = format!("P6 {} {} 255\n", SIZE.x, SIZE.y).into_bytes();
+            ppm.extend(bytes.chunks_exact(4).flat_map(|p| [p[0], p[1], p[2]]));
+            std::fs::write(name, ppm).unwrap();
+        }
+        assert!(take_render_errors().is_empty());
+        bytes.chunks_exact(4).map(|p| p[0] as f32 + p[1] as f32 + p[2] as f32).collect::<Vec<f32>>()
+    };
+    // 8 m across, so that the volume reaches the floor 3 m under the camera.
+    let counts = UVec3::splat(16);
+    let with = render(VoxelGlobalIllumination { probe_counts: counts, ..default() });
+    let without = render(VoxelGlobalIllumination { intensity: 0.0, probe_counts: counts, ..default() });
+    let dark: Vec<usize> = (0..without.len()).filter(|&i| without[i] < 80.0).collect();
+    let mean = |v: &[f32]| dark.iter().map(|&i| v[i]).sum::<f32>() / dark.len().max(1) as f32;
+    println!(
+        "{} shadowed pixels: mean {:.1} with the indirect light, {:.1} without",
+        dark.len(),
+        mean(&with),
+        mean(&without)
+    );
+    assert!(dark.len() > 50, "{} shadowed pixels", dark.len());
+    assert!(mean(&with) > 1.5 * mean(&without) + 10.0, "{} against {}", mean(&with), mean(&without));
+}
+
+/// Voxel GI where it cannot run, and with bad settings: on WebGPU's storage-binding limit (128 MiB) the
+/// default cascades cannot keep their attributes, so GI is off (no lighting volume, no irradiance volume)
+/// and the AO goes on; settings of zero, NaN and huge values are replaced and the frames go on; taking the
+/// component off the camera takes the irradiance volume away. No validation error anywhere.
+#[test]
+fn voxel_gi_turns_itself_off_where_it_cannot_run_and_takes_bad_settings() {
+    let _gpu = gpu_lock();
+    let cascades = VoxelVolume::default();
+    let mut app =
+        app_on_device(webgpu_limits_with_storage(), || lit_room(cascades, VoxelGlobalIllumination::default()));
+    run(&mut app, 6);
+    let grid = grid_assets(&app).expect("the grid, without attributes");
+    assert!(grid.attributes.is_none());
+    assert!(app.world().get_resource::<bevy_hao::GiAssets>().is_none(), "no GI without attributes");
+    let mut probes = app.world_mut().query::<&bevy_hao::GiIrradianceVolume>();
+    assert_eq!(probes.iter(app.world()).count(), 0);
+    assert!(take_render_errors().is_empty());
+    drop(app);
+
+    let bad = VoxelGlobalIllumination {
+        intensity: f32::INFINITY,
+        probe_spacing: f32::NAN,
+        probe_counts: UVec3::new(0, 4, 100_000),
+        rays: 100_000,
+        probe_frames: 0,
+        accumulation_frames: 0,
+        lighting_frames: 1000,
+    };
+    let small = VoxelVolume {
+        bounds: VolumeBounds::FollowCamera { cascades: 2, cells: 32, finest_cell_size: 0.125 },
+        ..default()
+    };
+    let mut app = lit_room(small, bad);
+    run(&mut app, 6);
+    let assets = app.world().get_resource::<bevy_hao::GiAssets>().cloned().expect("GI with its settings replaced");
+    assert_eq!(assets.probe_counts, UVec3::new(2, 4, 128));
+    let mut probes = app.world_mut().query::<&bevy_hao::GiIrradianceVolume>();
+    assert_eq!(probes.iter(app.world()).count(), 1);
+    let mut cameras = app.world_mut().query_filtered::<Entity, With<VoxelGlobalIllumination>>();
+    let camera = cameras.single(app.world()).unwrap();
+    app.world_mut().entity_mut(camera).remove::<VoxelGlobalIllumination>();
+    run(&mut app, 3);
+    assert_eq!(probes.iter(app.world()).count(), 0, "the irradiance volume goes with the component");
+    assert!(app.world().get_resource::<bevy_hao::GiAssets>().is_none());
+    assert!(grid_assets(&app).is_some(), "the AO's grid stays");
+    assert!(take_render_errors().is_empty());
 }

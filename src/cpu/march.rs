@@ -188,6 +188,19 @@ pub fn ray_start_level(levels: &[TraceLevel], world: Vec3, i: u32, rotation: Vec
     last
 }
 
+/// The finest level whose window holds `world` (its border included), or the coarsest (WGSL
+/// `finest_level_containing`).
+pub fn finest_level_containing(levels: &[TraceLevel], world: Vec3) -> usize {
+    let last = levels.len() - 1;
+    levels[..last]
+        .iter()
+        .position(|l| {
+            let p = l.level_position(world);
+            p.cmpge(Vec3::ZERO).all() && p.cmple(l.mips.dims().as_vec3()).all()
+        })
+        .unwrap_or(last)
+}
+
 /// How far a ray must go through a run of occupied cells (consecutive along it, in the level's cells) before
 /// they stop it, at the run's entry (WGSL: `MIN_OCCLUDING_CHORD`): `1 / sqrt(3)`, half a cell's diagonal. A
 /// cell holds some surface, not a solid cube, and a ray that only clips a corner or an edge of a lone cell most

@@ -22,8 +22,9 @@
 //!   filter; [`denoise`]: the filter's weights and the history's texel.
 //! * [`lighting`]: the light Bevy's lights put on a surface, in Bevy's units and by its PBR shader's
 //!   formulas, and the lighting volume: each voxel's outgoing diffuse radiance under them, shadowed by a
-//!   march through the voxels (the CPU twin of a pass still to come, for diffuse global illumination:
-//!   docs/design-gi.md).
+//!   march through the voxels (the CPU twin of `gi_lighting.wgsl`, for diffuse global illumination:
+//!   docs/design-gi.md); [`probes`]: the irradiance probes that gather the lit voxels' light into ambient
+//!   cubes for Bevy's irradiance volume.
 //!
 //! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function
 //! names; the render tests hold the GPU against these. What the voxelizer is measured against (the exact
@@ -54,6 +55,7 @@ pub mod mesh;
 pub mod near;
 pub mod overlap;
 pub mod pn;
+pub mod probes;
 pub mod skinning;
 pub mod solid;
 pub mod temporal;

@@ -1,7 +1,8 @@
 //! Extraction: voxel GI's settings and assets, and Bevy's lights as the lighting pass takes them.
 
-use super::{GiAssets, VoxelGlobalIllumination, gi_camera};
+use super::{CHANGED_HISTORY, GiAssets, GiProbeWindow, VoxelGlobalIllumination, gi_camera};
 use crate::cpu::lighting::{Light, PreparedLight};
+use crate::cpu::probes::ProbeWindow;
 use bevy::light::{DirectionalLight, PointLight, SpotLight};
 use bevy::prelude::*;
 use bevy::render::Extract;
@@ -19,6 +20,15 @@ pub struct ExtractedGi {
     /// Every visible directional, point and spot light that brings light, prepared
     /// ([`Light::prepare`]), at most [`MAX_GI_LIGHTS`].
     pub lights: Vec<PreparedLight>,
+    /// This frame's probes.
+    pub window: Option<ProbeWindow>,
+    /// The updates a probe's history holds this frame where the lights changed lately
+    /// ([`CHANGED_HISTORY`]), or `None` (the settings' `accumulation_frames`).
+    pub history_cap: Option<u32>,
+    /// Frames left with `history_cap` since the lights last changed.
+    changed_frames_left: u32,
+    /// Last frame's lights.
+    last_lights: Vec<PreparedLight>,
 }
 
 /// A light's colour as Bevy's renderer uploads it: linear RGB.
@@ -38,14 +48,17 @@ pub fn extract_gi(
     point: Extract<Query<(&PointLight, &GlobalTransform, &InheritedVisibility)>>,
     spot: Extract<Query<(&SpotLight, &GlobalTransform, &InheritedVisibility)>>,
     focus: Extract<Res<crate::voxel::volume::VoxelVolumeFocus>>,
+    window: Extract<Res<GiProbeWindow>>,
     mut warned: Local<bool>,
 ) {
     let extracted = &mut *extracted;
     extracted.gi = gi_camera(cameras.iter()).zip(assets.as_deref().cloned()).map(|((_, g), a)| (g, a));
+    extracted.window = window.0;
+    std::mem::swap(&mut extracted.lights, &mut extracted.last_lights);
     extracted.lights.clear();
-    if extracted.gi.is_none() {
-        return;
-    }
+    let Some((settings, _)) = &extracted.gi else { return };
+    // Until every voxel has been lit again and every probe has gathered twice since.
+    let changed_frames = settings.lighting_frames + 2 * settings.probe_frames;
     let lights = directional
         .iter()
         .filter(|(_, _, v)| v.get())
@@ -83,4 +96,9 @@ pub fn extract_gi(
         extracted.lights.sort_by(|a, b| brightness(b).total_cmp(&brightness(a)));
         extracted.lights.truncate(MAX_GI_LIGHTS);
     }
+    if extracted.lights != extracted.last_lights {
+        extracted.changed_frames_left = changed_frames;
+    }
+    extracted.history_cap = (extracted.changed_frames_left > 0).then_some(CHANGED_HISTORY);
+    extracted.changed_frames_left = extracted.changed_frames_left.saturating_sub(1);
 }

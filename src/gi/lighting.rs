@@ -4,16 +4,15 @@
 use super::extract::ExtractedGi;
 use crate::cpu::lighting::PreparedLight;
 use crate::gpu::queue_compute;
-use crate::voxel::{VOXEL_GRID_GROUP, VoxelGridBindings, voxel_grid_layout};
+use crate::voxel::{VoxelGridBindings, voxel_grid_layout};
 use bevy::asset::load_embedded_asset;
 use bevy::prelude::*;
-use bevy::render::diagnostic::RecordDiagnostics;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::binding_types::{
     storage_buffer_read_only_sized, texture_storage_3d, uniform_buffer,
 };
 use bevy::render::render_resource::*;
-use bevy::render::renderer::{RenderContext, RenderDevice};
+use bevy::render::renderer::RenderDevice;
 use bevy::render::texture::GpuImage;
 use bytemuck::{Pod, Zeroable};
 
@@ -67,7 +66,7 @@ pub(crate) struct GpuGiLightingParams {
 #[derive(Resource)]
 pub struct GiLightingPipeline {
     layout: BindGroupLayoutDescriptor,
-    pipeline: CachedComputePipelineId,
+    pub(crate) pipeline: CachedComputePipelineId,
 }
 
 impl FromWorld for GiLightingPipeline {
@@ -100,9 +99,9 @@ impl FromWorld for GiLightingPipeline {
 /// This frame's lighting pass: its bind groups and workgroups.
 #[derive(Resource)]
 pub struct GiLightingFrame {
-    bind_group: BindGroup,
-    empty: BindGroup,
-    workgroups: UVec3,
+    pub(crate) bind_group: BindGroup,
+    pub(crate) empty: BindGroup,
+    pub(crate) workgroups: UVec3,
 }
 
 /// Workgroups of the lighting pass over `levels` levels of `dims` cells, one of `phases` slabs of each:
@@ -157,29 +156,4 @@ pub fn prepare_gi_lighting(
         &[],
     );
     commands.insert_resource(GiLightingFrame { bind_group, empty, workgroups });
-}
-
-/// Lights the voxels: one slab of each level this frame.
-pub fn gi_lighting(
-    frame: Option<Res<GiLightingFrame>>,
-    pipeline: Res<GiLightingPipeline>,
-    voxel_grid: Option<Res<VoxelGridBindings>>,
-    cache: Res<PipelineCache>,
-    mut ctx: RenderContext,
-) {
-    let (Some(frame), Some(voxel_grid)) = (frame, voxel_grid) else { return };
-    let Some(compute) = cache.get_compute_pipeline(pipeline.pipeline) else { return };
-    let diagnostics = ctx.diagnostic_recorder();
-    let diagnostics = diagnostics.as_deref();
-    let encoder = ctx.command_encoder();
-    let mut pass =
-        encoder.begin_compute_pass(&ComputePassDescriptor { label: Some("hao_gi_lighting"), timestamp_writes: None });
-    let span = diagnostics.pass_span(&mut pass, "hao/gi_lighting");
-    pass.set_pipeline(compute);
-    pass.set_bind_group(0, &frame.bind_group, &[]);
-    pass.set_bind_group(1, &frame.empty, &[]);
-    pass.set_bind_group(VOXEL_GRID_GROUP, &voxel_grid.bind_group, &[]);
-    let w = frame.workgroups;
-    pass.dispatch_workgroups(w.x, w.y, w.z);
-    span.end(&mut pass);
 }

@@ -8,21 +8,35 @@
 //!    the voxels toward it, from the multi-valued voxels' average albedo and normal, in Bevy's units before
 //!    exposure (cd/m^2), into the *lighting volume*: an `R32Uint` texture of `rgb9e5` words laid out as the
 //!    voxel texture's mip 0 (4 bytes a voxel). One of [`VoxelGlobalIllumination::lighting_frames`] slabs of
-//!    each level a frame, in turn.
+//!    each level a frame, in turn;
+//! 2. **probes** (`gi_probes.wgsl`, `hao/gi_probes`): a grid of probes following the camera (snapped to
+//!    their spacing, stored toroidally), one of [`VoxelGlobalIllumination::probe_frames`] of them a frame,
+//!    each moved out of the voxel it may lie in, gathers the lighting volume's light along
+//!    [`VoxelGlobalIllumination::rays`] rays through the voxels into the six faces of an ambient cube
+//!    (irradiance over pi), blended into its history;
+//! 3. **write** (`gi_probes.wgsl`, `hao/gi_write`): every probe of the window into the irradiance volume
+//!    behind the `LightProbe` + `IrradianceVolume` the plugin keeps around the camera, which Bevy's PBR
+//!    applies to every mesh (forward and deferred), dimmed by the AO as all indirect light.
 //!
-//! The CPU twin: [`crate::cpu::lighting`] (`voxel_radiance`, `light_reaches`, `pack_rgb9e5`).
+//! The CPU twins: [`crate::cpu::lighting`] (`voxel_radiance`, `light_reaches`, `pack_rgb9e5`) and
+//! [`crate::cpu::probes`].
 
 pub(crate) mod extract;
 pub(crate) mod lighting;
+mod node;
+pub(crate) mod probes;
 
+use crate::cpu::probes::{ProbeWindow, probe_window};
 use crate::voxel::VoxelGridAssets;
 use crate::voxel::volume::AttributesWanted;
 use bevy::asset::RenderAssetUsages;
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::image::ImageSampler;
+use bevy::light::{IrradianceVolume, LightProbe};
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages};
 use bevy::render::renderer::{RenderDevice, RenderGraph, RenderGraphSystems};
+use bevy::render::storage::ShaderBuffer;
 use bevy::render::{ExtractSchedule, GpuResourceAppExt, Render, RenderApp, RenderSystems};
 use bevy::shader::load_shader_library;
 
@@ -30,15 +44,20 @@ use bevy::shader::load_shader_library;
 /// (required, so adding this alone brings it). Off unless a camera has it; the voxel volume's cascades
 /// follow the same camera as the AO's.
 ///
-/// **In progress**: this version builds the *lighting volume*, the light of Bevy's lights in the voxels
-/// (see [`crate::HaoDebugView::LitVoxels`]); the indirect light it is for (probes written into an irradiance
-/// volume Bevy's PBR applies) is not built yet, so the rendered image does not change.
+/// The light of Bevy's directional, point and spot lights is put in the voxels (the *lighting volume*,
+/// shadows included: [`crate::HaoDebugView::LitVoxels`] shows it), gathered by a grid of probes around the
+/// camera through the voxels, and written into an irradiance volume (a `LightProbe` + `IrradianceVolume`
+/// the plugin keeps) that Bevy's own PBR applies to every mesh in it, in forward and deferred rendering, as
+/// one bounce of diffuse indirect light, dimmed by the AO. Bevy still adds its `GlobalAmbientLight` on top
+/// (the probes' rays that escape bring no light), and an environment map's diffuse light is turned off by
+/// Bevy wherever an irradiance volume is in view. Emissive materials do not light the voxels.
 ///
 /// It turns the voxels' attributes on ([`crate::VoxelVolume::attributes`]: each voxel's average albedo and
 /// normal, 64 bytes a voxel), and the lighting volume takes 4 bytes a voxel more: with the default
-/// cascades (4 of 192^3) 1.8 GB and 113 MB. Where the device cannot hold the attributes (their sums exceed
-/// `Limits::max_storage_buffer_binding_size`, as the default cascades do under WebGPU's 128 MiB) it is off,
-/// with a warning, and the AO goes on.
+/// cascades (4 of 192^3) 1.8 GB and 113 MB; the probes take 128 bytes each and 48 a probe of irradiance
+/// volume (9.3 MB for the default 48 x 24 x 48). Where the device cannot hold the attributes (their sums
+/// exceed `Limits::max_storage_buffer_binding_size`, as the default cascades do under WebGPU's 128 MiB) it
+/// is off, with a warning, and the AO goes on.
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
@@ -51,6 +70,20 @@ use bevy::shader::load_shader_library;
 #[reflect(Component, Default, Debug, PartialEq, Clone)]
 #[require(crate::HybridAmbientOcclusion)]
 pub struct VoxelGlobalIllumination {
+    /// Multiplies the indirect light (the irradiance volume's `intensity`; 0 to 1000).
+    pub intensity: f32,
+    /// The distance between probes, world units (0.01 to 100).
+    pub probe_spacing: f32,
+    /// Probes along each axis (2 to 128 each, at most 262,144 in all), centred on the camera: the
+    /// default covers 24 x 12 x 24 m. Outside it a surface gets no indirect light from the probes.
+    pub probe_counts: UVec3,
+    /// Rays a probe traces each time it is updated (1 to 1024).
+    pub rays: u32,
+    /// Frames over which every probe is updated once (1 to 64): each frame one probe in this many.
+    pub probe_frames: u32,
+    /// Updates a probe's history averages (1 to 256): more is smoother and slower to follow a change.
+    /// Where the lights change, for a few frames the probes keep [`CHANGED_HISTORY`] updates.
+    pub accumulation_frames: u32,
     /// Frames over which the lighting volume is refreshed: each frame lights one slab in this many of every
     /// level's voxels, so a light that moves or changes shows in the voxels within this many frames (1 to
     /// 16; 1: all of them every frame).
@@ -59,19 +92,55 @@ pub struct VoxelGlobalIllumination {
 
 impl Default for VoxelGlobalIllumination {
     fn default() -> Self {
-        Self { lighting_frames: 4 }
+        Self {
+            intensity: 1.0,
+            probe_spacing: 0.5,
+            probe_counts: UVec3::new(48, 24, 48),
+            rays: 32,
+            probe_frames: 4,
+            accumulation_frames: 16,
+            lighting_frames: 4,
+        }
     }
 }
+
+/// The updates a probe's history keeps while the lights change and for a few frames after (see
+/// [`VoxelGlobalIllumination::accumulation_frames`]).
+pub const CHANGED_HISTORY: u32 = 2;
+
+/// The most probes [`VoxelGlobalIllumination::probe_counts`] may hold in all.
+pub const MAX_PROBES: u32 = 1 << 18;
 
 impl VoxelGlobalIllumination {
     /// The settings with invalid values replaced, and a message for each replacement.
     pub fn sanitized(&self) -> (VoxelGlobalIllumination, Vec<String>) {
         let mut g = self.clone();
         let mut fixes = Vec::new();
-        if !(1..=MAX_LIGHTING_FRAMES).contains(&g.lighting_frames) {
-            let used = g.lighting_frames.clamp(1, MAX_LIGHTING_FRAMES);
-            fixes.push(format!("VoxelGlobalIllumination::lighting_frames is {}; using {used}", g.lighting_frames));
-            g.lighting_frames = used;
+        let mut check_u32 = |field: &str, value: &mut u32, lo: u32, hi: u32| {
+            if !(lo..=hi).contains(value) {
+                let used = (*value).clamp(lo, hi);
+                fixes.push(format!("VoxelGlobalIllumination::{field} is {value}; using {used}"));
+                *value = used;
+            }
+        };
+        check_u32("lighting_frames", &mut g.lighting_frames, 1, MAX_LIGHTING_FRAMES);
+        check_u32("rays", &mut g.rays, 1, 1024);
+        check_u32("probe_frames", &mut g.probe_frames, 1, 64);
+        check_u32("accumulation_frames", &mut g.accumulation_frames, 1, 256);
+        let mut check_f32 = |field: &str, value: &mut f32, lo: f32, hi: f32, default: f32| {
+            if !(value.is_finite() && (lo..=hi).contains(value)) {
+                let used = if value.is_finite() { value.clamp(lo, hi) } else { default };
+                fixes.push(format!("VoxelGlobalIllumination::{field} is {value}; using {used}"));
+                *value = used;
+            }
+        };
+        check_f32("intensity", &mut g.intensity, 0.0, 1000.0, 1.0);
+        check_f32("probe_spacing", &mut g.probe_spacing, 0.01, 100.0, 0.5);
+        let counts = g.probe_counts.clamp(UVec3::splat(2), UVec3::splat(128));
+        let counts = if counts.element_product() > MAX_PROBES { UVec3::new(64, 32, 64) } else { counts };
+        if counts != g.probe_counts {
+            fixes.push(format!("VoxelGlobalIllumination::probe_counts is {}; using {counts}", g.probe_counts));
+            g.probe_counts = counts;
         }
         (g, fixes)
     }
@@ -88,6 +157,7 @@ impl Plugin for VoxelGlobalIlluminationPlugin {
     fn build(&self, app: &mut App) {
         load_shader_library!(app, "gi_common.wgsl");
         bevy::asset::embedded_asset!(app, "gi_lighting.wgsl");
+        bevy::asset::embedded_asset!(app, "gi_probes.wgsl");
         app.register_type::<VoxelGlobalIllumination>();
     }
 
@@ -112,25 +182,26 @@ impl Plugin for VoxelGlobalIlluminationPlugin {
         render_app
             .init_resource::<extract::ExtractedGi>()
             .init_gpu_resource::<lighting::GiLightingPipeline>()
+            .init_gpu_resource::<probes::GiProbePipelines>()
             .add_systems(ExtractSchedule, extract::extract_gi)
             .add_systems(
                 Render,
-                lighting::prepare_gi_lighting
+                (lighting::prepare_gi_lighting, probes::prepare_gi_probes)
                     .in_set(RenderSystems::PrepareBindGroups)
                     .after(crate::voxel::bindings::prepare_voxel_grid_bindings),
             )
             .add_systems(
                 RenderGraph,
-                lighting::gi_lighting
-                    .in_set(RenderGraphSystems::Render)
-                    .after(crate::voxel::pass::voxelize)
-                    .before(camera_driver),
+                node::gi.in_set(RenderGraphSystems::Render).after(crate::voxel::pass::voxelize).before(camera_driver),
             );
-        app.add_systems(
+        app.init_resource::<GiProbeWindow>().add_systems(
             PostUpdate,
             (
                 want_attributes.before(bevy::transform::TransformSystems::Propagate),
-                update_gi_assets.after(crate::voxel::volume::update_voxel_volume),
+                (update_gi_assets, update_gi_volume)
+                    .chain()
+                    .after(crate::voxel::volume::update_voxel_volume)
+                    .before(bevy::camera::visibility::VisibilitySystems::CheckVisibility),
                 report_invalid_settings,
             ),
         );
@@ -149,7 +220,24 @@ pub struct GiAssets {
     pub radiance: Handle<Image>,
     /// The grid it was made for.
     pub generation: u64,
+    /// Bevy's irradiance volume (`Rgba16Float`, `(x, 2 y, 3 z)` texels for the probe counts, the layout of
+    /// `bevy::light::IrradianceVolume`): each probe's six faces, irradiance over pi (cd/m^2).
+    pub irradiance: Handle<Image>,
+    /// The probes' records, a storage buffer of 128 bytes each, by slot
+    /// ([`crate::cpu::probes::ProbeWindow::slot`]): six faces of four `f32` (rgb, unused), the lattice point
+    /// (three `i32`), the updates it holds, the seed of the last update (`u32`s), padding.
+    pub probe_records: Handle<ShaderBuffer>,
+    /// The probe counts the irradiance volume and records were made for.
+    pub probe_counts: UVec3,
 }
+
+/// This frame's probe window (main world, extracted): the camera's, snapped to the probe spacing.
+#[derive(Resource, Clone, Copy, Default, Debug, PartialEq)]
+pub struct GiProbeWindow(pub Option<ProbeWindow>);
+
+/// The entity holding the plugin's `LightProbe` and `IrradianceVolume`.
+#[derive(Component)]
+pub struct GiIrradianceVolume;
 
 /// The camera whose [`VoxelGlobalIllumination`] is used: the active one of lowest `Camera::order` (ties:
 /// lowest entity), with its settings sanitized.
@@ -175,9 +263,11 @@ fn update_gi_assets(
     grid: Option<Res<VoxelGridAssets>>,
     current: Option<Res<GiAssets>>,
     mut images: ResMut<Assets<Image>>,
+    mut buffers: ResMut<Assets<ShaderBuffer>>,
     mut warned: Local<bool>,
 ) {
-    let on = gi_camera(cameras.iter()).is_some();
+    let camera = gi_camera(cameras.iter());
+    let on = camera.is_some();
     let grid = grid.filter(|g| on && g.attributes.is_some());
     let Some(grid) = grid else {
         if on && !*warned {
@@ -192,15 +282,32 @@ fn update_gi_assets(
         }
         return;
     };
-    if current.is_some_and(|c| c.generation == grid.generation) {
+    let counts = camera.map_or(UVec3::ONE, |(_, g)| g.probe_counts);
+    if current.as_ref().is_some_and(|c| c.generation == grid.generation && c.probe_counts == counts) {
         return;
     }
-    let size = grid.texture_size;
+    // Where only the probe counts changed, the lighting volume stays.
+    let radiance = match current.as_ref().filter(|c| c.generation == grid.generation) {
+        Some(c) => c.radiance.clone(),
+        None => radiance_image(&mut images, grid.texture_size, grid.levels),
+    };
+    let bytes = counts.element_product() as usize * probes::PROBE_RECORD_BYTES as usize;
+    commands.insert_resource(GiAssets {
+        radiance,
+        generation: grid.generation,
+        irradiance: images.add(irradiance_image(counts)),
+        probe_records: buffers.add(ShaderBuffer::with_size(bytes, RenderAssetUsages::RENDER_WORLD)),
+        probe_counts: counts,
+    });
+}
+
+/// The lighting volume for a grid of `levels` levels of `size` texels (see [`GiAssets::radiance`]).
+fn radiance_image(images: &mut Assets<Image>, size: UVec3, levels: u32) -> Handle<Image> {
     let radiance = Image {
         data: None,
         texture_descriptor: TextureDescriptor {
             label: Some("hao_gi_radiance"),
-            size: Extent3d { width: size.x, height: size.y, depth_or_array_layers: size.z * grid.levels },
+            size: Extent3d { width: size.x, height: size.y, depth_or_array_layers: size.z * levels },
             mip_level_count: 1,
             sample_count: 1,
             dimension: TextureDimension::D3,
@@ -212,7 +319,83 @@ fn update_gi_assets(
         asset_usage: RenderAssetUsages::RENDER_WORLD,
         ..default()
     };
-    commands.insert_resource(GiAssets { radiance: images.add(radiance), generation: grid.generation });
+    images.add(radiance)
+}
+
+/// Bevy's irradiance volume for `counts` probes (see [`GiAssets::irradiance`]), written by the GPU alone.
+fn irradiance_image(counts: UVec3) -> Image {
+    Image {
+        data: None,
+        texture_descriptor: TextureDescriptor {
+            label: Some("hao_gi_irradiance"),
+            size: Extent3d { width: counts.x, height: 2 * counts.y, depth_or_array_layers: 3 * counts.z },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: TextureDimension::D3,
+            format: TextureFormat::Rgba16Float,
+            usage: TextureUsages::TEXTURE_BINDING | TextureUsages::STORAGE_BINDING | TextureUsages::COPY_SRC,
+            view_formats: &[],
+        },
+        sampler: ImageSampler::linear(),
+        asset_usage: RenderAssetUsages::RENDER_WORLD,
+        ..default()
+    }
+}
+
+/// Places the probe window around the GI camera and keeps the `LightProbe` + `IrradianceVolume` entity on
+/// it (its transform set whole, so that this frame's visibility and extraction see it), or takes it away.
+fn update_gi_volume(
+    mut commands: Commands,
+    cameras: Query<(Entity, &Camera, &VoxelGlobalIllumination)>,
+    transforms: Query<&GlobalTransform, Without<GiIrradianceVolume>>,
+    assets: Option<Res<GiAssets>>,
+    mut window: ResMut<GiProbeWindow>,
+    mut volumes: Query<(Entity, &mut IrradianceVolume, &mut Transform, &mut GlobalTransform), With<GiIrradianceVolume>>,
+) {
+    let camera = gi_camera(cameras.iter());
+    let placed = camera.as_ref().zip(assets.as_deref()).and_then(|((e, g), a)| {
+        let focus = transforms.get(*e).ok()?.translation();
+        Some((probe_window(focus, g.probe_spacing, a.probe_counts)?, g.intensity, a.irradiance.clone()))
+    });
+    let Some((placed, intensity, image)) = placed else {
+        if window.0.is_some() {
+            window.0 = None;
+        }
+        for (e, ..) in &volumes {
+            commands.entity(e).despawn();
+        }
+        return;
+    };
+    if window.0 != Some(placed) {
+        window.0 = Some(placed);
+    }
+    let (lo, hi) = placed.bounds();
+    let transform = Transform::from_translation((lo + hi) * 0.5).with_scale(hi - lo);
+    let volume = IrradianceVolume { voxels: image, intensity, affects_lightmapped_meshes: true };
+    match volumes.single_mut() {
+        Ok((_, mut v, mut t, mut g)) => {
+            if v.voxels != volume.voxels || v.intensity != volume.intensity {
+                *v = volume;
+            }
+            if *t != transform {
+                *t = transform;
+                *g = GlobalTransform::from(transform);
+            }
+        }
+        Err(_) => {
+            for (e, ..) in &volumes {
+                commands.entity(e).despawn();
+            }
+            commands.spawn((
+                LightProbe::default(),
+                volume,
+                transform,
+                GlobalTransform::from(transform),
+                GiIrradianceVolume,
+                Name::new("hao voxel GI irradiance volume"),
+            ));
+        }
+    }
 }
 
 fn report_invalid_settings(
@@ -225,5 +408,33 @@ fn report_invalid_settings(
                 warn!("bevy_hao: camera {entity}: {f}");
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_settings_are_replaced_with_a_message_each() {
+        let (g, fixes) = VoxelGlobalIllumination::default().sanitized();
+        assert_eq!((g, fixes.len()), (VoxelGlobalIllumination::default(), 0));
+        let bad = VoxelGlobalIllumination {
+            intensity: f32::NAN,
+            probe_spacing: -1.0,
+            probe_counts: UVec3::new(0, 1000, 8),
+            rays: 0,
+            probe_frames: 0,
+            accumulation_frames: 100_000,
+            lighting_frames: 0,
+        };
+        let (g, fixes) = bad.sanitized();
+        assert_eq!(fixes.len(), 7, "{fixes:?}");
+        assert_eq!((g.intensity, g.probe_spacing, g.probe_counts), (1.0, 0.01, UVec3::new(2, 128, 8)));
+        assert_eq!((g.rays, g.probe_frames, g.accumulation_frames, g.lighting_frames), (1, 1, 256, 1));
+        // Too many probes in all: a window that fits.
+        let (g, _) = VoxelGlobalIllumination { probe_counts: UVec3::splat(128), ..default() }.sanitized();
+        assert!(g.probe_counts.element_product() <= MAX_PROBES);
+        assert_eq!(g.sanitized().1.len(), 0);
     }
 }

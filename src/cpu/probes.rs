@@ -1,0 +1,314 @@
+//! The irradiance probes of voxel global illumination (WGSL `gi_probes.wgsl`): a grid of probes following
+//! the camera, each gathering the lighting volume's light ([`super::lighting::voxel_radiance`]) along rays
+//! through the voxels, into the six faces of an ambient cube as Bevy's irradiance volume holds them.
+//!
+//! * The grid: probe `q` (a lattice point, `q * spacing` in world space) for `q` in a window of
+//!   `counts` probes around the camera, snapped to the spacing ([`probe_window`]), stored toroidally so that
+//!   a probe keeps its history while the window scrolls ([`ProbeWindow::slot`]).
+//! * A probe in a voxel moves out of it along the voxel's average normal before it gathers
+//!   ([`relocate_probe`]): a probe inside a floor or a wall would see its own surface from inside.
+//! * Its rays cover the sphere evenly ([`sphere_direction`]), turned at random on each update
+//!   ([`probe_rotation`]); a ray that stops in a voxel takes the voxel's radiance where the voxel's average
+//!   normal faces it (a voxel seen from behind holds faces the probe does not see), nothing where it does
+//!   not; a ray that leaves the volume or runs out of steps brings no light (the sky is Bevy's
+//!   `GlobalAmbientLight`, added by Bevy's PBR on top).
+//! * The faces hold the irradiance over pi (cd/m^2): what a white Lambertian surface facing each way sends
+//!   out, the value Bevy's PBR multiplies by the diffuse colour ([`gather_probe`]).
+//! * Each update blends into the probe's history, up to a window of frames ([`blend_probe`]).
+
+use super::march::{TraceLevel, finest_level_containing, march_cascades};
+use glam::{IVec3, UVec3, Vec2, Vec3};
+use std::f32::consts::PI;
+
+/// The faces of an ambient cube, in the order Bevy's irradiance volume and the probes' records hold them:
+/// +x, -x, +y, -y, +z, -z.
+pub const PROBE_FACES: [Vec3; 6] = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
+
+/// The most texel visits a probe's ray makes (WGSL `PROBE_STEPS`).
+pub const PROBE_STEPS: u32 = 64;
+
+/// How far a probe's rays look, world units (WGSL `PROBE_MAX_DISTANCE`): past the volume, in effect.
+pub const PROBE_MAX_DISTANCE: f32 = 1.0e4;
+
+/// The most a probe in a voxel moves out of it along the voxel's normal, in probe spacings (WGSL
+/// `RELOCATE_MAX`): under half, so that it stays nearer its own lattice point than any other's.
+pub const RELOCATE_MAX: f32 = 0.45;
+
+/// The golden ratio's fractional part.
+const GOLDEN: f32 = 0.618_034;
+
+/// The probes of a frame: lattice points `min .. min + counts`, `spacing` apart.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProbeWindow {
+    /// The lattice point of the window's first probe.
+    pub min: IVec3,
+    /// Probes along each axis.
+    pub counts: UVec3,
+    /// World distance between neighbouring probes.
+    pub spacing: f32,
+}
+
+/// The window of `counts` probes `spacing` apart around `focus`, snapped to the spacing (its middle probe
+/// the lattice point nearest `focus`), or `None` for a focus that is not finite or too far out for the
+/// lattice (`i32`).
+pub fn probe_window(focus: Vec3, spacing: f32, counts: UVec3) -> Option<ProbeWindow> {
+    let nearest = (focus / spacing).round();
+    if !(nearest.is_finite() && nearest.abs().max_element() < 1.0e9 && spacing > 0.0) {
+        return None;
+    }
+    Some(ProbeWindow { min: nearest.as_ivec3() - (counts / 2).as_ivec3(), counts, spacing })
+}
+
+impl ProbeWindow {
+    /// Probes in the window.
+    pub fn len(&self) -> u32 {
+        self.counts.x * self.counts.y * self.counts.z
+    }
+
+    /// Whether the window holds no probe.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The lattice point of the window's `i`-th probe (x fastest).
+    pub fn lattice(&self, i: u32) -> IVec3 {
+        let c = self.counts;
+        self.min + UVec3::new(i % c.x, i / c.x % c.y, i / (c.x * c.y)).as_ivec3()
+    }
+
+    /// A lattice point's world position.
+    pub fn position(&self, q: IVec3) -> Vec3 {
+        q.as_vec3() * self.spacing
+    }
+
+    /// Where lattice point `q`'s record is kept (WGSL `probe_slot`): `q` modulo the counts, x fastest, so that
+    /// a probe keeps its slot while the window scrolls.
+    pub fn slot(&self, q: IVec3) -> u32 {
+        let s = q.rem_euclid(self.counts.as_ivec3()).as_uvec3();
+        s.x + self.counts.x * (s.y + self.counts.y * s.z)
+    }
+
+    /// The world box Bevy's `LightProbe` must cover for its texels' centres to lie on the probes: half a
+    /// spacing beyond the first and last probe on each axis.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let lo = (self.min.as_vec3() - Vec3::splat(0.5)) * self.spacing;
+        (lo, lo + self.counts.as_vec3() * self.spacing)
+    }
+}
+
+/// A 32-bit integer hash (PCG's output permutation; WGSL `pcg_hash`).
+pub fn pcg_hash(x: u32) -> u32 {
+    let state = x.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+/// The rotation of the rays of the probe in slot `slot` on the update numbered `seed` (WGSL
+/// `probe_rotation`): two numbers in `[0, 1)` from hashes, exact in `f32`.
+pub fn probe_rotation(slot: u32, seed: u32) -> Vec2 {
+    let a = pcg_hash(slot ^ pcg_hash(seed));
+    let b = pcg_hash(a);
+    Vec2::new((a >> 8) as f32, (b >> 8) as f32) / 16_777_216.0
+}
+
+/// Ray `k` of `count` over the sphere (WGSL `sphere_direction`): stratified in height, spread by the golden
+/// angle around it, the whole set turned by `rotation`.
+pub fn sphere_direction(k: u32, count: u32, rotation: Vec2) -> Vec3 {
+    let u1 = ((k as f32 + rotation.x) / count as f32).fract();
+    let z = 1.0 - 2.0 * u1;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * (k as f32 * GOLDEN + rotation.y).fract();
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// What a probe's ray reads of a voxel: its radiance (the lighting volume) and its average normal.
+pub trait LitVoxels {
+    /// The radiance (cd/m^2) and average normal of cell `cell` of level `level`'s window.
+    fn voxel(&self, level: usize, cell: IVec3) -> (Vec3, Vec3);
+}
+
+/// The cell of level `level`'s window that holds the point `t` (world) along a ray from `origin`: the cell it
+/// enters there, a thousandth of a cell on (WGSL `hit_cell`).
+pub fn hit_cell(levels: &[TraceLevel], level: usize, origin: Vec3, dir: Vec3, t: f32) -> IVec3 {
+    let l = &levels[level];
+    let p = l.level_position(origin) + dir * (t / l.cell_size + 1.0e-3);
+    p.floor().as_ivec3().clamp(IVec3::ZERO, l.mips.dims().as_ivec3() - IVec3::ONE)
+}
+
+/// Where the probe at lattice position `p` gathers from (WGSL `relocate_probe`): `p` itself, unless it lies
+/// in an occupied voxel of the finest level that holds it whose average normal has a direction (at least
+/// [`super::lighting::SHADOW_NORMAL_MIN`] long); then the first point along that normal, a cell at a time, whose
+/// voxel is empty, at most [`RELOCATE_MAX`] spacings away (there, if none is).
+pub fn relocate_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, spacing: f32) -> Vec3 {
+    let level = finest_level_containing(levels, p);
+    let l = &levels[level];
+    let occupied = |q: Vec3| l.mips.occupied(l.level_position(q).floor().as_ivec3());
+    if !occupied(p) {
+        return p;
+    }
+    let normal = voxels.voxel(level, l.level_position(p).floor().as_ivec3()).1;
+    if normal.length() < super::lighting::SHADOW_NORMAL_MIN {
+        return p;
+    }
+    let n = normal.normalize();
+    let reach = RELOCATE_MAX * spacing;
+    let steps = (reach / l.cell_size).floor().max(1.0) as u32;
+    let step = reach / steps as f32;
+    for k in 1..=steps {
+        let q = p + n * (step * k as f32);
+        if !occupied(q) {
+            return q;
+        }
+    }
+    p + n * reach
+}
+
+/// The light one ray brings to a probe at `p` along `dir` (WGSL `probe_ray_radiance`): the radiance of the
+/// voxel it stops in where that voxel's average normal faces the ray, else nothing.
+pub fn probe_ray_radiance(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, dir: Vec3) -> Vec3 {
+    let start = finest_level_containing(levels, p);
+    let Some((t, level)) = march_cascades(levels, p, dir, start, 0.0, PROBE_MAX_DISTANCE, PROBE_STEPS) else {
+        return Vec3::ZERO;
+    };
+    let (radiance, normal) = voxels.voxel(level, hit_cell(levels, level, p, dir, t));
+    if normal.dot(dir) < 0.0 { radiance } else { Vec3::ZERO }
+}
+
+/// One update of a probe at `p` (WGSL `gather_probe`): `rays` rays over the sphere turned by `rotation`,
+/// projected on the six faces of [`PROBE_FACES`] as irradiance over pi: `4 / rays * sum(L * max(d . a, 0))`.
+pub fn gather_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, rays: u32, rotation: Vec2) -> [Vec3; 6] {
+    let mut faces = [Vec3::ZERO; 6];
+    for k in 0..rays {
+        let d = sphere_direction(k, rays, rotation);
+        let l = probe_ray_radiance(levels, voxels, p, d);
+        for (face, axis) in faces.iter_mut().zip(PROBE_FACES) {
+            *face += l * d.dot(axis).max(0.0);
+        }
+    }
+    faces.map(|f| f * (4.0 / rays as f32))
+}
+
+/// A probe's history after an update (WGSL `blend_probe`): the mean of its last updates, up to
+/// `max_frames` of them (an exponential average beyond), and the updates it now holds.
+pub fn blend_probe(history: [Vec3; 6], frames: u32, update: [Vec3; 6], max_frames: u32) -> ([Vec3; 6], u32) {
+    let n = (frames + 1).min(max_frames.max(1));
+    let w = 1.0 / n as f32;
+    (std::array::from_fn(|k| history[k] + (update[k] - history[k]) * w), n)
+}
+
+/// The irradiance over pi that Bevy's PBR reads from an ambient cube for a surface of unit normal `n`
+/// (Valve's formula, as `irradiance_volume.wgsl` applies it): `sum(n_i^2 * face(sign n_i))`.
+pub fn ambient_cube(faces: &[Vec3; 6], n: Vec3) -> Vec3 {
+    let pick = |axis: usize, positive: bool| faces[axis * 2 + usize::from(!positive)];
+    let nn = n * n;
+    nn.x * pick(0, n.x >= 0.0) + nn.y * pick(1, n.y >= 0.0) + nn.z * pick(2, n.z >= 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::grid::{VoxelGrid, VoxelOccupancy};
+    use crate::cpu::march::VoxelMips;
+
+    /// A lit floor: every occupied voxel of radiance `radiance`, its normal +y.
+    struct Floor(Vec3);
+    impl LitVoxels for Floor {
+        fn voxel(&self, _: usize, _: IVec3) -> (Vec3, Vec3) {
+            (self.0, Vec3::Y)
+        }
+    }
+
+    /// A grid of 0.25 m cells from the origin with a floor layer at y = 2 (0.5-0.75 m), over all of it.
+    fn floor() -> (VoxelMips, Vec3) {
+        let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(64, 16, 64)).unwrap();
+        let occupancy = VoxelOccupancy::new(grid, false);
+        for x in 0..64 {
+            for z in 0..64 {
+                occupancy.set(UVec3::new(x, 2, z));
+            }
+        }
+        (VoxelMips::new(&occupancy, 4), grid.origin)
+    }
+
+    #[test]
+    fn a_probe_over_a_lit_floor_sees_its_radiance_below_and_nothing_above() {
+        let (mips, origin) = floor();
+        let levels = [TraceLevel { origin, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
+        let radiance = Vec3::new(100.0, 50.0, 25.0);
+        // 0.35 m over the floor's top, 8 m from its edges: the floor fills the lower half of the sphere but
+        // for 2.5 degrees over the horizon.
+        let p = Vec3::new(8.0, 1.1, 8.0);
+        let faces = gather_probe(&levels, &Floor(radiance), p, 4096, Vec2::new(0.3, 0.7));
+        // Facing down: E / pi = L.
+        let down = faces[3];
+        assert!((down / radiance - Vec3::splat(1.0)).abs().max_element() < 0.03, "{down}");
+        assert_eq!(faces[2], Vec3::ZERO, "nothing above");
+        // Sideways, the cosine-weighted half below the horizon: L / 2, less the band the floor misses at the
+        // horizon (2 sin(2.5 deg) / pi of it, 0.028).
+        for side in [0, 1, 4, 5] {
+            assert!((faces[side] / radiance - Vec3::splat(0.5)).abs().max_element() < 0.04, "{}", faces[side]);
+        }
+        // Read back along a normal as Bevy does: a floor seen by a surface facing down gets L.
+        assert!((ambient_cube(&faces, Vec3::NEG_Y) - down).length() < 1e-3);
+    }
+
+    #[test]
+    fn a_probe_in_the_floor_moves_out_along_its_normal_and_one_in_free_space_stays() {
+        let (mips, origin) = floor();
+        let levels = [TraceLevel { origin, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
+        let inside = Vec3::new(8.0, 0.6, 8.0);
+        let moved = relocate_probe(&levels, &Floor(Vec3::ONE), inside, 1.0);
+        assert!(
+            moved.y >= 0.75 && moved.y <= 0.6 + RELOCATE_MAX + 1e-5 && (moved.x, moved.z) == (inside.x, inside.z),
+            "{moved}"
+        );
+        let free = Vec3::new(8.0, 2.0, 8.0);
+        assert_eq!(relocate_probe(&levels, &Floor(Vec3::ONE), free, 1.0), free);
+        // Moved out, it sees the floor below as a probe over it does.
+        let faces = gather_probe(&levels, &Floor(Vec3::ONE), moved, 1024, Vec2::ZERO);
+        assert!(faces[3].x > 0.9 && faces[2].x == 0.0, "{faces:?}");
+    }
+
+    #[test]
+    fn the_window_follows_the_focus_and_a_probe_keeps_its_slot() {
+        let w = probe_window(Vec3::new(10.2, -3.9, 0.1), 0.5, UVec3::new(8, 4, 8)).unwrap();
+        assert_eq!(w.min, IVec3::new(20 - 4, -8 - 2, -4));
+        assert_eq!(w.lattice(0), w.min);
+        assert_eq!(w.lattice(w.len() - 1), w.min + IVec3::new(7, 3, 7));
+        let (lo, hi) = w.bounds();
+        assert_eq!(lo, (w.min.as_vec3() - 0.5) * 0.5);
+        assert_eq!(hi - lo, Vec3::new(4.0, 2.0, 4.0));
+        // Scrolled by one probe along x, the probes both windows hold keep their slots, and every slot is
+        // used once.
+        let moved = probe_window(Vec3::new(10.7, -3.9, 0.1), 0.5, UVec3::new(8, 4, 8)).unwrap();
+        assert_eq!(moved.min, w.min + IVec3::X);
+        let q = w.min + IVec3::new(3, 1, 2);
+        assert_eq!(w.slot(q), moved.slot(q));
+        let mut slots: Vec<u32> = (0..moved.len()).map(|i| moved.slot(moved.lattice(i))).collect();
+        slots.sort_unstable();
+        assert_eq!(slots, (0..moved.len()).collect::<Vec<_>>());
+        assert_eq!(probe_window(Vec3::NAN, 0.5, UVec3::splat(4)), None);
+        assert_eq!(probe_window(Vec3::splat(1.0e12), 0.5, UVec3::splat(4)), None);
+        assert_eq!(probe_window(Vec3::ZERO, 0.0, UVec3::splat(4)), None);
+    }
+
+    #[test]
+    fn rays_cover_the_sphere_and_the_history_is_a_mean_then_a_window() {
+        // The directions' mean is near zero and each a unit vector, for any rotation.
+        for rotation in [Vec2::ZERO, probe_rotation(7, 3), probe_rotation(1000, 99)] {
+            let dirs: Vec<Vec3> = (0..256).map(|k| sphere_direction(k, 256, rotation)).collect();
+            assert!(dirs.iter().all(|d| (d.length() - 1.0).abs() < 1e-5));
+            assert!((dirs.iter().copied().sum::<Vec3>() / 256.0).length() < 0.02);
+        }
+        let r = probe_rotation(3, 5);
+        assert!(r.cmpge(Vec2::ZERO).all() && r.cmplt(Vec2::ONE).all() && r != probe_rotation(3, 6));
+        // A mean of the first updates, then a window of max_frames.
+        let one = [Vec3::ONE; 6];
+        let (h, n) = blend_probe([Vec3::ZERO; 6], 0, one, 4);
+        assert_eq!((h, n), (one, 1));
+        let (h, n) = blend_probe(h, n, [Vec3::ZERO; 6], 4);
+        assert_eq!((h[0], n), (Vec3::splat(0.5), 2));
+        let (h, n) = blend_probe(h, 4, one, 4);
+        assert_eq!((h[0], n), (Vec3::splat(0.625), 4));
+    }
+}

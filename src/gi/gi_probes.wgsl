@@ -1,0 +1,202 @@
+// The irradiance probes (src/gi/probes.rs): a grid of probes following the camera, each gathering the
+// lighting volume's light along rays through the voxels into the six faces of an ambient cube, blended into
+// its history (`update_probes`, one of `phases` probes a frame in turn); then every probe of the window
+// written into the irradiance volume Bevy's PBR samples, in its layout (`write_probes`). CPU twin:
+// `bevy_hao::cpu::probes`.
+#import bevy_hao::voxel_grid::{
+    voxel_grid, voxel_occupied, voxel_texel, voxel_normal_at, march_cascades, level_position,
+    finest_level_containing,
+}
+#import bevy_hao::gi_common::unpack_rgb9e5
+
+// src/gi/probes.rs: `GpuProbeParams`.
+struct ProbeParams {
+    // The lattice point of the window's first probe.
+    window_min: vec3<i32>,
+    // Rays a probe traces on an update.
+    rays: u32,
+    // Probes along each axis.
+    counts: vec3<u32>,
+    // This frame's share of the probes, of `phases`.
+    phase: u32,
+    spacing: f32,
+    phases: u32,
+    // The updates a probe's history holds at most this frame.
+    max_frames: u32,
+    // This frame's number, which turns the probes' rays.
+    seed: u32,
+}
+
+// src/gi/probes.rs: `PROBE_RECORD_BYTES`. A probe's history: its six faces (irradiance over pi, rgb), the
+// lattice point it holds (a slot is shared by the lattice points the window's counts apart), the updates it
+// holds, and the seed of the last.
+struct ProbeRecord {
+    faces: array<vec4<f32>, 6>,
+    lattice: vec3<i32>,
+    frames: u32,
+    seed: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: ProbeParams;
+@group(0) @binding(1) var<storage, read_write> records: array<ProbeRecord>;
+// The lighting volume (src/gi/gi_lighting.wgsl).
+@group(0) @binding(2) var radiance: texture_3d<u32>;
+// Bevy's irradiance volume: (counts.x, 2 counts.y, 3 counts.z) texels.
+@group(0) @binding(3) var irradiance: texture_storage_3d<rgba16float, write>;
+// The voxel levels are bound at group 2 (`bevy_hao::voxel_grid`).
+
+// cpu/probes.rs: PROBE_STEPS, PROBE_MAX_DISTANCE, RELOCATE_MAX
+const PROBE_STEPS: u32 = 64u;
+const PROBE_MAX_DISTANCE: f32 = 10000.0;
+const RELOCATE_MAX: f32 = 0.45;
+// cpu/lighting.rs: SHADOW_NORMAL_MIN
+const SHADOW_NORMAL_MIN: f32 = 0.25;
+
+const PI: f32 = 3.141592653589793;
+const GOLDEN: f32 = 0.618034;
+
+// cpu/probes.rs: PROBE_FACES
+const PROBE_FACES: array<vec3<f32>, 6> = array<vec3<f32>, 6>(
+    vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(-1.0, 0.0, 0.0),
+    vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, -1.0, 0.0),
+    vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(0.0, 0.0, -1.0),
+);
+
+// cpu/probes.rs: ProbeWindow::slot. Lattice point q's record: q modulo the counts, x fastest.
+fn probe_slot(q: vec3<i32>) -> u32 {
+    let c = vec3<i32>(params.counts);
+    let s = vec3<u32>(((q % c) + c) % c);
+    return s.x + params.counts.x * (s.y + params.counts.y * s.z);
+}
+
+// cpu/probes.rs: pcg_hash
+fn pcg_hash(x: u32) -> u32 {
+    let state = x * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+// cpu/probes.rs: probe_rotation
+fn probe_rotation(slot: u32, seed: u32) -> vec2<f32> {
+    let a = pcg_hash(slot ^ pcg_hash(seed));
+    let b = pcg_hash(a);
+    return vec2<f32>(f32(a >> 8u), f32(b >> 8u)) / 16777216.0;
+}
+
+// cpu/probes.rs: sphere_direction. Ray k of count over the sphere, turned by `rotation`.
+fn sphere_direction(k: u32, count: u32, rotation: vec2<f32>) -> vec3<f32> {
+    let u1 = fract((f32(k) + rotation.x) / f32(count));
+    let z = 1.0 - 2.0 * u1;
+    let r = sqrt(max(0.0, 1.0 - z * z));
+    let phi = 2.0 * PI * fract(f32(k) * GOLDEN + rotation.y);
+    return vec3<f32>(r * cos(phi), r * sin(phi), z);
+}
+
+// cpu/probes.rs: hit_cell. The cell of a level's window a ray from `origin` enters `t` (world) along it.
+fn hit_cell(level: u32, origin: vec3<f32>, dir: vec3<f32>, t: f32) -> vec3<i32> {
+    let l = voxel_grid.levels[level];
+    let p = level_position(level, origin) + dir * (t / l.cell_size + 1.0e-3);
+    return clamp(vec3<i32>(floor(p)), vec3<i32>(0), vec3<i32>(l.dims) - vec3<i32>(1));
+}
+
+// Whether the world point `q` lies in an occupied cell of level `level`.
+fn occupied_at(level: u32, q: vec3<f32>) -> bool {
+    return voxel_occupied(level, vec3<i32>(floor(level_position(level, q))), 0u);
+}
+
+// cpu/probes.rs: relocate_probe. Where a probe at `p` gathers from: out of an occupied voxel along its
+// average normal, a cell at a time, at most RELOCATE_MAX spacings.
+fn relocate_probe(p: vec3<f32>, spacing: f32) -> vec3<f32> {
+    let level = finest_level_containing(p);
+    if !occupied_at(level, p) {
+        return p;
+    }
+    let normal = voxel_normal_at(level, vec3<i32>(floor(level_position(level, p))));
+    if length(normal) < SHADOW_NORMAL_MIN {
+        return p;
+    }
+    let n = normalize(normal);
+    let reach = RELOCATE_MAX * spacing;
+    let steps = u32(max(floor(reach / voxel_grid.levels[level].cell_size), 1.0));
+    let step = reach / f32(steps);
+    for (var k = 1u; k <= steps; k++) {
+        let q = p + n * (step * f32(k));
+        if !occupied_at(level, q) {
+            return q;
+        }
+    }
+    return p + n * reach;
+}
+
+// cpu/probes.rs: probe_ray_radiance. The lit voxel a ray stops in, where its average normal faces the ray.
+fn probe_ray_radiance(p: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
+    let start = finest_level_containing(p);
+    let hit = march_cascades(p, dir, start, 0.0, PROBE_MAX_DISTANCE, PROBE_STEPS);
+    if hit.x < 0.0 {
+        return vec3<f32>(0.0);
+    }
+    let level = u32(hit.y);
+    let cell = hit_cell(level, p, dir, hit.x);
+    if dot(voxel_normal_at(level, cell), dir) >= 0.0 {
+        return vec3<f32>(0.0);
+    }
+    return unpack_rgb9e5(textureLoad(radiance, voxel_texel(level, cell), 0).r);
+}
+
+@compute @workgroup_size(64)
+fn update_probes(@builtin(global_invocation_id) id: vec3<u32>) {
+    let c = params.counts;
+    let i = id.x * params.phases + params.phase;
+    if i >= c.x * c.y * c.z {
+        return;
+    }
+    let q = params.window_min + vec3<i32>(vec3<u32>(i % c.x, (i / c.x) % c.y, i / (c.x * c.y)));
+    let slot = probe_slot(q);
+    var record = records[slot];
+    // A slot another lattice point held starts again.
+    let frames = select(0u, record.frames, all(record.lattice == q));
+    // cpu/probes.rs: gather_probe
+    let p = relocate_probe(vec3<f32>(q) * params.spacing, params.spacing);
+    let rotation = probe_rotation(slot, params.seed);
+    var faces = array<vec3<f32>, 6>();
+    for (var k = 0u; k < params.rays; k++) {
+        let d = sphere_direction(k, params.rays, rotation);
+        let l = probe_ray_radiance(p, d);
+        for (var f = 0u; f < 6u; f++) {
+            faces[f] += l * max(dot(d, PROBE_FACES[f]), 0.0);
+        }
+    }
+    // cpu/probes.rs: blend_probe
+    let n = min(frames + 1u, max(params.max_frames, 1u));
+    let w = 1.0 / f32(n);
+    for (var f = 0u; f < 6u; f++) {
+        let update = faces[f] * (4.0 / f32(params.rays));
+        let old = record.faces[f].xyz;
+        record.faces[f] = vec4<f32>(old + (update - old) * w, 0.0);
+    }
+    record.lattice = q;
+    record.frames = n;
+    record.seed = params.seed;
+    records[slot] = record;
+}
+
+@compute @workgroup_size(4, 4, 4)
+fn write_probes(@builtin(global_invocation_id) w: vec3<u32>) {
+    let c = params.counts;
+    if any(w >= c) {
+        return;
+    }
+    let q = params.window_min + vec3<i32>(w);
+    let record = records[probe_slot(q)];
+    let valid = all(record.lattice == q) && record.frames > 0u;
+    // Bevy's layout: the + faces in the first counts.y rows, the - faces in the next; the x, y and z faces
+    // in the three slabs along z.
+    for (var f = 0u; f < 6u; f++) {
+        let texel = vec3<u32>(w.x, w.y + (f & 1u) * c.y, w.z + (f >> 1u) * c.z);
+        let face = select(vec3<f32>(0.0), record.faces[f].xyz, valid);
+        textureStore(irradiance, texel, vec4<f32>(face, 1.0));
+    }
+}
