@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! cargo run --release --example sibenik -- [builtin:cathedral | PATH.obj | PATH.gltf | PATH.glb]
-//!     [--ao hao|ssao|both|off] [--view final|ao|voxels|counts|static-dynamic|cascades|albedo|normals] [--res N]
+//!     [--ao hao|ssao|both|off] [--gi] [--view final|ao|voxels|counts|static-dynamic|cascades|albedo|normals|lit]
+//!     [--res N]
 //!     [--camera X,Y,Z --look X,Y,Z] [--headless --frames 30 --screenshot OUT.png [--size 960x540]]
 //! ```
 //!
@@ -14,7 +15,10 @@
 //! from this. Without `--headless`, `--screenshot` captures the window, inspector included, and exits.
 //!
 //! The light is a sun through the windows plus an ambient "sky": ambient light is what ambient occlusion
-//! dims (direct sunlight is not), so an interior lit mostly by bounce light is where AO matters.
+//! dims (direct sunlight is not), so an interior lit mostly by bounce light is where AO matters. `--gi`
+//! adds `VoxelGlobalIllumination` to the camera: the sunlight that comes in through the windows bounces
+//! off the floor and the walls (the sky's ambient light is then turned down, as the bounce replaces part of
+//! it).
 
 use bevy::camera::RenderTarget;
 use bevy::input::mouse::{AccumulatedMouseMotion, AccumulatedMouseScroll};
@@ -35,6 +39,9 @@ struct Cli {
     /// The ambient occlusion: HAO, Bevy's SSAO, both (HAO with the near field) or none.
     #[arg(long, default_value = "hao", value_parser = ["hao", "ssao", "both", "off"])]
     ao: String,
+    /// Diffuse global illumination from the voxels (`VoxelGlobalIllumination` on the camera).
+    #[arg(long)]
+    gi: bool,
     /// What the view shows.
     #[arg(long, value_enum, default_value_t = View::Final)]
     view: View,
@@ -65,6 +72,7 @@ struct Cli {
 struct Args {
     scene: String,
     ao: String,
+    gi: bool,
     view: HaoDebugView,
     res: Option<u32>,
     camera: Option<(Vec3, Vec3)>,
@@ -80,6 +88,7 @@ fn parse_args() -> Args {
         frames: c.frames.unwrap_or(if c.headless || c.screenshot.is_none() { 30 } else { 120 }),
         scene: c.scene,
         ao: c.ao,
+        gi: c.gi,
         view: c.view.into(),
         res: c.res,
         camera: c.camera.zip(c.look),
@@ -100,7 +109,9 @@ struct FlyCamera {
 /// Spawns the scene, the lights, the voxel volume and the camera (rendering to `target` when headless).
 fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transform, target: Option<UVec2>) {
     let args = args.clone();
-    app.insert_resource(GlobalAmbientLight { color: Color::srgb(0.95, 0.93, 0.88), brightness: 700.0, ..default() })
+    // With voxel GI the sun's bounce lights the interior, and the ambient "sky" is turned down.
+    let ambient = if args.gi { 150.0 } else { 700.0 };
+    app.insert_resource(GlobalAmbientLight { color: Color::srgb(0.95, 0.93, 0.88), brightness: ambient, ..default() })
         .insert_resource(ClearColor(Color::srgb(0.55, 0.68, 0.85)))
         .add_systems(
             Startup,
@@ -117,7 +128,9 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                 // scene. Point counts for the heat map; the albedo and normal views need the voxels'
                 // attributes, whose sums (28 bytes a voxel) must fit one storage binding (128 MiB on
                 // lavapipe): 3 cascades of 112^3 rather than 4 of 192^3.
-                let attributes = matches!(args.view, HaoDebugView::Albedo | HaoDebugView::Normals);
+                // (Voxel GI turns the attributes on itself.)
+                let attributes = args.gi
+                    || matches!(args.view, HaoDebugView::Albedo | HaoDebugView::Normals | HaoDebugView::LitVoxels);
                 commands.spawn(match args.res {
                     Some(n) => VoxelVolume {
                         bounds: VolumeBounds::FitStaticScene { margin: 0.5 },
@@ -157,6 +170,9 @@ fn setup_scene(app: &mut App, args: &Args, source: SceneSource, camera: Transfor
                         cam.insert((bevy::pbr::ScreenSpaceAmbientOcclusion::default(), Msaa::Off));
                     }
                     _ => {}
+                }
+                if args.gi {
+                    cam.insert(VoxelGlobalIllumination::default());
                 }
             },
         );

@@ -1,5 +1,5 @@
-//! An egui inspector for bevy_hao (cargo feature `inspector`): every [`HybridAmbientOcclusion`] and
-//! [`VoxelVolume`] setting live, AO off / HAO / Bevy's SSAO / both, the debug views ([`HaoDebugView`]),
+//! An egui inspector for bevy_hao (cargo feature `inspector`): every [`HybridAmbientOcclusion`],
+//! [`VoxelVolume`] and [`VoxelGlobalIllumination`] setting live, AO off / HAO / Bevy's SSAO / both, the debug views ([`HaoDebugView`]),
 //! per-pass GPU times from Bevy's render diagnostics, and voxel and point counts.
 //!
 //! ```no_run
@@ -15,6 +15,7 @@
 
 use crate::ao::{HaoQuality, HybridAmbientOcclusion};
 use crate::debug::HaoDebugView;
+use crate::gi::VoxelGlobalIllumination;
 use crate::voxel::components::{VolumeResolution, VoxelInjection, VoxelSubdivision, VoxelVolume};
 use crate::voxel::{VoxelGridAssets, VoxelizationStats};
 use bevy::diagnostic::{DiagnosticPath, DiagnosticsStore};
@@ -113,6 +114,7 @@ fn inspector_window(
             Option<&ScreenSpaceAmbientOcclusion>,
             Option<&HaoDebugView>,
             Has<HaoInspected>,
+            Option<&mut VoxelGlobalIllumination>,
         ),
         With<Camera3d>,
     >,
@@ -124,7 +126,7 @@ fn inspector_window(
 ) -> Result {
     let ctx = contexts.ctx_mut()?;
     let mut chosen = None;
-    for (entity, hao, ssao, _, marked) in &cameras {
+    for (entity, hao, ssao, _, marked, _) in &cameras {
         if marked || (chosen.is_none() && (hao.is_some() || ssao.is_some())) {
             chosen = Some(entity);
         }
@@ -134,7 +136,7 @@ fn inspector_window(
             ui.label("no 3D camera");
             return;
         };
-        let Ok((_, mut hao, ssao, view, _)) = cameras.get_mut(camera) else { return };
+        let Ok((_, mut hao, ssao, view, _, mut gi)) = cameras.get_mut(camera) else { return };
         let mode = match (&hao, ssao) {
             (Some(h), _) if h.near_field => AoMode::Both,
             (Some(_), _) => AoMode::Hao,
@@ -229,6 +231,35 @@ fn inspector_window(
                         }
                     });
             }
+        }
+
+        ui.separator();
+        ui.heading("Voxel global illumination");
+        let mut on = gi.is_some();
+        if ui.checkbox(&mut on, "indirect light from the voxels").changed() {
+            if on {
+                commands.entity(camera).insert(VoxelGlobalIllumination::default());
+            } else {
+                commands.entity(camera).remove::<VoxelGlobalIllumination>();
+            }
+        }
+        if let Some(gi) = gi.as_deref_mut() {
+            ui.add(egui::Slider::new(&mut gi.intensity, 0.0..=4.0).text("intensity"));
+            ui.add(egui::Slider::new(&mut gi.probe_spacing, 0.1..=4.0).logarithmic(true).text("probe spacing"));
+            ui.add(egui::Slider::new(&mut gi.rays, 1..=256).logarithmic(true).text("rays a probe"));
+            ui.add(egui::Slider::new(&mut gi.probe_frames, 1..=16).text("frames to update every probe"));
+            ui.add(egui::Slider::new(&mut gi.accumulation_frames, 1..=64).text("updates a probe averages"));
+            ui.add(egui::Slider::new(&mut gi.lighting_frames, 1..=16).text("frames to light every voxel"));
+            let c = gi.probe_counts;
+            ui.label(format!(
+                "{}x{}x{} probes, {:.1} x {:.1} x {:.1} m around the camera",
+                c.x,
+                c.y,
+                c.z,
+                c.x as f32 * gi.probe_spacing,
+                c.y as f32 * gi.probe_spacing,
+                c.z as f32 * gi.probe_spacing
+            ));
         }
 
         ui.separator();
@@ -367,6 +398,9 @@ fn inspector_window(
                 "hao/neighborhood",
                 "hao/temporal",
                 "hao/apply",
+                "hao/gi_lighting",
+                "hao/gi_probes",
+                "hao/gi_write",
                 "ssao",
             ] {
                 ui.label(span);

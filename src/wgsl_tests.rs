@@ -423,7 +423,10 @@ fn shared_constants_agree() {
     let gi = "src/gi/gi_common.wgsl";
     let lighting = "src/gi/gi_lighting.wgsl";
     let probes = "src/gi/gi_probes.wgsl";
-    let pairs: [(&str, &str, f64); 53] = [
+    let pairs: [(&str, &str, f64); 56] = [
+        (probes, "FACE_REACH", crate::cpu::probes::FACE_REACH as f64),
+        (probes, "FACE_STEPS", crate::cpu::probes::FACE_STEPS as f64),
+        (probes, "FACE_EXIT_STEPS", crate::cpu::probes::FACE_EXIT_STEPS as f64),
         (probes, "PROBE_STEPS", crate::cpu::probes::PROBE_STEPS as f64),
         (probes, "PROBE_MAX_DISTANCE", crate::cpu::probes::PROBE_MAX_DISTANCE as f64),
         (probes, "RELOCATE_MAX", crate::cpu::probes::RELOCATE_MAX as f64),

@@ -7,6 +7,10 @@
 //!   a probe keeps its history while the window scrolls ([`ProbeWindow::slot`]).
 //! * A probe in a voxel moves out of it along the voxel's average normal before it gathers
 //!   ([`relocate_probe`]): a probe inside a floor or a wall would see its own surface from inside.
+//! * A face whose way is shut by a surface within a spacing is gathered from beyond that surface
+//!   ([`face_origin`]): Bevy reads a probe's face for every surface facing that way within a spacing of it,
+//!   and those are behind the surface; gathered from the probe, a thin wall's lit side would light the
+//!   room behind it (light leaking, the known failure of probe grids).
 //! * Its rays cover the sphere evenly ([`sphere_direction`]), turned at random on each update
 //!   ([`probe_rotation`]); a ray that stops in a voxel takes the voxel's radiance where the voxel's average
 //!   normal faces it (a voxel seen from behind holds faces the probe does not see), nothing where it does
@@ -33,6 +37,17 @@ pub const PROBE_MAX_DISTANCE: f32 = 1.0e4;
 /// The most a probe in a voxel moves out of it along the voxel's normal, in probe spacings (WGSL
 /// `RELOCATE_MAX`): under half, so that it stays nearer its own lattice point than any other's.
 pub const RELOCATE_MAX: f32 = 0.45;
+
+/// How far a face looks for a surface to gather from beyond, in probe spacings (WGSL `FACE_REACH`): as far
+/// as the surfaces Bevy reads the face for.
+pub const FACE_REACH: f32 = 1.0;
+
+/// The most texel visits of a face's march toward a surface (WGSL `FACE_STEPS`).
+pub const FACE_STEPS: u32 = 16;
+
+/// The most half-cell steps a face's origin takes through a surface's voxels to the far side (WGSL
+/// `FACE_EXIT_STEPS`).
+pub const FACE_EXIT_STEPS: u32 = 16;
 
 /// The golden ratio's fractional part.
 const GOLDEN: f32 = 0.618_034;
@@ -163,6 +178,26 @@ pub fn relocate_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, s
     p + n * reach
 }
 
+/// Where a probe at `p` gathers its face along `axis` (one of [`PROBE_FACES`]) from (WGSL `face_origin`): `p`,
+/// unless a run of occupied voxels stops a march from `p` along `axis` within [`FACE_REACH`] spacings; then
+/// the first point past that run, half a cell at a time (at most [`FACE_EXIT_STEPS`]), whose voxel is
+/// empty, or `p` where there is none.
+pub fn face_origin(levels: &[TraceLevel], p: Vec3, axis: Vec3, spacing: f32) -> Vec3 {
+    let start = finest_level_containing(levels, p);
+    let Some((t, level)) = march_cascades(levels, p, axis, start, 0.0, FACE_REACH * spacing, FACE_STEPS) else {
+        return p;
+    };
+    let l = &levels[level];
+    let step = 0.5 * l.cell_size;
+    for k in 1..=FACE_EXIT_STEPS {
+        let q = p + axis * (t + step * k as f32);
+        if !l.mips.occupied(l.level_position(q).floor().as_ivec3()) {
+            return q;
+        }
+    }
+    p
+}
+
 /// The light one ray brings to a probe at `p` along `dir` (WGSL `probe_ray_radiance`): the radiance of the
 /// voxel it stops in where that voxel's average normal faces the ray, else nothing.
 pub fn probe_ray_radiance(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, dir: Vec3) -> Vec3 {
@@ -174,15 +209,34 @@ pub fn probe_ray_radiance(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec
     if normal.dot(dir) < 0.0 { radiance } else { Vec3::ZERO }
 }
 
-/// One update of a probe at `p` (WGSL `gather_probe`): `rays` rays over the sphere turned by `rotation`,
-/// projected on the six faces of [`PROBE_FACES`] as irradiance over pi: `4 / rays * sum(L * max(d . a, 0))`.
-pub fn gather_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, rays: u32, rotation: Vec2) -> [Vec3; 6] {
+/// One update of a probe at `p`, `spacing` from its neighbours (WGSL `gather_probe`): `rays` rays over the
+/// sphere turned by `rotation`, projected on the six faces of [`PROBE_FACES`] as irradiance over pi,
+/// `4 / rays * sum(L * max(d . a, 0))`, each face's rays from its [`face_origin`] (traced once from `p` for
+/// the faces that gather there).
+pub fn gather_probe(
+    levels: &[TraceLevel],
+    voxels: &impl LitVoxels,
+    p: Vec3,
+    spacing: f32,
+    rays: u32,
+    rotation: Vec2,
+) -> [Vec3; 6] {
+    let origins = PROBE_FACES.map(|axis| face_origin(levels, p, axis, spacing));
     let mut faces = [Vec3::ZERO; 6];
     for k in 0..rays {
         let d = sphere_direction(k, rays, rotation);
-        let l = probe_ray_radiance(levels, voxels, p, d);
-        for (face, axis) in faces.iter_mut().zip(PROBE_FACES) {
-            *face += l * d.dot(axis).max(0.0);
+        let mut here = None;
+        for ((face, axis), origin) in faces.iter_mut().zip(PROBE_FACES).zip(origins) {
+            let w = d.dot(axis);
+            if w <= 0.0 {
+                continue;
+            }
+            let l = if origin == p {
+                *here.get_or_insert_with(|| probe_ray_radiance(levels, voxels, p, d))
+            } else {
+                probe_ray_radiance(levels, voxels, origin, d)
+            };
+            *face += l * w;
         }
     }
     faces.map(|f| f * (4.0 / rays as f32))
@@ -202,6 +256,31 @@ pub fn ambient_cube(faces: &[Vec3; 6], n: Vec3) -> Vec3 {
     let pick = |axis: usize, positive: bool| faces[axis * 2 + usize::from(!positive)];
     let nn = n * n;
     nn.x * pick(0, n.x >= 0.0) + nn.y * pick(1, n.y >= 0.0) + nn.z * pick(2, n.z >= 0.0)
+}
+
+/// The irradiance over pi Bevy's PBR reads from an irradiance volume over the window `window` at the
+/// point `p` for the unit normal `n`, as `irradiance_volume.wgsl` samples it: the point's position in the
+/// probes clamped half a probe inside the window, each face interpolated trilinearly between the eight
+/// probes around it (`faces` of a probe by its index in the window, x fastest), then [`ambient_cube`].
+/// `None` outside the window's [`ProbeWindow::bounds`], where Bevy applies no volume.
+pub fn sample_volume(window: &ProbeWindow, faces: impl Fn(UVec3) -> [Vec3; 6], p: Vec3, n: Vec3) -> Option<Vec3> {
+    let (lo, hi) = window.bounds();
+    if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+        return None;
+    }
+    let r = window.counts.as_vec3();
+    let stp = ((p - lo) / (hi - lo) * r).clamp(Vec3::splat(0.5), r - Vec3::splat(0.5)) - Vec3::splat(0.5);
+    let base = stp.floor().as_uvec3().min(window.counts - UVec3::ONE);
+    let f = stp - base.as_vec3();
+    let mut e = Vec3::ZERO;
+    for corner in 0..8u32 {
+        let o = UVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2);
+        let w = Vec3::select(o.cmpeq(UVec3::ONE), f, Vec3::ONE - f).element_product();
+        if w > 0.0 {
+            e += w * ambient_cube(&faces((base + o).min(window.counts - UVec3::ONE)), n);
+        }
+    }
+    Some(e)
 }
 
 #[cfg(test)]
@@ -238,7 +317,7 @@ mod tests {
         // 0.35 m over the floor's top, 8 m from its edges: the floor fills the lower half of the sphere but
         // for 2.5 degrees over the horizon.
         let p = Vec3::new(8.0, 1.1, 8.0);
-        let faces = gather_probe(&levels, &Floor(radiance), p, 4096, Vec2::new(0.3, 0.7));
+        let faces = gather_probe(&levels, &Floor(radiance), p, 0.25, 4096, Vec2::new(0.3, 0.7));
         // Facing down: E / pi = L.
         let down = faces[3];
         assert!((down / radiance - Vec3::splat(1.0)).abs().max_element() < 0.03, "{down}");
@@ -265,7 +344,7 @@ mod tests {
         let free = Vec3::new(8.0, 2.0, 8.0);
         assert_eq!(relocate_probe(&levels, &Floor(Vec3::ONE), free, 1.0), free);
         // Moved out, it sees the floor below as a probe over it does.
-        let faces = gather_probe(&levels, &Floor(Vec3::ONE), moved, 1024, Vec2::ZERO);
+        let faces = gather_probe(&levels, &Floor(Vec3::ONE), moved, 0.25, 1024, Vec2::ZERO);
         assert!(faces[3].x > 0.9 && faces[2].x == 0.0, "{faces:?}");
     }
 
@@ -310,5 +389,55 @@ mod tests {
         assert_eq!((h[0], n), (Vec3::splat(0.5), 2));
         let (h, n) = blend_probe(h, 4, one, 4);
         assert_eq!((h[0], n), (Vec3::splat(0.625), 4));
+    }
+
+    #[test]
+    fn the_volume_is_sampled_as_bevy_samples_it() {
+        let window = ProbeWindow { min: IVec3::new(-2, 0, -2), counts: UVec3::new(4, 2, 4), spacing: 1.0 };
+        // Each probe's +y face its x index, the rest 0.
+        let faces = |w: UVec3| std::array::from_fn(|k| if k == 2 { Vec3::splat(w.x as f32) } else { Vec3::ZERO });
+        // On a probe: its value; between two along x: the mean; past the last probe, clamped to it; outside
+        // the bounds: none; facing down: the -y faces (0).
+        let at = |x: f32| sample_volume(&window, faces, Vec3::new(x, 0.0, 0.0), Vec3::Y).unwrap().x;
+        assert!((at(0.0) - 2.0).abs() < 1e-5 && (at(0.5) - 2.5).abs() < 1e-5);
+        assert!((at(1.4) - 3.0).abs() < 1e-5, "{}", at(1.4));
+        assert_eq!(sample_volume(&window, faces, Vec3::new(1.6, 0.0, 0.0), Vec3::Y), None);
+        assert_eq!(sample_volume(&window, faces, Vec3::ZERO, Vec3::NEG_Y), Some(Vec3::ZERO));
+        // At 45 degrees, half of the +y face.
+        let tilted = sample_volume(&window, faces, Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0).normalize()).unwrap();
+        assert!((tilted.x - 1.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_face_shut_by_a_wall_within_a_spacing_gathers_from_beyond_it() {
+        // A wall one cell thick (x = 8) across the grid, lit on its +x side only.
+        let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(64, 16, 64)).unwrap();
+        let occupancy = VoxelOccupancy::new(grid, false);
+        for y in 0..16 {
+            for z in 0..64 {
+                occupancy.set(UVec3::new(32, y, z));
+            }
+        }
+        let mips = VoxelMips::new(&occupancy, 4);
+        let levels = [TraceLevel { origin: Vec3::ZERO, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
+        struct LitSide;
+        impl LitVoxels for LitSide {
+            fn voxel(&self, _: usize, _: IVec3) -> (Vec3, Vec3) {
+                (Vec3::ONE, Vec3::X)
+            }
+        }
+        // A probe 0.2 m on the lit side: its -x face looks at the wall's lit side, which the surfaces facing
+        // -x within a spacing (the wall's back, in the other room) do not see; it gathers from past the wall.
+        let p = Vec3::new(8.45, 2.0, 8.0);
+        let behind = face_origin(&levels, p, Vec3::NEG_X, 0.5);
+        assert!(behind.x < 8.0 && behind.x > 7.5 && (behind.y, behind.z) == (p.y, p.z), "{behind}");
+        assert_eq!(face_origin(&levels, p, Vec3::X, 0.5), p, "nothing within a spacing the other way");
+        assert_eq!(face_origin(&levels, p, Vec3::NEG_X, 0.1), p, "the wall beyond a spacing of 0.1");
+        let faces = gather_probe(&levels, &LitSide, p, 0.5, 1024, Vec2::ZERO);
+        assert_eq!(faces[1], Vec3::ZERO, "the -x face sees the other room: no light");
+        // Gathered from the probe itself, the -x face would see the lit side: L (a wall filling the
+        // hemisphere but at its rim).
+        let from_here = gather_probe(&levels, &LitSide, p, 0.01, 1024, Vec2::ZERO);
+        assert!(from_here[1].x > 0.9, "{from_here:?}");
     }
 }

@@ -48,10 +48,13 @@ struct ProbeRecord {
 @group(0) @binding(3) var irradiance: texture_storage_3d<rgba16float, write>;
 // The voxel levels are bound at group 2 (`bevy_hao::voxel_grid`).
 
-// cpu/probes.rs: PROBE_STEPS, PROBE_MAX_DISTANCE, RELOCATE_MAX
+// cpu/probes.rs: PROBE_STEPS, PROBE_MAX_DISTANCE, RELOCATE_MAX, FACE_REACH, FACE_STEPS, FACE_EXIT_STEPS
 const PROBE_STEPS: u32 = 64u;
 const PROBE_MAX_DISTANCE: f32 = 10000.0;
 const RELOCATE_MAX: f32 = 0.45;
+const FACE_REACH: f32 = 1.0;
+const FACE_STEPS: u32 = 16u;
+const FACE_EXIT_STEPS: u32 = 16u;
 // cpu/lighting.rs: SHADOW_NORMAL_MIN
 const SHADOW_NORMAL_MIN: f32 = 0.25;
 
@@ -131,6 +134,25 @@ fn relocate_probe(p: vec3<f32>, spacing: f32) -> vec3<f32> {
     return p + n * reach;
 }
 
+// cpu/probes.rs: face_origin. Where the face along `axis` gathers from: past a run of occupied voxels a
+// march along it meets within FACE_REACH spacings (half a cell at a time), else `p`.
+fn face_origin(p: vec3<f32>, axis: vec3<f32>, spacing: f32) -> vec3<f32> {
+    let start = finest_level_containing(p);
+    let hit = march_cascades(p, axis, start, 0.0, FACE_REACH * spacing, FACE_STEPS);
+    if hit.x < 0.0 {
+        return p;
+    }
+    let level = u32(hit.y);
+    let step = 0.5 * voxel_grid.levels[level].cell_size;
+    for (var k = 1u; k <= FACE_EXIT_STEPS; k++) {
+        let q = p + axis * (hit.x + step * f32(k));
+        if !occupied_at(level, q) {
+            return q;
+        }
+    }
+    return p;
+}
+
 // cpu/probes.rs: probe_ray_radiance. The lit voxel a ray stops in, where its average normal faces the ray.
 fn probe_ray_radiance(p: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     let start = finest_level_containing(p);
@@ -158,15 +180,35 @@ fn update_probes(@builtin(global_invocation_id) id: vec3<u32>) {
     var record = records[slot];
     // A slot another lattice point held starts again.
     let frames = select(0u, record.frames, all(record.lattice == q));
-    // cpu/probes.rs: gather_probe
+    // cpu/probes.rs: gather_probe, each face's rays from its origin (traced once from `p` for the faces that
+    // gather there).
     let p = relocate_probe(vec3<f32>(q) * params.spacing, params.spacing);
+    var origins = array<vec3<f32>, 6>();
+    for (var f = 0u; f < 6u; f++) {
+        origins[f] = face_origin(p, PROBE_FACES[f], params.spacing);
+    }
     let rotation = probe_rotation(slot, params.seed);
     var faces = array<vec3<f32>, 6>();
     for (var k = 0u; k < params.rays; k++) {
         let d = sphere_direction(k, params.rays, rotation);
-        let l = probe_ray_radiance(p, d);
+        var here = vec3<f32>(0.0);
+        var traced = false;
         for (var f = 0u; f < 6u; f++) {
-            faces[f] += l * max(dot(d, PROBE_FACES[f]), 0.0);
+            let w = dot(d, PROBE_FACES[f]);
+            if w <= 0.0 {
+                continue;
+            }
+            var l: vec3<f32>;
+            if all(origins[f] == p) {
+                if !traced {
+                    here = probe_ray_radiance(p, d);
+                    traced = true;
+                }
+                l = here;
+            } else {
+                l = probe_ray_radiance(origins[f], d);
+            }
+            faces[f] += l * w;
         }
     }
     // cpu/probes.rs: blend_probe

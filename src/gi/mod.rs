@@ -98,15 +98,17 @@ impl Default for VoxelGlobalIllumination {
             probe_counts: UVec3::new(48, 24, 48),
             rays: 32,
             probe_frames: 4,
-            accumulation_frames: 16,
+            accumulation_frames: 32,
             lighting_frames: 4,
         }
     }
 }
 
-/// The updates a probe's history keeps while the lights change and for a few frames after (see
-/// [`VoxelGlobalIllumination::accumulation_frames`]).
-pub const CHANGED_HISTORY: u32 = 2;
+/// The updates a probe's history keeps while the lights change and for a few frames after (until every voxel
+/// has been lit again and every probe has gathered twice since; see
+/// [`VoxelGlobalIllumination::accumulation_frames`]): its last alone, so that it holds the new light at once,
+/// and accumulates again from there.
+pub const CHANGED_HISTORY: u32 = 1;
 
 /// The most probes [`VoxelGlobalIllumination::probe_counts`] may hold in all.
 pub const MAX_PROBES: u32 = 1 << 18;

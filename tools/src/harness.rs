@@ -728,6 +728,8 @@ pub mod args {
         Albedo,
         /// Voxels colored by their average normal (needs `VoxelVolume::attributes`).
         Normals,
+        /// Voxels colored by the light in them (voxel GI's lighting volume).
+        Lit,
     }
 
     impl From<View> for HaoDebugView {
@@ -741,6 +743,7 @@ pub mod args {
                 View::Cascades => HaoDebugView::Cascades,
                 View::Albedo => HaoDebugView::Albedo,
                 View::Normals => HaoDebugView::Normals,
+                View::Lit => HaoDebugView::LitVoxels,
             }
         }
     }

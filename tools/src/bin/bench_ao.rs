@@ -46,6 +46,13 @@
 //! With `--attributes` (and `--res`: the default cascades' attribute sums exceed some devices' binding limit)
 //! the volume keeps multi-valued voxels, and a last table times the `Medium` trace with rays stopping at the
 //! backs of surfaces and passing through them (`HybridAmbientOcclusion::ignore_back_hits`).
+//!
+//! With `--gi` (and `--cascades` or `--res` whose attributes the device can hold: lavapipe's storage binding
+//! is 128 MiB, which 3 cascades of 112^3 fit) another table times voxel global illumination
+//! (`VoxelGlobalIllumination` at its defaults) on top of `Medium`, in rounds of their own: `Medium` alone,
+//! then with GI, each with the phases without AO around it, their spans (`hao/gi_lighting`,
+//! `hao/gi_probes`, `hao/gi_write`) and wall-clock costs, and GI's own (the difference) against Bevy's SSAO
+//! High of the main table.
 
 use bevy::camera::RenderTarget;
 use bevy::core_pipeline::tonemapping::Tonemapping;
@@ -104,6 +111,10 @@ struct Args {
     /// RAYS rays a frame and STEPS steps a ray: RAYS,STEPS (repeat for more).
     #[arg(long, value_parser = rays_steps)]
     custom: Vec<(u32, u32)>,
+    /// Also voxel global illumination on top of `Medium`, timed beside it (needs a volume whose attributes
+    /// the device can hold: `--cascades` or `--res`).
+    #[arg(long)]
+    gi: bool,
 }
 
 /// `RAYS,STEPS`, both at least 1.
@@ -155,6 +166,7 @@ fn main() {
         no_depth_contacts,
         depth_free_space,
         custom,
+        gi,
     } = Args::parse();
     let rounds = rounds as usize;
     let source = SceneSource::parse(&scene).unwrap_or_else(|e| {
@@ -291,7 +303,9 @@ fn main() {
     let bar = bevy_hao_tools::harness::progress_bar((rounds * (2 * phases + 1)) as u64, "bench_ao");
     let without_ao = |app: &mut App| {
         // The plugin takes the SSAO it added away with HAO (in the next frame).
-        app.world_mut().entity_mut(cam).remove::<(HybridAmbientOcclusion, ScreenSpaceAmbientOcclusion)>();
+        app.world_mut()
+            .entity_mut(cam)
+            .remove::<(HybridAmbientOcclusion, ScreenSpaceAmbientOcclusion, VoxelGlobalIllumination)>();
         app.update();
         let walls = measure(app, BASELINE_WARM_UP, &[]).1;
         bar.inc(1);
@@ -319,6 +333,25 @@ fn main() {
             before = after;
         }
     }
+    // Voxel GI on top of Medium, and Medium alone, in rounds of their own.
+    let mut gi_measured: Vec<Measured> =
+        if gi { (0..2).map(|_| Measured::new(GI_SPANS.len())).collect() } else { vec![] };
+    for _ in 0..if gi { rounds } else { 0 } {
+        let mut before = without_ao(&mut app);
+        for (with_gi, m) in gi_measured.iter_mut().enumerate() {
+            let mut entity = app.world_mut().entity_mut(cam);
+            entity.insert(HybridAmbientOcclusion::default());
+            if with_gi == 1 {
+                entity.insert(VoxelGlobalIllumination::default());
+            }
+            let (s, w) = measure(&mut app, WARM_UP, &GI_SPANS);
+            let after = without_ao(&mut app);
+            m.add_round(s, w, &before, &after);
+            before = after;
+        }
+    }
+    // (The lighting pass's span is recorded only where GI ran.)
+    let gi_on = gi_measured.get(1).is_some_and(|m| m.span(0).is_some());
     let median = bevy_hao_tools::harness::median;
     let (ssao_measured, preset_measured) = measured.split_at(ssao_qualities.len());
     // HAO is compared with Bevy's default quality, High.
@@ -493,6 +526,50 @@ fn main() {
         );
     }
     println!("\nFor scale, Bevy's SSAO (GTAO) takes per pixel: Low 4, Medium 8, High 18, Ultra 54 depth samples (2D).");
+    if gi {
+        let defaults = VoxelGlobalIllumination::default();
+        let c = defaults.probe_counts;
+        println!(
+            "\nVoxel global illumination at its defaults ({}x{}x{} probes {} m apart, {} rays a probe, one probe in {} \
+             and one slab of voxels in {} a frame) on top of Medium, {rounds} round(s) of its own{}:\n",
+            c.x,
+            c.y,
+            c.z,
+            defaults.probe_spacing,
+            defaults.rays,
+            defaults.probe_frames,
+            defaults.lighting_frames,
+            if gi_on { "" } else { " (GI did not run: see the plugin's warning)" }
+        );
+        println!(
+            "| phase | gi_lighting ms | gi_probes ms | gi_write ms | frame ms | frame without AO ms | cost ms | / SSAO \
+             High (wall clock) |"
+        );
+        println!("|---|---:|---:|---:|---:|---:|---:|---:|");
+        for (name, m) in ["Medium", "Medium + GI"].iter().zip(&gi_measured) {
+            let ratio = match (m.cost(), ssao_cost) {
+                (Some(c), Some(s)) if s > 0.0 => format!("{:.2}", c / s),
+                _ => "-".into(),
+            };
+            println!(
+                "| {name} | {} | {} | {} | {} | {} | {} | {ratio} |",
+                f(m.span(0)),
+                f(m.span(1)),
+                f(m.span(2)),
+                f(median(m.walls.clone())),
+                f(median(m.baseline.clone())),
+                f(m.cost())
+            );
+        }
+        // GI's own: the rounds' differences between Medium with and without it.
+        let own: Vec<f64> = gi_measured[1].costs.iter().zip(&gi_measured[0].costs).map(|(a, b)| a - b).collect();
+        let own = median(own);
+        let ratio = match (own, ssao_cost) {
+            (Some(c), Some(s)) if s > 0.0 => format!("{:.2}", c / s),
+            _ => "-".into(),
+        };
+        println!("| GI alone (the rounds' differences) | | | | | | {} | {ratio} |", f(own));
+    }
     if attributes {
         let kept = bevy_hao_tools::harness::grid_assets(&app).is_some_and(|g| g.attributes.is_some());
         println!(
@@ -509,6 +586,8 @@ fn main() {
 
 /// The GPU spans read each frame: HAO's passes, and Bevy's SSAO (`SSAO_SPAN`).
 const SPANS: [&str; 5] = ["hao/trace", "hao/neighborhood", "hao/temporal", "hao/apply", "ssao"];
+/// The GPU spans of voxel GI.
+const GI_SPANS: [&str; 3] = ["hao/gi_lighting", "hao/gi_probes", "hao/gi_write"];
 /// Where Bevy's SSAO is in `SPANS`.
 const SSAO_SPAN: usize = 4;
 

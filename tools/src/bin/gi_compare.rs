@@ -16,10 +16,19 @@
 //! stop in, whose light they take only where its average normal faces them), and a second row to the PNG: the
 //! voxels' bounce, its difference from the reference, and where it is brighter (red) or darker (blue).
 //!
+//!
+//! `--gpu` adds the plugin's own voxel GI (`VoxelGlobalIllumination`), rendered headless on the scene as
+//! the reference sees it (its triangles, in their albedo, under the same sun), and read back where Bevy's
+//! PBR reads it: each pixel's indirect irradiance is the plugin's irradiance volume sampled at the pixel's
+//! point and normal as `irradiance_volume.wgsl` samples it (`cpu::probes::sample_volume`), times pi. Its
+//! row in the PNG: the GPU's indirect light, its difference, where it is brighter (red) or darker (blue).
+//! Pixels outside the probes' window get none, as in Bevy. The probes' escaped rays bring no light (the
+//! sky is Bevy's ambient light, apart), so `--sky` should be 0 with `--gpu`.
+//!
 //! ```sh
 //! cargo run --release -p bevy_hao_tools --bin gi_compare -- [SCENE] [--size 320x180] [--rays 1024]
 //!     [--sun X,Y,Z] [--illuminance LUX] [--sky R,G,B] [--camera X,Y,Z --look X,Y,Z] [--voxel-twin CELL [--probes M]]
-//!     [--out gi_compare.png]
+//!     [--gpu [--cascades L,C,F] [--probe-spacing M] [--probe-rays N]] [--out gi_compare.png]
 //! ```
 
 use bevy::prelude::*;
@@ -71,6 +80,24 @@ struct Args {
     /// the volume's texture) along its normal (the ambient cube).
     #[arg(long, value_name = "SPACING", requires = "voxel_twin")]
     probes: Option<f32>,
+    /// Also the plugin's voxel GI on the GPU (headless, on Vulkan: lavapipe here), read back as Bevy's PBR
+    /// reads its irradiance volume.
+    #[arg(long)]
+    gpu: bool,
+    /// With --gpu: the voxel cascades, LEVELS,CELLS,FINEST_CELL_SIZE.
+    #[arg(long, value_parser = args::cascades, default_value = "3,96,0.125", requires = "gpu")]
+    cascades: (u32, u32, f32),
+    /// With --gpu: `VoxelGlobalIllumination::probe_spacing` (metres; default the component's).
+    #[arg(long, requires = "gpu")]
+    probe_spacing: Option<f32>,
+    /// With --gpu: `VoxelGlobalIllumination::rays` (default the component's).
+    #[arg(long, requires = "gpu")]
+    probe_rays: Option<u32>,
+    /// Also the mean indirect irradiance over the pixels whose surface lies at x below this and at x above it
+    /// (for light leaking through a wall there: `builtin:thin-wall` at -0.0625), for the reference and each
+    /// estimate.
+    #[arg(long, value_name = "X")]
+    split_x: Option<f32>,
     /// The PNG written: the reference, the best constant and their difference side by side.
     #[arg(long, default_value = "gi_compare.png")]
     out: String,
@@ -171,6 +198,7 @@ fn main() {
     bar.finish_and_clear();
     // The voxels' one bounce at the same points, where asked.
     let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, args.probes, &sun, &args, &surfaces));
+    let gpu = args.gpu.then(|| gpu_bounce(&mesh, &albedo, camera, &args, &surfaces));
     let shown: Vec<Vec3> = irradiance.iter().flatten().copied().collect();
     if shown.is_empty() {
         eprintln!("error: the view shows no surface");
@@ -199,27 +227,64 @@ fn main() {
     println!("| its mean absolute error | {:.2} | {:.2} | {:.2} |", error.x, error.y, error.z);
     let relative = error / mean.max(Vec3::splat(1e-6));
     println!("| its error relative to the mean | {:.3} | {:.3} | {:.3} |", relative.x, relative.y, relative.z);
-    if let Some(voxel) = &voxel {
-        let pairs: Vec<(Vec3, Vec3)> = irradiance.iter().zip(voxel).filter_map(|(r, v)| Some(((*r)?, (*v)?))).collect();
+    let rows_of = |name: &str, estimate: &[Option<Vec3>]| {
+        let pairs: Vec<(Vec3, Vec3)> =
+            irradiance.iter().zip(estimate).filter_map(|(r, v)| Some(((*r)?, (*v)?))).collect();
         let n = pairs.len().max(1) as f32;
         let v_mean = pairs.iter().map(|p| p.1).sum::<Vec3>() / n;
         let v_error = pairs.iter().map(|(r, v)| (*r - *v).abs()).sum::<Vec3>() / n;
         let v_relative = v_error / mean.max(Vec3::splat(1e-6));
-        println!(
-            "| the voxels' one bounce (CPU prototype), mean | {:.2} | {:.2} | {:.2} |",
-            v_mean.x, v_mean.y, v_mean.z
-        );
+        println!("| {name}, mean | {:.2} | {:.2} | {:.2} |", v_mean.x, v_mean.y, v_mean.z);
         println!("| its mean absolute error | {:.2} | {:.2} | {:.2} |", v_error.x, v_error.y, v_error.z);
         println!(
             "| its error relative to the mean | {:.3} | {:.3} | {:.3} |",
             v_relative.x, v_relative.y, v_relative.z
         );
+        println!(
+            "| its error against the constant's | {:.2}x | {:.2}x | {:.2}x |",
+            v_error.x / error.x.max(1e-6),
+            v_error.y / error.y.max(1e-6),
+            v_error.z / error.z.max(1e-6)
+        );
+    };
+    if let Some(voxel) = &voxel {
+        rows_of("the voxels' one bounce (CPU prototype)", voxel);
+    }
+    if let Some(gpu) = &gpu {
+        rows_of("the plugin's voxel GI (GPU)", gpu);
     }
     println!(
         "\nThe goal for voxel GI (docs/design-gi.md): a mean absolute error at most half the constant's, {:.2} lux \
          summed over the channels.",
         error.element_sum() / 2.0
     );
+    if let Some(split) = args.split_x {
+        println!(
+            "\n| mean indirect irradiance, lux (r, g, b) | pixels at x < {split} | pixels at x > {split} |\n|---|---|---|"
+        );
+        let halves = |name: &str, estimate: &[Option<Vec3>]| {
+            let side = |below: bool| {
+                let v: Vec<Vec3> = surfaces
+                    .iter()
+                    .zip(estimate)
+                    .filter_map(|(s, e)| Some(((*s)?.0, (*e)?)))
+                    .filter(|(p, _)| (p.x < split) == below)
+                    .map(|(_, e)| e)
+                    .collect();
+                let n = v.len();
+                let m = v.into_iter().sum::<Vec3>() / n.max(1) as f32;
+                format!("{:.2}, {:.2}, {:.2} ({n} pixels)", m.x, m.y, m.z)
+            };
+            println!("| {name} | {} | {} |", side(true), side(false));
+        };
+        halves("reference", &irradiance);
+        if let Some(voxel) = &voxel {
+            halves("the voxels' one bounce (CPU prototype)", voxel);
+        }
+        if let Some(gpu) = &gpu {
+            halves("the plugin's voxel GI (GPU)", gpu);
+        }
+    }
 
     // The PNG: reference | constant | |difference|, each scaled by twice the mean and tone-mapped x / (1 + x).
     let scale = 1.0 / (2.0 * mean.max_element()).max(1e-6);
@@ -228,9 +293,10 @@ fn main() {
         let m = v / (Vec3::ONE + v);
         image::Rgb(m.to_array().map(|c| (c.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8))
     };
-    // With `--voxel-twin`, a second row: the voxels' bounce, its difference from the reference, and where it
-    // is brighter (red) or darker (blue) than the reference, by the difference of the channels' sum.
-    let rows = if voxel.is_some() { 2 } else { 1 };
+    // With `--voxel-twin` and `--gpu`, a row each: the estimate, its difference from the reference, and where
+    // it is brighter (red) or darker (blue) than the reference, by the difference of the channels' sum.
+    let estimates: Vec<&Vec<Option<Vec3>>> = voxel.iter().chain(gpu.iter()).collect();
+    let rows = 1 + estimates.len() as u32;
     let mut png = image::RgbImage::new(w * 3 + 8, h * rows + 4 * (rows - 1));
     for (i, e) in irradiance.iter().enumerate() {
         let (x, y) = (i as u32 % w, i as u32 / w);
@@ -238,19 +304,23 @@ fn main() {
         for (k, v) in panels.into_iter().enumerate() {
             png.put_pixel(k as u32 * (w + 4) + x, y, tone(v));
         }
-        if let Some(voxel) = &voxel {
-            let (e, v) = (e.unwrap_or(Vec3::ZERO), voxel[i].unwrap_or(Vec3::ZERO));
+        for (row, estimate) in estimates.iter().enumerate() {
+            let (e, v) = (e.unwrap_or(Vec3::ZERO), estimate[i].unwrap_or(Vec3::ZERO));
             let excess = (v - e).element_sum();
             let sign = if excess > 0.0 { Vec3::X } else { Vec3::Z } * excess.abs() / 3.0;
             for (k, v) in [v, (v - e).abs(), sign].into_iter().enumerate() {
-                png.put_pixel(k as u32 * (w + 4) + x, h + 4 + y, tone(v));
+                png.put_pixel(k as u32 * (w + 4) + x, (row as u32 + 1) * (h + 4) + y, tone(v));
             }
         }
     }
-    let second = if voxel.is_some() {
-        "; below: the voxels' bounce, its difference, where it is brighter (red) or darker (blue)"
-    } else {
-        ""
+    let second = match (voxel.is_some(), gpu.is_some()) {
+        (false, false) => "",
+        (true, false) => "; below: the voxels' bounce, its difference, where it is brighter (red) or darker (blue)",
+        (false, true) => "; below: the GPU's voxel GI, its difference, where it is brighter (red) or darker (blue)",
+        (true, true) => {
+            "; below: the voxels' bounce (CPU prototype), then the GPU's voxel GI: each, its difference, where it is \
+             brighter (red) or darker (blue)"
+        }
     };
     match png.save(&args.out) {
         Ok(()) => {
@@ -286,13 +356,7 @@ fn voxel_bounce(
     let dims = ((hi - lo) / cell).ceil().as_uvec3() + UVec3::splat(4);
     let grid = VoxelGrid::new(origin, cell, dims).expect("a grid over the scene");
     let occupancy = VoxelOccupancy::with_attributes(grid);
-    // One mesh a colour: the triangles of each albedo.
-    let mut colours: Vec<Vec3> = albedo.to_vec();
-    colours.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).unwrap_or(std::cmp::Ordering::Equal));
-    colours.dedup();
-    for colour in colours {
-        let triangles = mesh.triangles.iter().zip(albedo).filter(|(_, a)| **a == colour).map(|(t, _)| *t).collect();
-        let part = bevy_hao::cpu::TriangleMesh::new(mesh.positions.clone(), triangles);
+    for (colour, part) in parts_by_albedo(mesh, albedo) {
         let base = MeshAlbedo { base: pack_albedo(colour), vertex_colors: None };
         let region = InjectionRegion::whole(dims);
         voxelize_sampled_mesh_in_region(
@@ -379,6 +443,121 @@ fn voxel_bounce(
                 e += w * (cube.x * along(0, n.x > 0.0) + cube.y * along(1, n.y > 0.0) + cube.z * along(2, n.z > 0.0));
             }
             Some(e)
+        })
+        .collect()
+}
+
+/// `--gpu`: the plugin's voxel GI at each pixel's surface point and normal (`surfaces`): the scene (`mesh`,
+/// a static occluder for each albedo of `albedo`) rendered headless with `VoxelGlobalIllumination` on a
+/// camera at `camera`, under the sun, until the probes have settled; then its irradiance volume read back
+/// and sampled as Bevy's PBR samples it, times pi (lux). `None` over the background and outside the probes.
+fn gpu_bounce(
+    mesh: &bevy_hao::cpu::TriangleMesh,
+    albedo: &[Vec3],
+    camera: Transform,
+    args: &Args,
+    surfaces: &[Option<(Vec3, Vec3)>],
+) -> Vec<Option<Vec3>> {
+    use bevy::camera::RenderTarget;
+    use bevy_hao::prelude::*;
+    use bevy_hao_tools::harness;
+    let (levels, cells, finest_cell_size) = args.cascades;
+    let mut gi = VoxelGlobalIllumination::default();
+    if let Some(spacing) = args.probe_spacing {
+        gi.probe_spacing = spacing;
+    }
+    if let Some(rays) = args.probe_rays {
+        gi.rays = rays;
+    }
+    let gi = gi.sanitized().0;
+    let parts = parts_by_albedo(mesh, albedo);
+    let sun = (args.sun.normalize(), args.illuminance);
+    let size = args.size;
+    let setup_gi = gi.clone();
+    let mut app = harness::headless_app(move |app| {
+        let parts = parts.clone();
+        let gi = setup_gi.clone();
+        app.insert_resource(bevy::light::GlobalAmbientLight { brightness: 0.0, ..default() });
+        app.add_systems(
+            Startup,
+            move |mut commands: Commands,
+                  mut meshes: ResMut<Assets<Mesh>>,
+                  mut materials: ResMut<Assets<StandardMaterial>>,
+                  mut images: ResMut<Assets<Image>>| {
+                commands.spawn(VoxelVolume {
+                    bounds: VolumeBounds::FollowCamera { cascades: levels, cells, finest_cell_size },
+                    ..default()
+                });
+                for (colour, part) in &parts {
+                    let base_color = Color::linear_rgb(colour.x, colour.y, colour.z);
+                    commands.spawn((
+                        Mesh3d(meshes.add(bevy_hao_tools::scene::bevy_mesh(part, false))),
+                        MeshMaterial3d(materials.add(StandardMaterial { base_color, ..default() })),
+                        StaticOccluder,
+                    ));
+                }
+                commands.spawn((
+                    DirectionalLight { illuminance: sun.1, ..default() },
+                    Transform::default()
+                        .looking_to(sun.0, if sun.0.cross(Vec3::Y).length() > 1e-3 { Vec3::Y } else { Vec3::X }),
+                ));
+                let target = harness::target_image(&mut images, size);
+                commands.spawn((Camera3d::default(), RenderTarget::Image(target.into()), camera, gi.clone()));
+            },
+        );
+    });
+    // Until the scene is voxelized, every voxel lit and every probe settled: four windows of its history.
+    let frames = 20 + gi.lighting_frames + 4 * gi.accumulation_frames * gi.probe_frames;
+    let bar = harness::progress_bar(frames as u64, "GPU frames");
+    for _ in 0..frames {
+        app.update();
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let errors = harness::take_render_errors();
+    if !errors.is_empty() {
+        eprintln!("error: wgpu errors: {errors:?}");
+        std::process::exit(1);
+    }
+    let Some(assets) = app.world().get_resource::<bevy_hao::GiAssets>().cloned() else {
+        eprintln!("error: --gpu: the plugin made no voxel GI (see its warnings above)");
+        std::process::exit(1);
+    };
+    let window = app.world().resource::<bevy_hao::GiProbeWindow>().0.expect("a probe window around the camera");
+    let (tw, th, texel, bytes) = harness::read_image(&mut app, assets.irradiance.clone(), 2);
+    assert_eq!((tw, th, texel), (window.counts.x, 2 * window.counts.y, 8), "the irradiance volume's size");
+    let c = window.counts;
+    let face = |w: UVec3, k: u32| {
+        let t = UVec3::new(w.x, w.y + (k & 1) * c.y, w.z + (k >> 1) * c.z);
+        let at = (((t.z * th + t.y) * tw + t.x) * 8) as usize;
+        Vec3::new(harness::f16_at(&bytes, at), harness::f16_at(&bytes, at + 2), harness::f16_at(&bytes, at + 4))
+    };
+    let faces = |w: UVec3| std::array::from_fn(|k| face(w, k as u32));
+    eprintln!(
+        "--gpu: {} probes {} apart around the camera, {} rays a probe, cascades {levels} x {cells}^3 from {finest_cell_size}",
+        window.len(),
+        window.spacing,
+        gi.rays
+    );
+    surfaces
+        .iter()
+        .map(|s| {
+            let (p, n) = (*s)?;
+            bevy_hao::cpu::probes::sample_volume(&window, faces, p, n).map(|e| e * std::f32::consts::PI)
+        })
+        .collect()
+}
+
+/// The scene as one mesh a colour: the triangles of each albedo of `albedo` (one a triangle of `mesh`).
+fn parts_by_albedo(mesh: &bevy_hao::cpu::TriangleMesh, albedo: &[Vec3]) -> Vec<(Vec3, bevy_hao::cpu::TriangleMesh)> {
+    let mut colours: Vec<Vec3> = albedo.to_vec();
+    colours.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).unwrap_or(std::cmp::Ordering::Equal));
+    colours.dedup();
+    colours
+        .into_iter()
+        .map(|colour| {
+            let triangles = mesh.triangles.iter().zip(albedo).filter(|(_, a)| **a == colour).map(|(t, _)| *t).collect();
+            (colour, bevy_hao::cpu::TriangleMesh::new(mesh.positions.clone(), triangles))
         })
         .collect()
 }
