@@ -60,6 +60,8 @@ const SHADOW_NORMAL_MIN: f32 = 0.25;
 
 const PI: f32 = 3.141592653589793;
 const GOLDEN: f32 = 0.618034;
+// The largest finite f16.
+const F16_MAX: f32 = 65504.0;
 
 // cpu/probes.rs: PROBE_FACES
 const PROBE_FACES: array<vec3<f32>, 6> = array<vec3<f32>, 6>(
@@ -238,7 +240,8 @@ fn write_probes(@builtin(global_invocation_id) w: vec3<u32>) {
     // in the three slabs along z.
     for (var f = 0u; f < 6u; f++) {
         let texel = vec3<u32>(w.x, w.y + (f & 1u) * c.y, w.z + (f >> 1u) * c.z);
-        let face = select(vec3<f32>(0.0), record.faces[f].xyz, valid);
+        // Within f16's range: a light of absurd intensity saturates rather than turning the surfaces infinite.
+        let face = min(select(vec3<f32>(0.0), record.faces[f].xyz, valid), vec3<f32>(F16_MAX));
         textureStore(irradiance, texel, vec4<f32>(face, 1.0));
     }
 }

@@ -22,7 +22,7 @@
 //! PBR reads it: each pixel's indirect irradiance is the plugin's irradiance volume sampled at the pixel's
 //! point and normal as `irradiance_volume.wgsl` samples it (`cpu::probes::sample_volume`), times pi. Its
 //! row in the PNG: the GPU's indirect light, its difference, where it is brighter (red) or darker (blue).
-//! Pixels outside the probes' window get none, as in Bevy. The probes' escaped rays bring no light (the
+//! Pixels outside the probes' window get none, as in Bevy, and count so in its error. The probes' escaped rays bring no light (the
 //! sky is Bevy's ambient light, apart), so `--sky` should be 0 with `--gpu`.
 //!
 //! ```sh
@@ -450,7 +450,8 @@ fn voxel_bounce(
 /// `--gpu`: the plugin's voxel GI at each pixel's surface point and normal (`surfaces`): the scene (`mesh`,
 /// a static occluder for each albedo of `albedo`) rendered headless with `VoxelGlobalIllumination` on a
 /// camera at `camera`, under the sun, until the probes have settled; then its irradiance volume read back
-/// and sampled as Bevy's PBR samples it, times pi (lux). `None` over the background and outside the probes.
+/// and sampled as Bevy's PBR samples it, times pi (lux). `None` over the background; 0 outside the probes'
+/// window (where Bevy applies no volume).
 fn gpu_bounce(
     mesh: &bevy_hao::cpu::TriangleMesh,
     albedo: &[Vec3],
@@ -543,7 +544,11 @@ fn gpu_bounce(
         .iter()
         .map(|s| {
             let (p, n) = (*s)?;
-            bevy_hao::cpu::probes::sample_volume(&window, faces, p, n).map(|e| e * std::f32::consts::PI)
+            // Outside the window Bevy applies no volume: no indirect light from the probes.
+            Some(
+                bevy_hao::cpu::probes::sample_volume(&window, faces, p, n)
+                    .map_or(Vec3::ZERO, |e| e * std::f32::consts::PI),
+            )
         })
         .collect()
 }
