@@ -103,8 +103,8 @@ impl Light {
 
     /// The light in the form the GPU's lighting pass takes it (WGSL `GiLight`), its constants folded as
     /// Bevy's renderer folds them when it uploads its lights, or `None` for a light that brings no light
-    /// anywhere (a zero, negative or non-finite intensity, colour or range, a zero direction), which is then
-    /// never uploaded: the GPU sees no NaN.
+    /// anywhere (a zero, negative or non-finite intensity, colour or range, a zero direction) or whose
+    /// light would overflow `f32` near it, which is then never uploaded: the GPU sees no NaN.
     pub fn prepare(&self) -> Option<PreparedLight> {
         let bright = |v: Vec3| v.is_finite() && v.min_element() >= 0.0 && v.max_element() > 0.0;
         let (prepared, range) = match *self {
@@ -151,7 +151,14 @@ impl Light {
         let range_ok = range > 0.0 && range.is_finite();
         let direction_ok = prepared.kind == LightKind::Point || prepared.direction != Vec3::ZERO;
         let spot_ok = prepared.spot_scale.is_finite() && prepared.spot_offset.is_finite();
-        let ok = bright(prepared.intensity) && range_ok && direction_ok && prepared.position.is_finite() && spot_ok;
+        // (Its light at 1 cm stays finite: no infinite illuminance, and no NaN from one times a spot's 0.)
+        let bounded = (prepared.intensity * 1.0e4).is_finite();
+        let ok = bright(prepared.intensity)
+            && bounded
+            && range_ok
+            && direction_ok
+            && prepared.position.is_finite()
+            && spot_ok;
         ok.then_some(prepared)
     }
 }

@@ -68,7 +68,8 @@ pub struct ProbeWindow {
 /// lattice (`i32`).
 pub fn probe_window(focus: Vec3, spacing: f32, counts: UVec3) -> Option<ProbeWindow> {
     let nearest = (focus / spacing).round();
-    if !(nearest.is_finite() && nearest.abs().max_element() < 1.0e9 && spacing > 0.0) {
+    // Within 2^22 lattice points of the origin, where f32 still tells a probe from its neighbour by a fraction.
+    if !(nearest.is_finite() && nearest.abs().max_element() < 4_194_304.0 && spacing > 0.0) {
         return None;
     }
     Some(ProbeWindow { min: nearest.as_ivec3() - (counts / 2).as_ivec3(), counts, spacing })
@@ -150,6 +151,13 @@ pub fn hit_cell(levels: &[TraceLevel], level: usize, origin: Vec3, dir: Vec3, t:
     p.floor().as_ivec3().clamp(IVec3::ZERO, l.mips.dims().as_ivec3() - IVec3::ONE)
 }
 
+/// Whether the world point `q` lies in an occupied cell of `level`'s window (WGSL `occupied_at`): outside the
+/// window, no.
+pub fn occupied_at(level: &TraceLevel, q: Vec3) -> bool {
+    let c = level.level_position(q).floor();
+    c.cmpge(Vec3::ZERO).all() && c.cmplt(level.mips.dims().as_vec3()).all() && level.mips.occupied(c.as_ivec3())
+}
+
 /// Where the probe at lattice position `p` gathers from (WGSL `relocate_probe`): `p` itself, unless it lies
 /// in an occupied voxel of the finest level that holds it whose average normal has a direction (at least
 /// [`super::lighting::SHADOW_NORMAL_MIN`] long); then the first point along that normal, a cell at a time, whose
@@ -157,7 +165,7 @@ pub fn hit_cell(levels: &[TraceLevel], level: usize, origin: Vec3, dir: Vec3, t:
 pub fn relocate_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, spacing: f32) -> Vec3 {
     let level = finest_level_containing(levels, p);
     let l = &levels[level];
-    let occupied = |q: Vec3| l.mips.occupied(l.level_position(q).floor().as_ivec3());
+    let occupied = |q: Vec3| occupied_at(l, q);
     if !occupied(p) {
         return p;
     }
@@ -191,7 +199,7 @@ pub fn face_origin(levels: &[TraceLevel], p: Vec3, axis: Vec3, spacing: f32) -> 
     let step = 0.5 * l.cell_size;
     for k in 1..=FACE_EXIT_STEPS {
         let q = p + axis * (t + step * k as f32);
-        if !l.mips.occupied(l.level_position(q).floor().as_ivec3()) {
+        if !occupied_at(l, q) {
             return q;
         }
     }
@@ -243,9 +251,13 @@ pub fn gather_probe(
 }
 
 /// A probe's history after an update (WGSL `blend_probe`): the mean of its last updates, up to
-/// `max_frames` of them (an exponential average beyond), and the updates it now holds.
+/// `max_frames` of them (an exponential average beyond), and the updates it now holds; a history of one
+/// update is that update, exactly (whatever the slot held before).
 pub fn blend_probe(history: [Vec3; 6], frames: u32, update: [Vec3; 6], max_frames: u32) -> ([Vec3; 6], u32) {
     let n = (frames + 1).min(max_frames.max(1));
+    if n == 1 {
+        return (update, 1);
+    }
     let w = 1.0 / n as f32;
     (std::array::from_fn(|k| history[k] + (update[k] - history[k]) * w), n)
 }

@@ -56,7 +56,8 @@ fn voxel_radiance(level: u32, cell: vec3<i32>, albedo: vec3<f32>, normal: vec3<f
     for (var i = 0u; i < params.light_count; i++) {
         let incident = light_incident(lights[i], center);
         let facing = dot(normal, incident.to_light);
-        if facing <= 0.0 || max(max(incident.illuminance.x, incident.illuminance.y), incident.illuminance.z) <= 0.0 {
+        let strongest = max(max(incident.illuminance.x, incident.illuminance.y), incident.illuminance.z);
+        if !(facing > 0.0) || !(strongest > 0.0) {
             continue;
         }
         if light_reaches(level, center, normal, incident.to_light, incident.distance) {

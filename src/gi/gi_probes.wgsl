@@ -107,9 +107,14 @@ fn hit_cell(level: u32, origin: vec3<f32>, dir: vec3<f32>, t: f32) -> vec3<i32> 
     return clamp(vec3<i32>(floor(p)), vec3<i32>(0), vec3<i32>(l.dims) - vec3<i32>(1));
 }
 
-// Whether the world point `q` lies in an occupied cell of level `level`.
+// cpu/probes.rs: occupied_at. Whether the world point `q` lies in an occupied cell of level `level`'s window
+// (outside it, no).
 fn occupied_at(level: u32, q: vec3<f32>) -> bool {
-    return voxel_occupied(level, vec3<i32>(floor(level_position(level, q))), 0u);
+    let c = floor(level_position(level, q));
+    if any(c < vec3<f32>(0.0)) || any(c >= vec3<f32>(voxel_grid.levels[level].dims)) {
+        return false;
+    }
+    return voxel_occupied(level, vec3<i32>(c), 0u);
 }
 
 // cpu/probes.rs: relocate_probe. Where a probe at `p` gathers from: out of an occupied voxel along its
@@ -164,7 +169,7 @@ fn probe_ray_radiance(p: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     }
     let level = u32(hit.y);
     let cell = hit_cell(level, p, dir, hit.x);
-    if dot(voxel_normal_at(level, cell), dir) >= 0.0 {
+    if !(dot(voxel_normal_at(level, cell), dir) < 0.0) {
         return vec3<f32>(0.0);
     }
     return unpack_rgb9e5(textureLoad(radiance, voxel_texel(level, cell), 0).r);
@@ -213,13 +218,13 @@ fn update_probes(@builtin(global_invocation_id) id: vec3<u32>) {
             faces[f] += l * w;
         }
     }
-    // cpu/probes.rs: blend_probe
+    // cpu/probes.rs: blend_probe (a history of one update is that update, exactly)
     let n = min(frames + 1u, max(params.max_frames, 1u));
     let w = 1.0 / f32(n);
     for (var f = 0u; f < 6u; f++) {
         let update = faces[f] * (4.0 / f32(params.rays));
         let old = record.faces[f].xyz;
-        record.faces[f] = vec4<f32>(old + (update - old) * w, 0.0);
+        record.faces[f] = vec4<f32>(select(old + (update - old) * w, update, n == 1u), 0.0);
     }
     record.lattice = q;
     record.frames = n;

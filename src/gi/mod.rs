@@ -113,6 +113,11 @@ pub const CHANGED_HISTORY: u32 = 1;
 /// The most probes [`VoxelGlobalIllumination::probe_counts`] may hold in all.
 pub const MAX_PROBES: u32 = 1 << 18;
 
+/// The most probe rays a frame (probes times rays over `probe_frames`): past it, `probe_frames` is raised
+/// and then `rays` lowered, with a warning, so that a frame's dispatch stays well within what a device runs
+/// before it gives up (the default is 442,368).
+pub const MAX_PROBE_RAYS_PER_FRAME: u64 = 1 << 22;
+
 impl VoxelGlobalIllumination {
     /// The settings with invalid values replaced, and a message for each replacement.
     pub fn sanitized(&self) -> (VoxelGlobalIllumination, Vec<String>) {
@@ -143,6 +148,19 @@ impl VoxelGlobalIllumination {
         if counts != g.probe_counts {
             fixes.push(format!("VoxelGlobalIllumination::probe_counts is {}; using {counts}", g.probe_counts));
             g.probe_counts = counts;
+        }
+        // Within the budget of probe rays a frame: more frames to update the probes, then fewer rays.
+        let probes = u64::from(g.probe_counts.element_product());
+        let per_frame = |g: &VoxelGlobalIllumination| probes * u64::from(g.rays) / u64::from(g.probe_frames);
+        if per_frame(&g) > MAX_PROBE_RAYS_PER_FRAME {
+            let before = per_frame(&g);
+            g.probe_frames = (probes * u64::from(g.rays)).div_ceil(MAX_PROBE_RAYS_PER_FRAME).min(64) as u32;
+            g.rays = g.rays.min((MAX_PROBE_RAYS_PER_FRAME * u64::from(g.probe_frames) / probes).max(1) as u32);
+            fixes.push(format!(
+                "VoxelGlobalIllumination: {before} probe rays a frame are over the budget of \
+                 {MAX_PROBE_RAYS_PER_FRAME}; using probe_frames {} and rays {}",
+                g.probe_frames, g.rays
+            ));
         }
         (g, fixes)
     }
@@ -231,6 +249,9 @@ pub struct GiAssets {
     pub probe_records: Handle<ShaderBuffer>,
     /// The probe counts the irradiance volume and records were made for.
     pub probe_counts: UVec3,
+    /// The probe spacing the records were made for (a record holds a lattice point's history, which another
+    /// spacing puts elsewhere).
+    pub probe_spacing: f32,
 }
 
 /// This frame's probe window (main world, extracted): the camera's, snapped to the probe spacing.
@@ -270,9 +291,11 @@ fn update_gi_assets(
 ) {
     let camera = gi_camera(cameras.iter());
     let on = camera.is_some();
+    // (While there is no grid yet, there is nothing to warn about.)
+    let without_attributes = grid.as_ref().is_some_and(|g| g.attributes.is_none());
     let grid = grid.filter(|g| on && g.attributes.is_some());
     let Some(grid) = grid else {
-        if on && !*warned {
+        if on && without_attributes && !*warned {
             warn!(
                 "bevy_hao: voxel global illumination is off: the voxel grid keeps no attributes (see the warning \
                  about VoxelVolume::attributes; lower the resolution or the cascades)"
@@ -284,11 +307,14 @@ fn update_gi_assets(
         }
         return;
     };
-    let counts = camera.map_or(UVec3::ONE, |(_, g)| g.probe_counts);
-    if current.as_ref().is_some_and(|c| c.generation == grid.generation && c.probe_counts == counts) {
+    let (counts, spacing) = camera.map_or((UVec3::ONE, 1.0), |(_, g)| (g.probe_counts, g.probe_spacing));
+    if current
+        .as_ref()
+        .is_some_and(|c| c.generation == grid.generation && c.probe_counts == counts && c.probe_spacing == spacing)
+    {
         return;
     }
-    // Where only the probe counts changed, the lighting volume stays.
+    // Where only the probes changed, the lighting volume stays.
     let radiance = match current.as_ref().filter(|c| c.generation == grid.generation) {
         Some(c) => c.radiance.clone(),
         None => radiance_image(&mut images, grid.texture_size, grid.levels),
@@ -300,6 +326,7 @@ fn update_gi_assets(
         irradiance: images.add(irradiance_image(counts)),
         probe_records: buffers.add(ShaderBuffer::with_size(bytes, RenderAssetUsages::RENDER_WORLD)),
         probe_counts: counts,
+        probe_spacing: spacing,
     });
 }
 
@@ -437,6 +464,14 @@ mod tests {
         // Too many probes in all: a window that fits.
         let (g, _) = VoxelGlobalIllumination { probe_counts: UVec3::splat(128), ..default() }.sanitized();
         assert!(g.probe_counts.element_product() <= MAX_PROBES);
+        assert_eq!(g.sanitized().1.len(), 0);
+        // Over the ray budget: more frames, then fewer rays, within it.
+        let heavy =
+            VoxelGlobalIllumination { probe_counts: UVec3::new(64, 32, 64), rays: 1024, probe_frames: 1, ..default() };
+        let (g, fixes) = heavy.sanitized();
+        assert_eq!(fixes.len(), 1, "{fixes:?}");
+        let per_frame = u64::from(g.probe_counts.element_product()) * u64::from(g.rays) / u64::from(g.probe_frames);
+        assert!(per_frame <= MAX_PROBE_RAYS_PER_FRAME && g.probe_frames == 32 && g.rays == 1024, "{g:?}");
         assert_eq!(g.sanitized().1.len(), 0);
     }
 }
