@@ -19,6 +19,8 @@
 //! * The faces hold the irradiance over pi (cd/m^2): what a white Lambertian surface facing each way sends
 //!   out, the value Bevy's PBR multiplies by the diffuse colour ([`gather_probe`]).
 //! * Each update blends into the probe's history, up to a window of frames ([`blend_probe`]).
+//! * The probes are written into the irradiance volume faded out over the window's last spacings
+//!   ([`ProbeWindow::edge_fade`]), so that the indirect light ends without a seam.
 
 use super::march::{TraceLevel, finest_level_containing, march_cascades};
 use glam::{IVec3, UVec3, Vec2, Vec3};
@@ -52,7 +54,7 @@ pub const FACE_EXIT_STEPS: u32 = 16;
 /// The golden ratio's fractional part.
 const GOLDEN: f32 = 0.618_034;
 
-/// The probes of a frame: lattice points `min .. min + counts`, `spacing` apart.
+/// The probes of a frame: lattice points `min .. min + counts`, `spacing` apart, around `focus`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProbeWindow {
     /// The lattice point of the window's first probe.
@@ -61,7 +63,14 @@ pub struct ProbeWindow {
     pub counts: UVec3,
     /// World distance between neighbouring probes.
     pub spacing: f32,
+    /// The world point the window follows (the camera), which its probes fade out away from
+    /// ([`ProbeWindow::edge_fade`]).
+    pub focus: Vec3,
 }
+
+/// The probe spacings over which a window's probes fade out toward its edges ([`ProbeWindow::edge_fade`]),
+/// at most half the window's reach.
+pub const EDGE_FADE_SPACINGS: f32 = 2.0;
 
 /// The window of `counts` probes `spacing` apart around `focus`, snapped to the spacing (its middle probe
 /// the lattice point nearest `focus`), or `None` for a focus that is not finite or too far out for the
@@ -72,7 +81,7 @@ pub fn probe_window(focus: Vec3, spacing: f32, counts: UVec3) -> Option<ProbeWin
     if !(nearest.is_finite() && nearest.abs().max_element() < 4_194_304.0 && spacing > 0.0) {
         return None;
     }
-    Some(ProbeWindow { min: nearest.as_ivec3() - (counts / 2).as_ivec3(), counts, spacing })
+    Some(ProbeWindow { min: nearest.as_ivec3() - (counts / 2).as_ivec3(), counts, spacing, focus })
 }
 
 impl ProbeWindow {
@@ -102,6 +111,25 @@ impl ProbeWindow {
     pub fn slot(&self, q: IVec3) -> u32 {
         let s = q.rem_euclid(self.counts.as_ivec3()).as_uvec3();
         s.x + self.counts.x * (s.y + self.counts.y * s.z)
+    }
+
+    /// The weight lattice point `q`'s faces are written with into the irradiance volume (WGSL
+    /// `edge_fade`): 1 near the focus, falling linearly to 0 over the last [`EDGE_FADE_SPACINGS`] spacings
+    /// (at most half) of the window's reach on each axis (the product over the axes), so that the outermost
+    /// probes, which Bevy's PBR applies out to the window's bounds, hold nothing, and the indirect light
+    /// meets the nothing beyond them without a seam, also as the window moves with the focus. The reach on an
+    /// axis of `c` probes is `ceil(c / 2) - 1.5` spacings, which the outermost probes lie at or beyond
+    /// wherever the focus is in its lattice cell; an axis of fewer than 4 probes does not fade.
+    pub fn edge_fade(&self, q: IVec3) -> f32 {
+        let d = (q.as_vec3() - self.focus / self.spacing).abs();
+        let fade = |c: u32, d: f32| {
+            if c < 4 {
+                return 1.0;
+            }
+            let reach = c.div_ceil(2) as f32 - 1.5;
+            ((reach - d) / EDGE_FADE_SPACINGS.min(0.5 * reach)).clamp(0.0, 1.0)
+        };
+        fade(self.counts.x, d.x) * fade(self.counts.y, d.y) * fade(self.counts.z, d.z)
     }
 
     /// The world box Bevy's `LightProbe` must cover for its texels' centres to lie on the probes: half a
@@ -361,6 +389,46 @@ mod tests {
     }
 
     #[test]
+    fn the_probes_fade_out_toward_the_windows_edges_without_a_step_as_it_moves() {
+        let counts = UVec3::new(48, 24, 48);
+        let mut last: Option<Vec<f32>> = None;
+        // The focus across a whole lattice cell and into the next, in steps of a twentieth of a spacing.
+        for k in 0..=30 {
+            let focus = Vec3::new(3.0 + 0.025 * k as f32, 1.7, -2.2);
+            let w = probe_window(focus, 0.5, counts).unwrap();
+            let weights: Vec<f32> = (0..w.len()).map(|i| w.edge_fade(w.lattice(i))).collect();
+            // The outermost probes of every axis hold nothing; those near the focus all of it.
+            for i in 0..w.len() {
+                let c = (w.lattice(i) - w.min).as_uvec3();
+                let outer = c.cmpeq(UVec3::ZERO).any() || c.cmpeq(counts - UVec3::ONE).any();
+                assert!(!outer || weights[i as usize] == 0.0, "{c} {}", weights[i as usize]);
+                let near = (w.position(w.lattice(i)) - focus).abs().cmplt(Vec3::new(10.0, 4.0, 10.0)).all();
+                assert!(!near || weights[i as usize] == 1.0, "{c} {}", weights[i as usize]);
+            }
+            // A lattice point's weight moves by a twentieth of a spacing's share of the fade, not by a step,
+            // also where the window scrolls by a probe.
+            if let Some(last) = &last {
+                let prev = probe_window(focus - Vec3::new(0.025, 0.0, 0.0), 0.5, counts).unwrap();
+                for i in 0..w.len() {
+                    let q = w.lattice(i);
+                    let before =
+                        if (q - prev.min).cmpge(IVec3::ZERO).all() && (q - prev.min).cmplt(counts.as_ivec3()).all() {
+                            prev.edge_fade(q)
+                        } else {
+                            0.0
+                        };
+                    assert!((weights[i as usize] - before).abs() <= 0.05 / EDGE_FADE_SPACINGS + 1e-5);
+                }
+                assert_eq!(last.len(), weights.len());
+            }
+            last = Some(weights);
+        }
+        // An axis of fewer than 4 probes does not fade.
+        let flat = probe_window(Vec3::ZERO, 1.0, UVec3::new(8, 2, 8)).unwrap();
+        assert_eq!(flat.edge_fade(IVec3::ZERO), 1.0);
+    }
+
+    #[test]
     fn the_window_follows_the_focus_and_a_probe_keeps_its_slot() {
         let w = probe_window(Vec3::new(10.2, -3.9, 0.1), 0.5, UVec3::new(8, 4, 8)).unwrap();
         assert_eq!(w.min, IVec3::new(20 - 4, -8 - 2, -4));
@@ -405,7 +473,8 @@ mod tests {
 
     #[test]
     fn the_volume_is_sampled_as_bevy_samples_it() {
-        let window = ProbeWindow { min: IVec3::new(-2, 0, -2), counts: UVec3::new(4, 2, 4), spacing: 1.0 };
+        let window =
+            ProbeWindow { min: IVec3::new(-2, 0, -2), counts: UVec3::new(4, 2, 4), spacing: 1.0, focus: Vec3::ZERO };
         // Each probe's +y face its x index, the rest 0.
         let faces = |w: UVec3| std::array::from_fn(|k| if k == 2 { Vec3::splat(w.x as f32) } else { Vec3::ZERO });
         // On a probe: its value; between two along x: the mean; past the last probe, clamped to it; outside

@@ -25,6 +25,9 @@ struct ProbeParams {
     max_frames: u32,
     // This frame's number, which turns the probes' rays.
     seed: u32,
+    // The world point the window follows, which its probes fade out away from (`edge_fade`).
+    focus: vec3<f32>,
+    pad: f32,
 }
 
 // src/gi/probes.rs: `PROBE_RECORD_BYTES`. A probe's history: its six faces (irradiance over pi, rgb), the
@@ -232,6 +235,25 @@ fn update_probes(@builtin(global_invocation_id) id: vec3<u32>) {
     records[slot] = record;
 }
 
+// cpu/probes.rs: EDGE_FADE_SPACINGS
+const EDGE_FADE_SPACINGS: f32 = 2.0;
+
+// cpu/probes.rs: ProbeWindow::edge_fade. The weight of lattice point `q`'s faces in the irradiance volume: 1
+// near the focus, falling linearly to 0 over the last EDGE_FADE_SPACINGS spacings (at most half) of the
+// window's reach (ceil(c / 2) - 1.5 spacings) on each axis of at least 4 probes, the product over the axes.
+fn edge_fade(q: vec3<i32>) -> f32 {
+    let d = abs(vec3<f32>(q) - params.focus / params.spacing);
+    var weight = 1.0;
+    for (var a = 0u; a < 3u; a++) {
+        let c = params.counts[a];
+        if c >= 4u {
+            let reach = f32((c + 1u) / 2u) - 1.5;
+            weight *= clamp((reach - d[a]) / min(EDGE_FADE_SPACINGS, 0.5 * reach), 0.0, 1.0);
+        }
+    }
+    return weight;
+}
+
 @compute @workgroup_size(4, 4, 4)
 fn write_probes(@builtin(global_invocation_id) w: vec3<u32>) {
     let c = params.counts;
@@ -241,12 +263,13 @@ fn write_probes(@builtin(global_invocation_id) w: vec3<u32>) {
     let q = params.window_min + vec3<i32>(w);
     let record = records[probe_slot(q)];
     let valid = all(record.lattice == q) && record.frames > 0u;
+    let fade = edge_fade(q);
     // Bevy's layout: the + faces in the first counts.y rows, the - faces in the next; the x, y and z faces
     // in the three slabs along z.
     for (var f = 0u; f < 6u; f++) {
         let texel = vec3<u32>(w.x, w.y + (f & 1u) * c.y, w.z + (f >> 1u) * c.z);
         // Within f16's range: a light of absurd intensity saturates rather than turning the surfaces infinite.
-        let face = min(select(vec3<f32>(0.0), record.faces[f].xyz, valid), vec3<f32>(F16_MAX));
+        let face = min(select(vec3<f32>(0.0), record.faces[f].xyz * fade, valid), vec3<f32>(F16_MAX));
         textureStore(irradiance, texel, vec4<f32>(face, 1.0));
     }
 }

@@ -75,7 +75,10 @@ pub struct VoxelGlobalIllumination {
     /// The distance between probes, world units (0.01 to 100).
     pub probe_spacing: f32,
     /// Probes along each axis (2 to 128 each, at most 262,144 in all), centred on the camera: the
-    /// default covers 24 x 12 x 24 m. Outside it a surface gets no indirect light from the probes.
+    /// default covers 24 x 12 x 24 m. The indirect light fades out over the last two spacings of the way
+    /// from the camera to the window's edge on each axis (from 10.25 m and 4.25 m by default, gone at 11.25
+    /// and 5.25 m; not on an axis of fewer than 4 probes); outside the window a surface gets no indirect
+    /// light from the probes.
     pub probe_counts: UVec3,
     /// Rays a probe traces each time it is updated (1 to 1024).
     pub rays: u32,

@@ -38,6 +38,8 @@ pub(crate) struct GpuProbeParams {
     pub(crate) phases: u32,
     pub(crate) max_frames: u32,
     pub(crate) seed: u32,
+    pub(crate) focus: Vec3,
+    pub(crate) pad: f32,
 }
 
 /// The probe passes' pipelines and layout.
@@ -124,6 +126,8 @@ pub fn prepare_gi_probes(
         phases,
         max_frames: extracted.history_cap.unwrap_or(settings.accumulation_frames),
         seed: *frame,
+        focus: window.focus,
+        pad: 0.0,
     };
     *frame = frame.wrapping_add(1);
     let params = crate::gpu::uniform_buffer(&device, "hao_gi_probe_params", &params, BufferUsages::UNIFORM);
