@@ -682,7 +682,7 @@ pub fn f16_at(bytes: &[u8], at: usize) -> f32 {
 
 /// Command-line values shared by the tools and the examples (as clap value parsers).
 pub mod args {
-    use bevy::math::{UVec2, Vec3};
+    use bevy::math::{UVec2, UVec3, Vec3};
     use bevy_hao::HaoDebugView;
 
     /// A HAO quality preset (`--quality`): [`bevy_hao::HaoQuality`]'s presets by their command-line names.
@@ -750,11 +750,24 @@ pub mod args {
 
     /// `X,Y,Z`.
     pub fn vec3(s: &str) -> Result<Vec3, String> {
-        let v: Vec<f32> = s
+        triple::<f32>(s, "number").map(Vec3::from_array)
+    }
+
+    /// `X,Y,Z`, whole numbers.
+    pub fn uvec3(s: &str) -> Result<UVec3, String> {
+        triple::<u32>(s, "count").map(UVec3::from_array)
+    }
+
+    /// Three comma-separated values of `T` (`what` names one in the error).
+    fn triple<T: std::str::FromStr>(s: &str, what: &str) -> Result<[T; 3], String>
+    where
+        T::Err: std::fmt::Display,
+    {
+        let v: Vec<T> = s
             .split(',')
-            .map(|x| x.trim().parse::<f32>().map_err(|e| format!("bad number {x:?}: {e}")))
+            .map(|x| x.trim().parse::<T>().map_err(|e| format!("bad {what} {x:?}: {e}")))
             .collect::<Result<_, _>>()?;
-        (v.len() == 3).then(|| Vec3::new(v[0], v[1], v[2])).ok_or_else(|| format!("expected X,Y,Z, got {s}"))
+        <[T; 3]>::try_from(v).map_err(|_| format!("expected X,Y,Z, got {s}"))
     }
 
     /// `WIDTHxHEIGHT`, each from 1 to [`MAX_SIZE`] (wgpu's default limit on a texture's side): a render

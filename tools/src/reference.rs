@@ -161,25 +161,49 @@ pub fn reference_indirect(
     rotation: Vec2,
     epsilon: f32,
 ) -> Vec3 {
+    let [even, odd] = reference_indirect_halves(scene, lights, sky, position, normal, rays, rotation, epsilon);
+    let even_rays = rays.div_ceil(2) as f32;
+    (even * even_rays + odd * (rays - rays.div_ceil(2)) as f32) / rays.max(1) as f32
+}
+
+/// [`reference_indirect`]'s rays in two halves, the even rays' estimate and the odd rays' (each pi times its
+/// rays' mean radiance; 0 for a half of no rays), for the reference's own noise: two estimates of the same
+/// irradiance from disjoint rays, whose rays-weighted mean is [`reference_indirect`]'s.
+#[allow(clippy::too_many_arguments)]
+pub fn reference_indirect_halves(
+    scene: &ReferenceScene,
+    lights: &[Light],
+    sky: Vec3,
+    position: Vec3,
+    normal: Vec3,
+    rays: u32,
+    rotation: Vec2,
+    epsilon: f32,
+) -> [Vec3; 2] {
     let origin = position + normal * epsilon;
     let basis = orthonormal_basis(normal);
-    let radiance: Vec3 = (0..rays)
-        .map(|i| {
-            let dir = hemisphere_direction(basis, i, rays, rotation);
-            let Some((t, triangle)) = scene.closest_hit(origin, dir, epsilon, f32::INFINITY) else { return sky };
-            let n = scene.normal(triangle);
-            let n = if n.dot(dir) > 0.0 { -n } else { n };
-            let hit = origin + dir * t + n * epsilon;
-            lights
-                .iter()
-                .filter_map(|light| light.incident(hit))
-                .filter(|incident| n.dot(incident.to_light) > 0.0)
-                .filter(|incident| scene.closest_hit(hit, incident.to_light, epsilon, incident.distance).is_none())
-                .map(|incident| diffuse_radiance(scene.albedo[triangle], n, &incident))
-                .sum()
-        })
-        .sum();
-    radiance * std::f32::consts::PI / rays.max(1) as f32
+    let mut sums = [Vec3::ZERO; 2];
+    for i in 0..rays {
+        let dir = hemisphere_direction(basis, i, rays, rotation);
+        let radiance = match scene.closest_hit(origin, dir, epsilon, f32::INFINITY) {
+            None => sky,
+            Some((t, triangle)) => {
+                let n = scene.normal(triangle);
+                let n = if n.dot(dir) > 0.0 { -n } else { n };
+                let hit = origin + dir * t + n * epsilon;
+                lights
+                    .iter()
+                    .filter_map(|light| light.incident(hit))
+                    .filter(|incident| n.dot(incident.to_light) > 0.0)
+                    .filter(|incident| scene.closest_hit(hit, incident.to_light, epsilon, incident.distance).is_none())
+                    .map(|incident| diffuse_radiance(scene.albedo[triangle], n, &incident))
+                    .sum()
+            }
+        };
+        sums[(i % 2) as usize] += radiance;
+    }
+    let counts = [rays.div_ceil(2), rays / 2];
+    [0, 1].map(|k| sums[k] * std::f32::consts::PI / counts[k].max(1) as f32)
 }
 
 /// A hash of an integer to [0, 1): the tools' per-pixel ray rotations and jitters (the same pixel gets the
@@ -265,6 +289,15 @@ mod tests {
             1e-4,
         );
         assert!((e - Vec3::new(500.0, 250.0, 0.0)).abs().max_element() < 1.0, "{e}");
+        // Its halves: each the same irradiance from half the rays, their mean the whole's (odd counts too).
+        for rays in [255, 256] {
+            let at = (Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y);
+            let whole = reference_indirect(&scene, &[sun], Vec3::ZERO, at.0, at.1, rays, Vec2::ZERO, 1e-4);
+            let [even, odd] = reference_indirect_halves(&scene, &[sun], Vec3::ZERO, at.0, at.1, rays, Vec2::ZERO, 1e-4);
+            let mean = (even * rays.div_ceil(2) as f32 + odd * (rays / 2) as f32) / rays as f32;
+            assert!((mean - whole).abs().max_element() < 1e-3, "{mean} {whole}");
+            assert!((even - odd).abs().max_element() < 1.0, "{even} {odd}");
+        }
         // A roof between the sun and the floor shades it: no bounce under it but the sky's.
         let mut shaded = floor.clone();
         let roof = [(-1e3, -1e3), (1e3, -1e3), (1e3, 1e3), (-1e3, 1e3)].map(|(x, z)| Vec3::new(x, 3.0, z));
