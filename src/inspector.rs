@@ -260,6 +260,19 @@ fn inspector_window(
                 c.y as f32 * gi.probe_spacing,
                 c.z as f32 * gi.probe_spacing
             ));
+            ui.add(egui::Slider::new(&mut gi.far_spacing, 0..=16).text("far probes' spacing (in spacings; 0: off)"));
+            if gi.far_spacing > 0 {
+                let (c, s) = (gi.far_probe_counts, gi.probe_spacing * gi.far_spacing.max(2) as f32);
+                ui.label(format!(
+                    "{}x{}x{} far probes, {:.1} x {:.1} x {:.1} m",
+                    c.x,
+                    c.y,
+                    c.z,
+                    c.x as f32 * s,
+                    c.y as f32 * s,
+                    c.z as f32 * s
+                ));
+            }
         }
 
         ui.separator();

@@ -16,8 +16,9 @@ mod wgsl_tests;
 pub use ao::{HaoQuality, HybridAmbientOcclusion, HybridAmbientOcclusionPlugin, MIN_VIEWPORT_PIXELS};
 pub use debug::{HaoDebugImages, HaoDebugView, HaoDebugViewPlugin};
 pub use gi::{
-    CHANGED_HISTORY, GiAssets, GiIrradianceVolume, GiProbeWindow, MAX_LIGHTING_FRAMES, MAX_PROBE_RAYS_PER_FRAME,
-    MAX_PROBES, VoxelGlobalIllumination, VoxelGlobalIlluminationPlugin,
+    CHANGED_HISTORY, GiAssets, GiFarIrradianceVolume, GiFarProbeWindow, GiFarProbes, GiFarProbesSupport,
+    GiIrradianceVolume, GiProbeWindow, MAX_LIGHTING_FRAMES, MAX_PROBE_RAYS_PER_FRAME, MAX_PROBES,
+    VoxelGlobalIllumination, VoxelGlobalIlluminationPlugin,
 };
 pub use voxel::components::*;
 pub use voxel::{

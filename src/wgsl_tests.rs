@@ -235,7 +235,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
             "src/gi/gi_probes.wgsl",
             "ProbeParams",
             GpuProbeParams,
-            [window_min, rays, counts, phase, spacing, phases, max_frames, seed, focus, pad]
+            [window_min, rays, counts, phase, spacing, phases, max_frames, seed, focus, far]
         ),
         layout!(
             "src/gi/gi_lighting.wgsl",

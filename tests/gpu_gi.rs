@@ -3,6 +3,7 @@
 
 use bevy::camera::RenderTarget;
 use bevy::prelude::*;
+use bevy::render::gpu_readback::Readback;
 use bevy_hao::cpu::VoxelAttributes;
 use bevy_hao::cpu::lighting::{Light, unpack_rgb9e5, voxel_radiance};
 use bevy_hao::cpu::probes::{LitVoxels, gather_probe, probe_rotation, relocate_probe};
@@ -250,10 +251,25 @@ impl LitVoxels for ReadVoxels<'_> {
 /// The probes' records and the irradiance volume, copied in the same frame (the irradiance volume without
 /// its rows' padding).
 fn read_records_and_volume(app: &mut App, assets: &bevy_hao::GiAssets) -> (Vec<u8>, Vec<u8>) {
-    use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+    let [records, volume] = read_same_frame(
+        app,
+        [Readback::buffer(assets.probe_records.clone()), Readback::texture(assets.irradiance.clone())],
+    );
+    (records, unpadded(&volume, assets.probe_counts.x))
+}
+
+/// An irradiance volume's bytes read back without its rows' padding: rows of `width` texels of 8 bytes,
+/// padded to 256 bytes.
+fn unpadded(volume: &[u8], width: u32) -> Vec<u8> {
+    let row = (width * 8) as usize;
+    volume.chunks(row.next_multiple_of(256)).flat_map(|r| r[..row].to_vec()).collect()
+}
+
+/// Buffers and textures copied in the same frame.
+fn read_same_frame<const N: usize>(app: &mut App, readbacks: [Readback; N]) -> [Vec<u8>; N] {
+    use bevy::render::gpu_readback::ReadbackComplete;
     use std::sync::{Arc, Mutex};
-    let slots: [Arc<Mutex<Option<Vec<u8>>>>; 2] = Default::default();
-    let readbacks = [Readback::buffer(assets.probe_records.clone()), Readback::texture(assets.irradiance.clone())];
+    let slots: [Arc<Mutex<Option<Vec<u8>>>>; N] = std::array::from_fn(|_| Default::default());
     let entities: Vec<Entity> = readbacks
         .into_iter()
         .zip(slots.clone())
@@ -276,10 +292,17 @@ fn read_records_and_volume(app: &mut App, assets: &bevy_hao::GiAssets) -> (Vec<u
     for e in entities {
         app.world_mut().despawn(e);
     }
-    let [records, volume] = slots.map(|s| s.lock().unwrap().take().expect("a readback within 20 frames"));
-    // Rows of 12 texels of 8 bytes, padded to 256 bytes.
-    let volume = volume.chunks(256).flat_map(|row| row[..96].to_vec()).collect();
-    (records, volume)
+    slots.map(|s| s.lock().unwrap().take().expect("a readback within 20 frames"))
+}
+
+/// A probe's faces as an irradiance volume of `counts` probes holds them at its index `c` (f16, Bevy's
+/// layout: + and - faces in the halves of y, the x, y and z faces in the thirds of z).
+fn stored_faces(volume: &[u8], counts: UVec3, c: UVec3) -> [Vec3; 6] {
+    std::array::from_fn(|k| {
+        let texel = UVec3::new(c.x, c.y + (k as u32 & 1) * counts.y, c.z + (k as u32 >> 1) * counts.z);
+        let t = (((texel.z * 2 * counts.y + texel.y) * counts.x + texel.x) * 8) as usize;
+        Vec3::new(f16_at(volume, t), f16_at(volume, t + 2), f16_at(volume, t + 4))
+    })
 }
 
 /// A probe's record as the GPU wrote it: six faces, its lattice point, its updates, its last seed.
@@ -300,19 +323,8 @@ fn record(bytes: &[u8], slot: u32) -> ([Vec3; 6], IVec3, u32, u32) {
 #[test]
 fn the_probes_on_the_gpu_equal_their_cpu_twin_and_light_the_room() {
     let _gpu = gpu_lock();
-    let volume = VoxelVolume {
-        bounds: VolumeBounds::FollowCamera { cascades: 2, cells: 64, finest_cell_size: 0.125 },
-        ..default()
-    };
-    let gi = VoxelGlobalIllumination {
-        probe_counts: UVec3::new(12, 8, 12),
-        probe_spacing: 0.5,
-        rays: 32,
-        probe_frames: 2,
-        accumulation_frames: 1,
-        lighting_frames: 2,
-        ..default()
-    };
+    let (volume, gi) = small_room_settings();
+    let gi = VoxelGlobalIllumination { far_spacing: 0, ..gi };
     let mut app = lit_room(volume, gi.clone());
     run(&mut app, 12);
     let grid = grid_assets(&app).expect("a voxel grid");
@@ -380,8 +392,8 @@ fn the_probes_on_the_gpu_equal_their_cpu_twin_and_light_the_room() {
     };
     // 8 m across, so that the volume reaches the floor 3 m under the camera.
     let counts = UVec3::splat(16);
-    let with = render(VoxelGlobalIllumination { probe_counts: counts, ..default() });
-    let without = render(VoxelGlobalIllumination { intensity: 0.0, probe_counts: counts, ..default() });
+    let with = render(VoxelGlobalIllumination { probe_counts: counts, far_spacing: 0, ..default() });
+    let without = render(VoxelGlobalIllumination { intensity: 0.0, probe_counts: counts, far_spacing: 0, ..default() });
     let dark: Vec<usize> = (0..without.len()).filter(|&i| without[i] < 80.0).collect();
     let mean = |v: &[f32]| dark.iter().map(|&i| v[i]).sum::<f32>() / dark.len().max(1) as f32;
     println!(
@@ -392,6 +404,137 @@ fn the_probes_on_the_gpu_equal_their_cpu_twin_and_light_the_room() {
     );
     assert!(dark.len() > 50, "{} shadowed pixels", dark.len());
     assert!(mean(&with) > 1.5 * mean(&without) + 10.0, "{} against {}", mean(&with), mean(&without));
+}
+
+/// The small room's voxels (two cascades of 64^3 from 0.125 m) and GI: 12 x 8 x 12 probes 0.5 m apart,
+/// each updated every other frame with a history of one update, and far probes 1 m apart beside them.
+fn small_room_settings() -> (VoxelVolume, VoxelGlobalIllumination) {
+    let volume = VoxelVolume {
+        bounds: VolumeBounds::FollowCamera { cascades: 2, cells: 64, finest_cell_size: 0.125 },
+        ..default()
+    };
+    let gi = VoxelGlobalIllumination {
+        probe_counts: UVec3::new(12, 8, 12),
+        probe_spacing: 0.5,
+        far_spacing: 2,
+        far_probe_counts: UVec3::new(16, 12, 16),
+        rays: 32,
+        probe_frames: 2,
+        accumulation_frames: 1,
+        lighting_frames: 2,
+        ..default()
+    };
+    assert!(gi.sanitized().1.is_empty(), "{:?}", gi.sanitized().1);
+    (volume, gi)
+}
+
+/// The far probes on the GPU are written as their CPU twin says (`cpu::far_probes`): every far probe's
+/// texel its faces faded toward the far window's edges; every near probe's texel `near_texel` of its own
+/// faces, its fade and the far volume's faces at it, read from the far probes' records as Bevy samples
+/// their volume (so that Bevy's mean of the two is the near light faded into the far one). The passes do
+/// not need binding arrays (only Bevy's PBR, to apply two volumes): on a device without them (lavapipe)
+/// the far probes are off, with a warning, and the test turns them on by hand.
+#[test]
+fn the_far_probes_on_the_gpu_are_written_as_their_cpu_twin() {
+    use bevy_hao::cpu::far_probes::near_texel;
+    use bevy_hao::cpu::probes::sample_faces;
+    let _gpu = gpu_lock();
+    let (volume, gi) = small_room_settings();
+    let mut app = lit_room(volume, gi.clone());
+    let support = app.world().resource::<bevy_hao::GiFarProbesSupport>().0.clone();
+    println!("far probes on this device: {support:?}");
+    app.insert_resource(bevy_hao::GiFarProbesSupport(Ok(())));
+    run(&mut app, 12);
+    let assets = app.world().get_resource::<bevy_hao::GiAssets>().cloned().expect("voxel GI's assets");
+    let near = app.world().resource::<bevy_hao::GiProbeWindow>().0.expect("a probe window");
+    let far = assets.far.clone().expect("far probes");
+    let far_window = app.world().resource::<bevy_hao::GiFarProbeWindow>().0.expect("a far probe window");
+    assert_eq!((far_window.counts, far_window.spacing), (UVec3::new(16, 12, 16), 1.0));
+    let [near_records, near_volume, far_records, far_volume] = read_same_frame(
+        &mut app,
+        [
+            Readback::buffer(assets.probe_records.clone()),
+            Readback::texture(assets.irradiance.clone()),
+            Readback::buffer(far.probe_records.clone()),
+            Readback::texture(far.irradiance.clone()),
+        ],
+    );
+    let (near_volume, far_volume) = (unpadded(&near_volume, near.counts.x), unpadded(&far_volume, far.probe_counts.x));
+    let close = |stored: Vec3, want: Vec3| (stored - want).abs().cmple(want.abs() * 2.0e-3 + Vec3::splat(2.0e-3)).all();
+    // The far probes' texels, as the twin has them from the records (in f32, as the GPU reads them).
+    let far_faces = |w: UVec3| -> [Vec3; 6] {
+        let q = far_window.min + w.as_ivec3();
+        let (faces, lattice, frames, _) = record(&far_records, far_window.slot(q));
+        let valid = lattice == q && frames > 0;
+        faces.map(|f| if valid { (f * far_window.edge_fade(q)).min(Vec3::splat(65504.0)) } else { Vec3::ZERO })
+    };
+    let mut lit = 0;
+    for i in 0..far_window.len() {
+        let q = far_window.lattice(i);
+        let c = (q - far_window.min).as_uvec3();
+        let stored = stored_faces(&far_volume, far_window.counts, c);
+        let want = far_faces(c);
+        lit += want.iter().any(|f| f.max_element() > 0.0) as u32;
+        for k in 0..6 {
+            assert!(close(stored[k], want[k]), "far probe {q} face {k}: {} against {}", stored[k], want[k]);
+        }
+    }
+    let mut faded = 0;
+    for i in 0..near.len() {
+        let q = near.lattice(i);
+        let (own, lattice, frames, _) = record(&near_records, near.slot(q));
+        assert_eq!((lattice, frames), (q, 1), "near probe {q}: its record");
+        let at_far = sample_faces(&far_window, far_faces, near.position(q)).expect("near probes lie in the far window");
+        let fade = near.edge_fade(q);
+        faded += (fade < 1.0) as u32;
+        let want = near_texel(own.map(|f| f.min(Vec3::splat(65504.0))), fade, Some(at_far));
+        let stored = stored_faces(&near_volume, near.counts, (q - near.min).as_uvec3());
+        for k in 0..6 {
+            assert!(close(stored[k], want[k]), "near probe {q} face {k}: {} against {}", stored[k], want[k]);
+        }
+    }
+    println!(
+        "{} far probes, {lit} see light; {} near probes, {faded} faded into the far ones",
+        far_window.len(),
+        near.len()
+    );
+    assert!(lit * 4 > far_window.len() && faded > 0, "{lit} far probes see light, {faded} near ones fade");
+    assert!(take_render_errors().is_empty());
+}
+
+/// Bevy's PBR applies the far probes' volume beside the near one: the room's shadowed surfaces, some
+/// beyond the near window (6 x 4 x 6 m), show more light with the far probes than with the near ones
+/// alone. Needs a device with binding arrays (Bevy 0.19 applies one irradiance volume without them; the
+/// far probes are then off: `voxel_gi_turns_itself_off_where_it_cannot_run_and_takes_bad_settings`).
+#[test]
+#[ignore = "needs a device with binding arrays (not lavapipe): cargo test --release --test gpu_gi -- --ignored"]
+fn bevys_pbr_applies_the_far_probes_beyond_the_near_window() {
+    let _gpu = gpu_lock();
+    let (volume, gi) = small_room_settings();
+    let render = |gi: VoxelGlobalIllumination| {
+        let mut app = lit_room(volume, gi);
+        let support = &app.world().resource::<bevy_hao::GiFarProbesSupport>().0;
+        assert!(support.is_ok(), "this test needs a device with binding arrays: {support:?}");
+        run(&mut app, 16);
+        let target = app.world().resource::<Target>().0.clone();
+        let (_, _, _, bytes) = read_image(&mut app, target, 2);
+        assert!(take_render_errors().is_empty());
+        bytes.chunks_exact(4).map(|p| p[0] as f32 + p[1] as f32 + p[2] as f32).collect::<Vec<f32>>()
+    };
+    let with = render(gi.clone());
+    let near_only = render(VoxelGlobalIllumination { far_spacing: 0, ..gi.clone() });
+    let without = render(VoxelGlobalIllumination { intensity: 0.0, ..gi });
+    let dark: Vec<usize> = (0..without.len()).filter(|&i| without[i] < 80.0).collect();
+    let mean = |v: &[f32]| dark.iter().map(|&i| v[i]).sum::<f32>() / dark.len().max(1) as f32;
+    println!(
+        "{} shadowed pixels: mean {:.1} with the far probes, {:.1} with the near ones alone, {:.1} without GI",
+        dark.len(),
+        mean(&with),
+        mean(&near_only),
+        mean(&without)
+    );
+    assert!(dark.len() > 50, "{} shadowed pixels", dark.len());
+    assert!(mean(&with) > mean(&near_only) + 5.0, "{} against {}", mean(&with), mean(&near_only));
 }
 
 /// Voxel GI where it cannot run, and with bad settings: on WebGPU's storage-binding limit (128 MiB) the
@@ -417,6 +560,8 @@ fn voxel_gi_turns_itself_off_where_it_cannot_run_and_takes_bad_settings() {
         intensity: f32::INFINITY,
         probe_spacing: f32::NAN,
         probe_counts: UVec3::new(0, 4, 100_000),
+        far_spacing: 1000,
+        far_probe_counts: UVec3::new(0, u32::MAX, 1),
         rays: 100_000,
         probe_frames: 0,
         accumulation_frames: 0,
@@ -432,11 +577,17 @@ fn voxel_gi_turns_itself_off_where_it_cannot_run_and_takes_bad_settings() {
     assert_eq!(assets.probe_counts, UVec3::new(2, 4, 128));
     let mut probes = app.world_mut().query::<&bevy_hao::GiIrradianceVolume>();
     assert_eq!(probes.iter(app.world()).count(), 1);
+    // The far probes, where the device blends volumes: 16 spacings apart, enough to hold the near window.
+    let far_usable = app.world().resource::<bevy_hao::GiFarProbesSupport>().0.is_ok();
+    assert_eq!(assets.far.as_ref().map(|f| f.factor), far_usable.then_some(16));
+    let mut far_probes = app.world_mut().query::<&bevy_hao::GiFarIrradianceVolume>();
+    assert_eq!(far_probes.iter(app.world()).count(), usize::from(far_usable));
     let mut cameras = app.world_mut().query_filtered::<Entity, With<VoxelGlobalIllumination>>();
     let camera = cameras.single(app.world()).unwrap();
     app.world_mut().entity_mut(camera).remove::<VoxelGlobalIllumination>();
     run(&mut app, 3);
     assert_eq!(probes.iter(app.world()).count(), 0, "the irradiance volume goes with the component");
+    assert_eq!(far_probes.iter(app.world()).count(), 0, "the far one too");
     assert!(app.world().get_resource::<bevy_hao::GiAssets>().is_none());
     assert!(grid_assets(&app).is_some(), "the AO's grid stays");
     assert!(take_render_errors().is_empty());

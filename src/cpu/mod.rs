@@ -24,7 +24,8 @@
 //!   formulas, and the lighting volume: each voxel's outgoing diffuse radiance under them, shadowed by a
 //!   march through the voxels (the CPU twin of `gi_lighting.wgsl`, for diffuse global illumination:
 //!   docs/design-gi.md); [`probes`]: the irradiance probes that gather the lit voxels' light into ambient
-//!   cubes for Bevy's irradiance volume.
+//!   cubes for Bevy's irradiance volume; [`far_probes`]: a second, coarser window of them for the surfaces
+//!   beyond.
 //!
 //! The GPU passes (`src/voxel/*.wgsl`, `src/ao/*.wgsl`) implement the same algorithm with the same function
 //! names; the render tests hold the GPU against these. What the voxelizer is measured against (the exact
@@ -48,6 +49,7 @@ pub mod bias_model;
 pub mod cascade;
 pub mod contacts;
 pub mod denoise;
+pub mod far_probes;
 pub mod grid;
 pub mod lighting;
 pub mod march;

@@ -299,11 +299,17 @@ pub fn ambient_cube(faces: &[Vec3; 6], n: Vec3) -> Vec3 {
 }
 
 /// The irradiance over pi Bevy's PBR reads from an irradiance volume over the window `window` at the
-/// point `p` for the unit normal `n`, as `irradiance_volume.wgsl` samples it: the point's position in the
-/// probes clamped half a probe inside the window, each face interpolated trilinearly between the eight
-/// probes around it (`faces` of a probe by its index in the window, x fastest), then [`ambient_cube`].
-/// `None` outside the window's [`ProbeWindow::bounds`], where Bevy applies no volume.
+/// point `p` for the unit normal `n`, as `irradiance_volume.wgsl` samples it: [`sample_faces`], then
+/// [`ambient_cube`]. `None` outside the window's [`ProbeWindow::bounds`], where Bevy applies no volume.
 pub fn sample_volume(window: &ProbeWindow, faces: impl Fn(UVec3) -> [Vec3; 6], p: Vec3, n: Vec3) -> Option<Vec3> {
+    sample_faces(window, faces, p).map(|f| ambient_cube(&f, n))
+}
+
+/// The faces Bevy's PBR reads from the volume over `window` at `p` (each face trilinear between the eight
+/// probes around `p`, the point clamped half a probe inside the window, as `irradiance_volume.wgsl`
+/// samples it; `faces` of a probe by its index in the window), before the ambient cube's weights; `None`
+/// outside the window's bounds.
+pub fn sample_faces(window: &ProbeWindow, faces: impl Fn(UVec3) -> [Vec3; 6], p: Vec3) -> Option<[Vec3; 6]> {
     let (lo, hi) = window.bounds();
     if p.cmplt(lo).any() || p.cmpgt(hi).any() {
         return None;
@@ -312,12 +318,15 @@ pub fn sample_volume(window: &ProbeWindow, faces: impl Fn(UVec3) -> [Vec3; 6], p
     let stp = ((p - lo) / (hi - lo) * r).clamp(Vec3::splat(0.5), r - Vec3::splat(0.5)) - Vec3::splat(0.5);
     let base = stp.floor().as_uvec3().min(window.counts - UVec3::ONE);
     let f = stp - base.as_vec3();
-    let mut e = Vec3::ZERO;
+    let mut e = [Vec3::ZERO; 6];
     for corner in 0..8u32 {
         let o = UVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2);
         let w = Vec3::select(o.cmpeq(UVec3::ONE), f, Vec3::ONE - f).element_product();
         if w > 0.0 {
-            e += w * ambient_cube(&faces((base + o).min(window.counts - UVec3::ONE)), n);
+            let probe = faces((base + o).min(window.counts - UVec3::ONE));
+            for k in 0..PROBE_FACES.len() {
+                e[k] += w * probe[k];
+            }
         }
     }
     Some(e)

@@ -1,6 +1,6 @@
 //! Extraction: voxel GI's settings and assets, and Bevy's lights as the lighting pass takes them.
 
-use super::{CHANGED_HISTORY, GiAssets, GiProbeWindow, VoxelGlobalIllumination, gi_camera};
+use super::{CHANGED_HISTORY, GiAssets, GiFarProbeWindow, GiProbeWindow, VoxelGlobalIllumination, gi_camera};
 use crate::cpu::lighting::{Light, PreparedLight};
 use crate::cpu::probes::ProbeWindow;
 use bevy::light::{DirectionalLight, PointLight, SpotLight};
@@ -22,6 +22,8 @@ pub struct ExtractedGi {
     pub lights: Vec<PreparedLight>,
     /// This frame's probes.
     pub window: Option<ProbeWindow>,
+    /// This frame's far probes, where on.
+    pub far_window: Option<ProbeWindow>,
     /// The updates a probe's history holds this frame where the lights changed lately
     /// ([`CHANGED_HISTORY`]), or `None` (the settings' `accumulation_frames`).
     pub history_cap: Option<u32>,
@@ -49,11 +51,13 @@ pub fn extract_gi(
     spot: Extract<Query<(&SpotLight, &GlobalTransform, &InheritedVisibility)>>,
     focus: Extract<Res<crate::voxel::volume::VoxelVolumeFocus>>,
     window: Extract<Res<GiProbeWindow>>,
+    far_window: Extract<Res<GiFarProbeWindow>>,
     mut warned: Local<bool>,
 ) {
     let extracted = &mut *extracted;
     extracted.gi = gi_camera(cameras.iter()).zip(assets.as_deref().cloned()).map(|((_, g), a)| (g, a));
     extracted.window = window.0;
+    extracted.far_window = far_window.0;
     std::mem::swap(&mut extracted.lights, &mut extracted.last_lights);
     extracted.lights.clear();
     let Some((settings, _)) = &extracted.gi else { return };

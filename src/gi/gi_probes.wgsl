@@ -27,7 +27,9 @@ struct ProbeParams {
     seed: u32,
     // The world point the window follows, which its probes fade out away from (`edge_fade`).
     focus: vec3<f32>,
-    pad: f32,
+    // 1 where these are the near probes and a far window is written beside them (`far_params`), which
+    // `write_probes` fades them into (cpu/far_probes.rs); else 0.
+    far: u32,
 }
 
 // src/gi/probes.rs: `PROBE_RECORD_BYTES`. A probe's history: its six faces (irradiance over pi, rgb), the
@@ -49,6 +51,9 @@ struct ProbeRecord {
 @group(0) @binding(2) var radiance: texture_3d<u32>;
 // Bevy's irradiance volume: (counts.x, 2 counts.y, 3 counts.z) texels.
 @group(0) @binding(3) var irradiance: texture_storage_3d<rgba16float, write>;
+// With `params.far`: the far window and its probes' records (else unused).
+@group(0) @binding(4) var<uniform> far_params: ProbeParams;
+@group(0) @binding(5) var<storage, read> far_records: array<ProbeRecord>;
 // The voxel levels are bound at group 2 (`bevy_hao::voxel_grid`).
 
 // cpu/probes.rs: PROBE_STEPS, PROBE_MAX_DISTANCE, RELOCATE_MAX, FACE_REACH, FACE_STEPS, FACE_EXIT_STEPS
@@ -73,11 +78,16 @@ const PROBE_FACES: array<vec3<f32>, 6> = array<vec3<f32>, 6>(
     vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(0.0, 0.0, -1.0),
 );
 
-// cpu/probes.rs: ProbeWindow::slot. Lattice point q's record: q modulo the counts, x fastest.
-fn probe_slot(q: vec3<i32>) -> u32 {
-    let c = vec3<i32>(params.counts);
+// cpu/probes.rs: ProbeWindow::slot. Lattice point q's record in window `window`: q modulo the counts, x
+// fastest.
+fn window_slot(window: ProbeParams, q: vec3<i32>) -> u32 {
+    let c = vec3<i32>(window.counts);
     let s = vec3<u32>(((q % c) + c) % c);
-    return s.x + params.counts.x * (s.y + params.counts.y * s.z);
+    return s.x + window.counts.x * (s.y + window.counts.y * s.z);
+}
+
+fn probe_slot(q: vec3<i32>) -> u32 {
+    return window_slot(params, q);
 }
 
 // cpu/probes.rs: pcg_hash
@@ -241,17 +251,45 @@ const EDGE_FADE_SPACINGS: f32 = 2.0;
 // cpu/probes.rs: ProbeWindow::edge_fade. The weight of lattice point `q`'s faces in the irradiance volume: 1
 // near the focus, falling linearly to 0 over the last EDGE_FADE_SPACINGS spacings (at most half) of the
 // window's reach (ceil(c / 2) - 1.5 spacings) on each axis of at least 4 probes, the product over the axes.
-fn edge_fade(q: vec3<i32>) -> f32 {
-    let d = abs(vec3<f32>(q) - params.focus / params.spacing);
+fn edge_fade(window: ProbeParams, q: vec3<i32>) -> f32 {
+    let d = abs(vec3<f32>(q) - window.focus / window.spacing);
     var weight = 1.0;
     for (var a = 0u; a < 3u; a++) {
-        let c = params.counts[a];
+        let c = window.counts[a];
         if c >= 4u {
             let reach = f32((c + 1u) / 2u) - 1.5;
             weight *= clamp((reach - d[a]) / min(EDGE_FADE_SPACINGS, 0.5 * reach), 0.0, 1.0);
         }
     }
     return weight;
+}
+
+// The far probe `w` (its index in the far window)'s face `f` as its texel holds it: its history faded
+// toward the far window's edges, within f16's range (0 for a probe not yet gathered).
+fn far_texel(w: vec3<u32>, f: u32) -> vec3<f32> {
+    let q = far_params.window_min + vec3<i32>(w);
+    let record = far_records[window_slot(far_params, q)];
+    let valid = all(record.lattice == q) && record.frames > 0u;
+    return min(select(vec3<f32>(0.0), record.faces[f].xyz * edge_fade(far_params, q), valid), vec3<f32>(F16_MAX));
+}
+
+// cpu/probes.rs: sample_faces. The far volume's face `f` at the world point `p`, as Bevy's PBR samples it:
+// trilinear between the eight far probes around `p`, clamped half a probe inside the far window.
+fn far_face_at(p: vec3<f32>, f: u32) -> vec3<f32> {
+    let r = vec3<f32>(far_params.counts);
+    let stp = clamp(p / far_params.spacing - vec3<f32>(far_params.window_min) + 0.5, vec3<f32>(0.5), r - 0.5) - 0.5;
+    let base = min(vec3<u32>(floor(stp)), far_params.counts - vec3<u32>(1u));
+    let t = stp - vec3<f32>(base);
+    var e = vec3<f32>(0.0);
+    for (var corner = 0u; corner < 8u; corner++) {
+        let o = vec3<u32>(corner & 1u, (corner >> 1u) & 1u, corner >> 2u);
+        let weights = select(vec3<f32>(1.0) - t, t, o == vec3<u32>(1u));
+        let w = weights.x * weights.y * weights.z;
+        if w > 0.0 {
+            e += w * far_texel(min(base + o, far_params.counts - vec3<u32>(1u)), f);
+        }
+    }
+    return e;
 }
 
 @compute @workgroup_size(4, 4, 4)
@@ -263,13 +301,19 @@ fn write_probes(@builtin(global_invocation_id) w: vec3<u32>) {
     let q = params.window_min + vec3<i32>(w);
     let record = records[probe_slot(q)];
     let valid = all(record.lattice == q) && record.frames > 0u;
-    let fade = edge_fade(q);
+    let fade = edge_fade(params, q);
     // Bevy's layout: the + faces in the first counts.y rows, the - faces in the next; the x, y and z faces
     // in the three slabs along z.
     for (var f = 0u; f < 6u; f++) {
         let texel = vec3<u32>(w.x, w.y + (f & 1u) * c.y, w.z + (f >> 1u) * c.z);
         // Within f16's range: a light of absurd intensity saturates rather than turning the surfaces infinite.
-        let face = min(select(vec3<f32>(0.0), record.faces[f].xyz * fade, valid), vec3<f32>(F16_MAX));
-        textureStore(irradiance, texel, vec4<f32>(face, 1.0));
+        let own = min(select(vec3<f32>(0.0), record.faces[f].xyz, valid), vec3<f32>(F16_MAX));
+        // cpu/far_probes.rs: near_texel. With a far window, what makes Bevy's mean of the two volumes the
+        // near light faded into the far one.
+        var face = own * fade;
+        if params.far != 0u {
+            face = own * (2.0 * fade) + far_face_at(vec3<f32>(q) * params.spacing, f) * (1.0 - 2.0 * fade);
+        }
+        textureStore(irradiance, texel, vec4<f32>(clamp(face, vec3<f32>(-F16_MAX), vec3<f32>(F16_MAX)), 1.0));
     }
 }

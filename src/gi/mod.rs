@@ -36,6 +36,7 @@ use bevy::light::{IrradianceVolume, LightProbe};
 use bevy::prelude::*;
 use bevy::render::render_resource::{Extent3d, TextureDescriptor, TextureDimension, TextureFormat, TextureUsages};
 use bevy::render::renderer::{RenderDevice, RenderGraph, RenderGraphSystems};
+use bevy::render::settings::WgpuFeatures;
 use bevy::render::storage::ShaderBuffer;
 use bevy::render::{ExtractSchedule, GpuResourceAppExt, Render, RenderApp, RenderSystems};
 use bevy::shader::load_shader_library;
@@ -55,9 +56,11 @@ use bevy::shader::load_shader_library;
 /// It turns the voxels' attributes on ([`crate::VoxelVolume::attributes`]: each voxel's average albedo and
 /// normal, 64 bytes a voxel), and the lighting volume takes 4 bytes a voxel more: with the default
 /// cascades (4 of 192^3) 1.8 GB and 113 MB; the probes take 128 bytes each and 48 a probe of irradiance
-/// volume (9.3 MB for the default 48 x 24 x 48). Where the device cannot hold the attributes (their sums
-/// exceed `Limits::max_storage_buffer_binding_size`, as the default cascades do under WebGPU's 128 MiB) it
-/// is off, with a warning, and the AO goes on.
+/// volume (9.3 MB for the default 48 x 24 x 48, 2.9 MB more for far probes of 32 x 16 x 32). Far probes
+/// ([`Self::far_spacing`], off by default) light what lies beyond the near window, where the device has
+/// binding arrays.
+/// Where the device cannot hold the attributes (their sums exceed `Limits::max_storage_buffer_binding_size`,
+/// as the default cascades do under WebGPU's 128 MiB) it is off, with a warning, and the AO goes on.
 ///
 /// ```no_run
 /// # use bevy::prelude::*;
@@ -80,7 +83,19 @@ pub struct VoxelGlobalIllumination {
     /// and 5.25 m; not on an axis of fewer than 4 probes); outside the window a surface gets no indirect
     /// light from the probes.
     pub probe_counts: UVec3,
-    /// Rays a probe traces each time it is updated (1 to 1024).
+    /// The far probes' spacing, in `probe_spacing`s (0, the default: no far probes; else 2 to 16; 4 puts
+    /// them 2 m apart). The far probes are a second, coarser window around the camera
+    /// ([`Self::far_probe_counts`]), written as a second irradiance volume that Bevy's PBR blends with the
+    /// near one: the surfaces beyond the near window get their light, and the near light fades into theirs
+    /// instead of into nothing. Off by default: so far apart they spread the light of small sunlit patches
+    /// over whole walls (on Sibenik's view the right amount of light in all, but more error than none:
+    /// docs/figures.md, *Far probes*). They need binding arrays (Bevy binds one irradiance volume without
+    /// them): where the device has none, they are off, with a warning. They take 176 bytes a probe.
+    pub far_spacing: u32,
+    /// Far probes along each axis (2 to 128 each, at most 262,144 in all; raised, with a warning, to hold
+    /// the near window within them): the default, 32 x 16 x 32, covers 64 x 32 x 64 m 2 m apart.
+    pub far_probe_counts: UVec3,
+    /// Rays a probe traces each time it is updated (1 to 1024), near and far.
     pub rays: u32,
     /// Frames over which every probe is updated once (1 to 64): each frame one probe in this many.
     pub probe_frames: u32,
@@ -99,6 +114,8 @@ impl Default for VoxelGlobalIllumination {
             intensity: 1.0,
             probe_spacing: 0.5,
             probe_counts: UVec3::new(48, 24, 48),
+            far_spacing: 0,
+            far_probe_counts: UVec3::new(32, 16, 32),
             rays: 32,
             probe_frames: 4,
             accumulation_frames: 32,
@@ -146,14 +163,35 @@ impl VoxelGlobalIllumination {
         };
         check_f32("intensity", &mut g.intensity, 0.0, 1000.0, 1.0);
         check_f32("probe_spacing", &mut g.probe_spacing, 0.01, 100.0, 0.5);
-        let counts = g.probe_counts.clamp(UVec3::splat(2), UVec3::splat(128));
-        let counts = if counts.element_product() > MAX_PROBES { UVec3::new(64, 32, 64) } else { counts };
+        let window = |counts: UVec3| {
+            let counts = counts.clamp(UVec3::splat(2), UVec3::splat(128));
+            if counts.element_product() > MAX_PROBES { UVec3::new(64, 32, 64) } else { counts }
+        };
+        let counts = window(g.probe_counts);
         if counts != g.probe_counts {
             fixes.push(format!("VoxelGlobalIllumination::probe_counts is {}; using {counts}", g.probe_counts));
             g.probe_counts = counts;
         }
+        if g.far_spacing == 1 || g.far_spacing > 16 {
+            let used = g.far_spacing.clamp(2, 16);
+            fixes.push(format!("VoxelGlobalIllumination::far_spacing is {}; using {used}", g.far_spacing));
+            g.far_spacing = used;
+        }
+        if g.far_spacing > 0 {
+            let needed = crate::cpu::far_probes::far_counts_needed(g.probe_counts, g.far_spacing);
+            let counts = window(g.far_probe_counts.max(needed));
+            if counts != g.far_probe_counts {
+                fixes.push(format!(
+                    "VoxelGlobalIllumination::far_probe_counts is {}; using {counts} (the far probes hold the near \
+                     window of {} within them at a far_spacing of {})",
+                    g.far_probe_counts, g.probe_counts, g.far_spacing
+                ));
+                g.far_probe_counts = counts;
+            }
+        }
         // Within the budget of probe rays a frame: more frames to update the probes, then fewer rays.
-        let probes = u64::from(g.probe_counts.element_product());
+        let far_probes = if g.far_spacing > 0 { g.far_probe_counts.element_product() } else { 0 };
+        let probes = u64::from(g.probe_counts.element_product()) + u64::from(far_probes);
         let per_frame = |g: &VoxelGlobalIllumination| probes * u64::from(g.rays) / u64::from(g.probe_frames);
         if per_frame(&g) > MAX_PROBE_RAYS_PER_FRAME {
             let before = per_frame(&g);
@@ -200,7 +238,30 @@ impl Plugin for VoxelGlobalIlluminationPlugin {
             warn!("bevy_hao: voxel global illumination is disabled: {why}");
             return;
         }
-        app.init_resource::<AttributesWanted>();
+        // Bevy 0.19's `binding_arrays_are_usable` (bevy_pbr's light_probe/mod.rs), which decides whether its
+        // PBR applies more than one irradiance volume: the far probes need it.
+        let info = render_app.world().resource::<bevy::render::renderer::RenderAdapterInfo>();
+        let features = render_app.world().resource::<RenderDevice>().features();
+        let elements = (16 + bevy::pbr::MAX_VIEW_LIGHT_PROBES) as u32;
+        let arrays = WgpuFeatures::TEXTURE_BINDING_ARRAY
+            | WgpuFeatures::SAMPLED_TEXTURE_AND_STORAGE_BUFFER_ARRAY_NON_UNIFORM_INDEXING;
+        let support = if bevy::render::get_adreno_model(info).is_some_and(|model| model <= 610) {
+            Err("Bevy does not use binding arrays on Adreno 610 and older".to_string())
+        } else if !features.contains(arrays) {
+            let lacking: Vec<&str> = arrays.difference(features).iter_names().map(|(name, _)| name).collect();
+            Err(format!("the device lacks {}", lacking.join(" and ")))
+        } else if limits.max_binding_array_elements_per_shader_stage < elements
+            || limits.max_binding_array_sampler_elements_per_shader_stage < elements
+        {
+            Err(format!(
+                "the device's binding arrays take {} textures and {} samplers a stage, under Bevy's {elements}",
+                limits.max_binding_array_elements_per_shader_stage,
+                limits.max_binding_array_sampler_elements_per_shader_stage
+            ))
+        } else {
+            Ok(())
+        };
+        app.init_resource::<AttributesWanted>().insert_resource(GiFarProbesSupport(support));
         let render_app = app.sub_app_mut(RenderApp);
         render_app
             .init_resource::<extract::ExtractedGi>()
@@ -217,7 +278,7 @@ impl Plugin for VoxelGlobalIlluminationPlugin {
                 RenderGraph,
                 node::gi.in_set(RenderGraphSystems::Render).after(crate::voxel::pass::voxelize).before(camera_driver),
             );
-        app.init_resource::<GiProbeWindow>().add_systems(
+        app.init_resource::<GiProbeWindow>().init_resource::<GiFarProbeWindow>().add_systems(
             PostUpdate,
             (
                 want_attributes.before(bevy::transform::TransformSystems::Propagate),
@@ -255,15 +316,46 @@ pub struct GiAssets {
     /// The probe spacing the records were made for (a record holds a lattice point's history, which another
     /// spacing puts elsewhere).
     pub probe_spacing: f32,
+    /// The far probes' volume and records, where they are on
+    /// ([`VoxelGlobalIllumination::far_spacing`] above 0 and the device has binding arrays).
+    pub far: Option<GiFarProbes>,
 }
+
+/// The far probes' GPU side (see [`VoxelGlobalIllumination::far_spacing`]): laid out as the near probes'
+/// ([`GiAssets`]).
+#[derive(Clone, Debug)]
+pub struct GiFarProbes {
+    /// Their irradiance volume, as [`GiAssets::irradiance`].
+    pub irradiance: Handle<Image>,
+    /// Their records, as [`GiAssets::probe_records`].
+    pub probe_records: Handle<ShaderBuffer>,
+    /// The probe counts they were made for.
+    pub probe_counts: UVec3,
+    /// Their spacing in near spacings, which they were made for.
+    pub factor: u32,
+}
+
+/// Whether Bevy's PBR blends two irradiance volumes on this device (it needs binding arrays, as Bevy 0.19's
+/// `binding_arrays_are_usable` asks), or why not: without them the far probes are off.
+#[derive(Resource, Clone, Debug)]
+pub struct GiFarProbesSupport(pub Result<(), String>);
 
 /// This frame's probe window (main world, extracted): the camera's, snapped to the probe spacing.
 #[derive(Resource, Clone, Copy, Default, Debug, PartialEq)]
 pub struct GiProbeWindow(pub Option<ProbeWindow>);
 
-/// The entity holding the plugin's `LightProbe` and `IrradianceVolume`.
+/// This frame's far probe window (main world, extracted), where the far probes are on: the camera's,
+/// snapped to the far spacing ([`crate::cpu::far_probes::far_window`]).
+#[derive(Resource, Clone, Copy, Default, Debug, PartialEq)]
+pub struct GiFarProbeWindow(pub Option<ProbeWindow>);
+
+/// The entity holding the plugin's `LightProbe` and `IrradianceVolume` of the near probes.
 #[derive(Component)]
 pub struct GiIrradianceVolume;
+
+/// The entity holding the plugin's `LightProbe` and `IrradianceVolume` of the far probes.
+#[derive(Component)]
+pub struct GiFarIrradianceVolume;
 
 /// The camera whose [`VoxelGlobalIllumination`] is used: the active one of lowest `Camera::order` (ties:
 /// lowest entity), with its settings sanitized.
@@ -290,7 +382,9 @@ fn update_gi_assets(
     current: Option<Res<GiAssets>>,
     mut images: ResMut<Assets<Image>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
+    support: Res<GiFarProbesSupport>,
     mut warned: Local<bool>,
+    mut warned_far: Local<bool>,
 ) {
     let camera = gi_camera(cameras.iter());
     let on = camera.is_some();
@@ -310,11 +404,23 @@ fn update_gi_assets(
         }
         return;
     };
-    let (counts, spacing) = camera.map_or((UVec3::ONE, 1.0), |(_, g)| (g.probe_counts, g.probe_spacing));
-    if current
-        .as_ref()
-        .is_some_and(|c| c.generation == grid.generation && c.probe_counts == counts && c.probe_spacing == spacing)
+    let (counts, spacing) = camera.as_ref().map_or((UVec3::ONE, 1.0), |(_, g)| (g.probe_counts, g.probe_spacing));
+    let far = camera.as_ref().filter(|(_, g)| g.far_spacing > 0).map(|(_, g)| (g.far_probe_counts, g.far_spacing));
+    if let (Some(_), Err(why)) = (far, &support.0)
+        && !*warned_far
     {
+        warn!(
+            "bevy_hao: the far probes of voxel global illumination are off: {why}, and without binding arrays \
+             Bevy 0.19 applies one irradiance volume (the near probes' light fades out at their window's edges \
+             instead; set VoxelGlobalIllumination::far_spacing to 0 to silence this)"
+        );
+        *warned_far = true;
+    }
+    let far = far.filter(|_| support.0.is_ok());
+    let far_of = |c: &GiAssets| c.far.as_ref().map(|f| (f.probe_counts, f.factor));
+    if current.as_ref().is_some_and(|c| {
+        c.generation == grid.generation && c.probe_counts == counts && c.probe_spacing == spacing && far_of(c) == far
+    }) {
         return;
     }
     // Where only the probes changed, the lighting volume stays.
@@ -322,14 +428,24 @@ fn update_gi_assets(
         Some(c) => c.radiance.clone(),
         None => radiance_image(&mut images, grid.texture_size, grid.levels),
     };
-    let bytes = counts.element_product() as usize * probes::PROBE_RECORD_BYTES as usize;
+    let records = |counts: UVec3, buffers: &mut Assets<ShaderBuffer>| {
+        let bytes = counts.element_product() as usize * probes::PROBE_RECORD_BYTES as usize;
+        buffers.add(ShaderBuffer::with_size(bytes, RenderAssetUsages::RENDER_WORLD))
+    };
+    let far = far.map(|(counts, factor)| GiFarProbes {
+        irradiance: images.add(irradiance_image(counts)),
+        probe_records: records(counts, &mut buffers),
+        probe_counts: counts,
+        factor,
+    });
     commands.insert_resource(GiAssets {
         radiance,
         generation: grid.generation,
         irradiance: images.add(irradiance_image(counts)),
-        probe_records: buffers.add(ShaderBuffer::with_size(bytes, RenderAssetUsages::RENDER_WORLD)),
+        probe_records: records(counts, &mut buffers),
         probe_counts: counts,
         probe_spacing: spacing,
+        far,
     });
 }
 
@@ -374,33 +490,84 @@ fn irradiance_image(counts: UVec3) -> Image {
     }
 }
 
-/// Places the probe window around the GI camera and keeps the `LightProbe` + `IrradianceVolume` entity on
-/// it (its transform set whole, so that this frame's visibility and extraction see it), or takes it away.
+/// The plugin's irradiance volume entities of one kind (near or far): their volume and transforms.
+type VolumeQuery<'w, 's, M, N> = Query<
+    'w,
+    's,
+    (Entity, &'static mut IrradianceVolume, &'static mut Transform, &'static mut GlobalTransform),
+    (With<M>, Without<N>),
+>;
+
+/// Places the probe windows (near and, where on, far) around the GI camera and keeps a `LightProbe` +
+/// `IrradianceVolume` entity on each (its transform set whole, so that this frame's visibility and
+/// extraction see it), or takes them away.
+#[allow(clippy::too_many_arguments)]
 fn update_gi_volume(
     mut commands: Commands,
     cameras: Query<(Entity, &Camera, &VoxelGlobalIllumination)>,
-    transforms: Query<&GlobalTransform, Without<GiIrradianceVolume>>,
+    transforms: Query<&GlobalTransform, (Without<GiIrradianceVolume>, Without<GiFarIrradianceVolume>)>,
     assets: Option<Res<GiAssets>>,
     mut window: ResMut<GiProbeWindow>,
-    mut volumes: Query<(Entity, &mut IrradianceVolume, &mut Transform, &mut GlobalTransform), With<GiIrradianceVolume>>,
+    mut far_window: ResMut<GiFarProbeWindow>,
+    mut near_volumes: VolumeQuery<GiIrradianceVolume, GiFarIrradianceVolume>,
+    mut far_volumes: VolumeQuery<GiFarIrradianceVolume, GiIrradianceVolume>,
 ) {
     let camera = gi_camera(cameras.iter());
     let placed = camera.as_ref().zip(assets.as_deref()).and_then(|((e, g), a)| {
         let focus = transforms.get(*e).ok()?.translation();
-        Some((probe_window(focus, g.probe_spacing, a.probe_counts)?, g.intensity, a.irradiance.clone()))
+        let near = probe_window(focus, g.probe_spacing, a.probe_counts)?;
+        let far = a.far.as_ref().and_then(|f| {
+            let window = crate::cpu::far_probes::far_window(focus, g.probe_spacing, f.factor, f.probe_counts)?;
+            Some((window, f.irradiance.clone()))
+        });
+        Some(((near, a.irradiance.clone()), far, g.intensity))
     });
-    let Some((placed, intensity, image)) = placed else {
-        if window.0.is_some() {
-            window.0 = None;
-        }
-        for (e, ..) in &volumes {
+    let (near, far, intensity) = match placed {
+        Some((near, far, intensity)) => (Some(near), far, intensity),
+        None => (None, None, 1.0),
+    };
+    let near_window = near.as_ref().map(|n| n.0);
+    if window.0 != near_window {
+        window.0 = near_window;
+    }
+    let far_placed = far.as_ref().map(|f| f.0);
+    if far_window.0 != far_placed {
+        far_window.0 = far_placed;
+    }
+    keep_volume(
+        &mut commands,
+        &mut near_volumes,
+        near,
+        intensity,
+        GiIrradianceVolume,
+        "hao voxel GI irradiance volume",
+    );
+    keep_volume(
+        &mut commands,
+        &mut far_volumes,
+        far,
+        intensity,
+        GiFarIrradianceVolume,
+        "hao voxel GI far irradiance volume",
+    );
+}
+
+/// Keeps one `LightProbe` + `IrradianceVolume` entity (marked `marker`) on `placed`'s window with its image,
+/// or despawns them where there is none.
+fn keep_volume<M: Component, N: Component>(
+    commands: &mut Commands,
+    volumes: &mut VolumeQuery<M, N>,
+    placed: Option<(ProbeWindow, Handle<Image>)>,
+    intensity: f32,
+    marker: M,
+    name: &'static str,
+) {
+    let Some((placed, image)) = placed else {
+        for (e, ..) in volumes.iter() {
             commands.entity(e).despawn();
         }
         return;
     };
-    if window.0 != Some(placed) {
-        window.0 = Some(placed);
-    }
     let (lo, hi) = placed.bounds();
     let transform = Transform::from_translation((lo + hi) * 0.5).with_scale(hi - lo);
     let volume = IrradianceVolume { voxels: image, intensity, affects_lightmapped_meshes: true };
@@ -415,7 +582,7 @@ fn update_gi_volume(
             }
         }
         Err(_) => {
-            for (e, ..) in &volumes {
+            for (e, ..) in volumes.iter() {
                 commands.entity(e).despawn();
             }
             commands.spawn((
@@ -423,8 +590,8 @@ fn update_gi_volume(
                 volume,
                 transform,
                 GlobalTransform::from(transform),
-                GiIrradianceVolume,
-                Name::new("hao voxel GI irradiance volume"),
+                marker,
+                Name::new(name),
             ));
         }
     }
@@ -455,26 +622,47 @@ mod tests {
             intensity: f32::NAN,
             probe_spacing: -1.0,
             probe_counts: UVec3::new(0, 1000, 8),
+            far_spacing: 1,
+            far_probe_counts: UVec3::ZERO,
             rays: 0,
             probe_frames: 0,
             accumulation_frames: 100_000,
             lighting_frames: 0,
         };
         let (g, fixes) = bad.sanitized();
-        assert_eq!(fixes.len(), 7, "{fixes:?}");
+        assert_eq!(fixes.len(), 9, "{fixes:?}");
         assert_eq!((g.intensity, g.probe_spacing, g.probe_counts), (1.0, 0.01, UVec3::new(2, 128, 8)));
+        // The far probes at least twice as far apart, and enough of them to hold the near window.
+        let needed = crate::cpu::far_probes::far_counts_needed(g.probe_counts, 2);
+        assert_eq!((g.far_spacing, g.far_probe_counts), (2, needed.max(UVec3::splat(2))));
         assert_eq!((g.rays, g.probe_frames, g.accumulation_frames, g.lighting_frames), (1, 1, 256, 1));
+        let (g, fixes) =
+            VoxelGlobalIllumination { far_spacing: 0, far_probe_counts: UVec3::ZERO, ..default() }.sanitized();
+        assert!(fixes.is_empty() && g.far_probe_counts == UVec3::ZERO, "no far probes: their counts unused");
         // Too many probes in all: a window that fits.
         let (g, _) = VoxelGlobalIllumination { probe_counts: UVec3::splat(128), ..default() }.sanitized();
         assert!(g.probe_counts.element_product() <= MAX_PROBES);
         assert_eq!(g.sanitized().1.len(), 0);
         // Over the ray budget: more frames, then fewer rays, within it.
-        let heavy =
-            VoxelGlobalIllumination { probe_counts: UVec3::new(64, 32, 64), rays: 1024, probe_frames: 1, ..default() };
+        let heavy = VoxelGlobalIllumination {
+            probe_counts: UVec3::new(64, 32, 64),
+            far_spacing: 0,
+            rays: 1024,
+            probe_frames: 1,
+            ..default()
+        };
         let (g, fixes) = heavy.sanitized();
         assert_eq!(fixes.len(), 1, "{fixes:?}");
         let per_frame = u64::from(g.probe_counts.element_product()) * u64::from(g.rays) / u64::from(g.probe_frames);
         assert!(per_frame <= MAX_PROBE_RAYS_PER_FRAME && g.probe_frames == 32 && g.rays == 1024, "{g:?}");
         assert_eq!(g.sanitized().1.len(), 0);
+        // The far probes count in the budget.
+        let (g, _) = VoxelGlobalIllumination { far_spacing: 4, ..heavy }.sanitized();
+        let probes = g.probe_counts.element_product() + g.far_probe_counts.element_product();
+        assert_eq!(g.probe_frames, (u64::from(probes) * 1024).div_ceil(MAX_PROBE_RAYS_PER_FRAME) as u32);
+        // The default far counts hold the default near window at a far spacing of 4.
+        let g = VoxelGlobalIllumination { far_spacing: 4, ..default() };
+        assert!(g.far_probe_counts.cmpge(crate::cpu::far_probes::far_counts_needed(g.probe_counts, 4)).all());
+        assert!(g.sanitized().1.is_empty());
     }
 }

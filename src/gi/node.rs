@@ -40,8 +40,14 @@ pub fn gi(
     };
     pass("hao_gi_lighting", "hao/gi_lighting", light_voxels, &lighting.bind_group, lighting.workgroups);
     if let Some((frame, [update, write])) = probe_passes {
-        let groups = UVec3::new(frame.update_groups, 1, 1);
-        pass("hao_gi_update_probes", "hao/gi_probes", update, &frame.bind_group, groups);
-        pass("hao_gi_write_probes", "hao/gi_write", write, &frame.bind_group, frame.write_groups);
+        // The far probes first: the near volume is written from their records.
+        if let Some(far) = &frame.far {
+            let groups = UVec3::new(far.update_groups, 1, 1);
+            pass("hao_gi_update_far_probes", "hao/gi_far_probes", update, &far.bind_group, groups);
+            pass("hao_gi_write_far_probes", "hao/gi_far_write", write, &far.bind_group, far.write_groups);
+        }
+        let near = &frame.near;
+        pass("hao_gi_update_probes", "hao/gi_probes", update, &near.bind_group, UVec3::new(near.update_groups, 1, 1));
+        pass("hao_gi_write_probes", "hao/gi_write", write, &near.bind_group, near.write_groups);
     }
 }

@@ -3,13 +3,14 @@
 //! volume (`write_probes`).
 
 use super::extract::ExtractedGi;
+use crate::cpu::probes::ProbeWindow;
 use crate::gpu::queue_compute;
 use crate::voxel::{VoxelGridBindings, voxel_grid_layout};
 use bevy::asset::load_embedded_asset;
 use bevy::prelude::*;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::binding_types::{
-    storage_buffer_sized, texture_3d, texture_storage_3d, uniform_buffer,
+    storage_buffer_read_only_sized, storage_buffer_sized, texture_3d, texture_storage_3d, uniform_buffer,
 };
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderDevice;
@@ -39,7 +40,8 @@ pub(crate) struct GpuProbeParams {
     pub(crate) max_frames: u32,
     pub(crate) seed: u32,
     pub(crate) focus: Vec3,
-    pub(crate) pad: f32,
+    /// 1 for the near probes with a far window beside them (WGSL `write_probes` then fades them into it).
+    pub(crate) far: u32,
 }
 
 /// The probe passes' pipelines and layout.
@@ -48,6 +50,8 @@ pub struct GiProbePipelines {
     layout: BindGroupLayoutDescriptor,
     update: CachedComputePipelineId,
     write: CachedComputePipelineId,
+    /// Bound as the far records where there are none (one record's bytes).
+    no_far_records: Buffer,
 }
 
 impl FromWorld for GiProbePipelines {
@@ -61,6 +65,8 @@ impl FromWorld for GiProbePipelines {
                     storage_buffer_sized(false, None),
                     texture_3d(TextureSampleType::Uint),
                     texture_storage_3d(TextureFormat::Rgba16Float, StorageTextureAccess::WriteOnly),
+                    uniform_buffer::<GpuProbeParams>(false),
+                    storage_buffer_read_only_sized(false, None),
                 ),
             ),
         );
@@ -71,16 +77,29 @@ impl FromWorld for GiProbePipelines {
         let update =
             queue_compute(cache, "hao_gi_update_probes", layouts.clone(), shader.clone(), "update_probes", vec![]);
         let write = queue_compute(cache, "hao_gi_write_probes", layouts, shader, "write_probes", vec![]);
-        Self { layout, update, write }
+        let no_far_records = world.resource::<RenderDevice>().create_buffer(&BufferDescriptor {
+            label: Some("hao_gi_no_far_records"),
+            size: PROBE_RECORD_BYTES,
+            usage: BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        Self { layout, update, write, no_far_records }
     }
 }
 
-/// This frame's probe passes: their bind group, workgroups and pipelines.
-#[derive(Resource)]
-pub struct GiProbesFrame {
+/// One window's probe passes this frame: their bind group and workgroups.
+pub(crate) struct GiProbePasses {
     pub(crate) bind_group: BindGroup,
     pub(crate) update_groups: u32,
     pub(crate) write_groups: UVec3,
+}
+
+/// This frame's probe passes: the near probes', and the far probes' where they are on (dispatched first:
+/// the near volume is written from the far probes' records).
+#[derive(Resource)]
+pub struct GiProbesFrame {
+    pub(crate) near: GiProbePasses,
+    pub(crate) far: Option<GiProbePasses>,
 }
 
 impl GiProbePipelines {
@@ -90,7 +109,7 @@ impl GiProbePipelines {
     }
 }
 
-/// Prepares the probe passes: this frame's window, share and seed, the history's cap, and the bindings.
+/// Prepares the probe passes: this frame's windows, share and seed, the history's cap, and the bindings.
 #[allow(clippy::too_many_arguments)]
 pub fn prepare_gi_probes(
     mut commands: Commands,
@@ -116,8 +135,14 @@ pub fn prepare_gi_probes(
     else {
         return;
     };
+    // The far probes, where on and ready: their window, volume and records.
+    let far = assets
+        .far
+        .as_ref()
+        .zip(extracted.far_window)
+        .and_then(|(f, w)| Some((w, images.get(&f.irradiance)?, buffers.get(&f.probe_records)?)));
     let phases = settings.probe_frames.max(1);
-    let params = GpuProbeParams {
+    let params_of = |window: &ProbeWindow, far: bool| GpuProbeParams {
         window_min: window.min,
         rays: settings.rays,
         counts: window.counts,
@@ -127,22 +152,46 @@ pub fn prepare_gi_probes(
         max_frames: extracted.history_cap.unwrap_or(settings.accumulation_frames),
         seed: *frame,
         focus: window.focus,
-        pad: 0.0,
+        far: u32::from(far),
     };
+    let uniform =
+        |label, params: &GpuProbeParams| crate::gpu::uniform_buffer(&device, label, params, BufferUsages::UNIFORM);
+    let near_params = uniform("hao_gi_probe_params", &params_of(&window, far.is_some()));
+    let far_params = far.as_ref().map(|(w, ..)| uniform("hao_gi_far_probe_params", &params_of(w, false)));
     *frame = frame.wrapping_add(1);
-    let params = crate::gpu::uniform_buffer(&device, "hao_gi_probe_params", &params, BufferUsages::UNIFORM);
-    let bind_group = device.create_bind_group(
-        "hao_gi_probes_bind_group",
-        &cache.get_bind_group_layout(&pipelines.layout),
-        &BindGroupEntries::sequential((
-            params.as_entire_binding(),
-            records.buffer.as_entire_binding(),
-            &radiance.texture_view,
-            &irradiance.texture_view,
-        )),
-    );
-    let probes = window.counts.x * window.counts.y * window.counts.z;
-    let update_groups = probes.div_ceil(phases).div_ceil(UPDATE_WORKGROUP);
-    let write_groups = (window.counts + UVec3::splat(WRITE_WORKGROUP - 1)) / WRITE_WORKGROUP;
-    commands.insert_resource(GiProbesFrame { bind_group, update_groups, write_groups });
+    let layout = cache.get_bind_group_layout(&pipelines.layout);
+    // A window's passes: its params, records and volume, and the far window's params and records (read by
+    // the near probes' write, unused by the far probes' own passes).
+    let passes = |label,
+                  window: &ProbeWindow,
+                  params: &Buffer,
+                  records: &Buffer,
+                  volume: &GpuImage,
+                  far: Option<(&Buffer, &Buffer)>| {
+        let (far_params, far_records) = far.unwrap_or((params, &pipelines.no_far_records));
+        let bind_group = device.create_bind_group(
+            label,
+            &layout,
+            &BindGroupEntries::sequential((
+                params.as_entire_binding(),
+                records.as_entire_binding(),
+                &radiance.texture_view,
+                &volume.texture_view,
+                far_params.as_entire_binding(),
+                far_records.as_entire_binding(),
+            )),
+        );
+        let probes = window.counts.x * window.counts.y * window.counts.z;
+        GiProbePasses {
+            bind_group,
+            update_groups: probes.div_ceil(phases).div_ceil(UPDATE_WORKGROUP),
+            write_groups: (window.counts + UVec3::splat(WRITE_WORKGROUP - 1)) / WRITE_WORKGROUP,
+        }
+    };
+    let far_passes = far.as_ref().zip(far_params.as_ref()).map(|((w, volume, records), params)| {
+        passes("hao_gi_far_probes_bind_group", w, params, &records.buffer, volume, None)
+    });
+    let far_bindings = far.as_ref().zip(far_params.as_ref()).map(|((_, _, records), params)| (params, &records.buffer));
+    let near = passes("hao_gi_probes_bind_group", &window, &near_params, &records.buffer, irradiance, far_bindings);
+    commands.insert_resource(GiProbesFrame { near, far: far_passes });
 }

@@ -35,7 +35,7 @@ use bevy::prelude::*;
 use bevy_hao::cpu::lighting::Light;
 use bevy_hao_tools::harness::args;
 use bevy_hao_tools::meshes::gi_rooms::gi_scene;
-use bevy_hao_tools::reference::{ReferenceScene, hash, reference_indirect};
+use bevy_hao_tools::reference::{ReferenceScene, hash, reference_indirect_halves};
 use bevy_hao_tools::scene::{SceneSource, default_camera};
 use clap::Parser;
 
@@ -93,11 +93,24 @@ struct Args {
     /// With --gpu: `VoxelGlobalIllumination::rays` (default the component's).
     #[arg(long, requires = "gpu")]
     probe_rays: Option<u32>,
+    /// With --gpu: `VoxelGlobalIllumination::probe_counts`, X,Y,Z (default the component's; the plugin
+    /// sanitizes the values, with a warning).
+    #[arg(long, value_parser = args::uvec3, requires = "gpu")]
+    probe_counts: Option<UVec3>,
+    /// With --gpu: `VoxelGlobalIllumination::far_spacing` (0: no far probes; default the component's). The
+    /// tool turns the far probes on where the device has no binding arrays (lavapipe), which Bevy's PBR
+    /// needs to apply them but the tool does not: it samples the volumes itself as Bevy's PBR does.
+    #[arg(long, requires = "gpu")]
+    far_spacing: Option<u32>,
     /// Also the mean indirect irradiance over the pixels whose surface lies at x below this and at x above it
     /// (for light leaking through a wall there: `builtin:thin-wall` at -0.0625), for the reference and each
     /// estimate.
     #[arg(long, value_name = "X")]
     split_x: Option<f32>,
+    /// Also the errors over blocks of B x B pixels (each block the mean over its pixels): the error of the
+    /// indirect light's low frequencies, where the reference's noise averages out over the block's rays.
+    #[arg(long, value_name = "B", value_parser = clap::value_parser!(u32).range(2..=64))]
+    block: Option<u32>,
     /// The PNG written: the reference, the best constant and their difference side by side.
     #[arg(long, default_value = "gi_compare.png")]
     out: String,
@@ -173,8 +186,9 @@ fn main() {
     let pixels: Vec<u32> = (0..w * h).collect();
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let bar = bevy_hao_tools::harness::progress_bar(pixels.len() as u64, "reference");
-    // Each pixel's indirect irradiance (lux per channel), or None over the background.
-    let irradiance: Vec<Option<Vec3>> = std::thread::scope(|s| {
+    // Each pixel's indirect irradiance (lux per channel) from its even rays and from its odd ones, or None
+    // over the background.
+    let halves: Vec<Option<[Vec3; 2]>> = std::thread::scope(|s| {
         let handles: Vec<_> = pixels
             .chunks(pixels.len().div_ceil(threads).max(1))
             .map(|chunk| {
@@ -186,7 +200,7 @@ fn main() {
                             bar.inc(1);
                             surfaces[i as usize].map(|(p, n)| {
                                 let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
-                                reference_indirect(scene, &[sun], args.sky, p, n, args.rays, rotation, epsilon)
+                                reference_indirect_halves(scene, &[sun], args.sky, p, n, args.rays, rotation, epsilon)
                             })
                         })
                         .collect::<Vec<_>>()
@@ -196,6 +210,10 @@ fn main() {
         handles.into_iter().flat_map(|h| h.join().expect("a reference thread")).collect()
     });
     bar.finish_and_clear();
+    // Each pixel's indirect irradiance, all its rays (as `reference_indirect`).
+    let (even_rays, odd_rays) = (args.rays.div_ceil(2) as f32, (args.rays / 2) as f32);
+    let irradiance: Vec<Option<Vec3>> =
+        halves.iter().map(|h| h.map(|[e, o]| (e * even_rays + o * odd_rays) / args.rays as f32)).collect();
     // The voxels' one bounce at the same points, where asked.
     let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, args.probes, &sun, &args, &surfaces));
     let gpu = args.gpu.then(|| gpu_bounce(&mesh, &albedo, camera, &args, &surfaces));
@@ -207,7 +225,6 @@ fn main() {
     let mean = shown.iter().copied().sum::<Vec3>() / shown.len() as f32;
     let median = |c: usize| bevy_hao_tools::harness::median(shown.iter().map(|e| f64::from(e[c])).collect());
     let constant = Vec3::from_array([0, 1, 2].map(|c| median(c).unwrap_or(0.0) as f32));
-    let error = shown.iter().map(|e| (*e - constant).abs()).sum::<Vec3>() / shown.len() as f32;
     println!(
         "{} ({} triangles), camera at {:.2} looking {:.2}; sun along {:.2}, {} lux; sky {}; {}x{}, {} rays a pixel",
         args.scene,
@@ -221,41 +238,28 @@ fn main() {
         h,
         args.rays
     );
-    println!("\n| indirect irradiance, lux | red | green | blue |\n|---|---:|---:|---:|");
-    println!("| reference, mean over the view | {:.2} | {:.2} | {:.2} |", mean.x, mean.y, mean.z);
-    println!("| best constant ambient (the median) | {:.2} | {:.2} | {:.2} |", constant.x, constant.y, constant.z);
-    println!("| its mean absolute error | {:.2} | {:.2} | {:.2} |", error.x, error.y, error.z);
-    let relative = error / mean.max(Vec3::splat(1e-6));
-    println!("| its error relative to the mean | {:.3} | {:.3} | {:.3} |", relative.x, relative.y, relative.z);
-    let rows_of = |name: &str, estimate: &[Option<Vec3>]| {
-        let pairs: Vec<(Vec3, Vec3)> =
-            irradiance.iter().zip(estimate).filter_map(|(r, v)| Some(((*r)?, (*v)?))).collect();
-        let n = pairs.len().max(1) as f32;
-        let v_mean = pairs.iter().map(|p| p.1).sum::<Vec3>() / n;
-        let v_error = pairs.iter().map(|(r, v)| (*r - *v).abs()).sum::<Vec3>() / n;
-        let v_relative = v_error / mean.max(Vec3::splat(1e-6));
-        println!("| {name}, mean | {:.2} | {:.2} | {:.2} |", v_mean.x, v_mean.y, v_mean.z);
-        println!("| its mean absolute error | {:.2} | {:.2} | {:.2} |", v_error.x, v_error.y, v_error.z);
-        println!(
-            "| its error relative to the mean | {:.3} | {:.3} | {:.3} |",
-            v_relative.x, v_relative.y, v_relative.z
-        );
-        println!(
-            "| its error against the constant's | {:.2}x | {:.2}x | {:.2}x |",
-            v_error.x / error.x.max(1e-6),
-            v_error.y / error.y.max(1e-6),
-            v_error.z / error.z.max(1e-6)
-        );
-    };
-    if let Some(voxel) = &voxel {
-        rows_of("the voxels' one bounce (CPU prototype)", voxel);
-    }
-    if let Some(gpu) = &gpu {
-        rows_of("the plugin's voxel GI (GPU)", gpu);
+    let estimates: Vec<(&str, &[Option<Vec3>])> = [
+        voxel.as_deref().map(|v| ("the voxels' one bounce (CPU prototype)", v)),
+        gpu.as_deref().map(|g| ("the plugin's voxel GI (GPU)", g)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let noise_scale = 2.0 * (even_rays * odd_rays).sqrt() / args.rays as f32;
+    let error = print_table("per pixel", &irradiance, &halves, noise_scale, &estimates);
+    if let Some(b) = args.block {
+        let blocks = |v: &[Option<Vec3>]| block_means(v, &irradiance, w, h, b);
+        let halves: Vec<Option<[Vec3; 2]>> = {
+            let [e, o] = [0, 1].map(|k| blocks(&halves.iter().map(|h| h.map(|h| h[k])).collect::<Vec<_>>()));
+            e.into_iter().zip(o).map(|(e, o)| Some([e?, o?])).collect()
+        };
+        let blocked: Vec<(&str, Vec<Option<Vec3>>)> = estimates.iter().map(|(n, v)| (*n, blocks(v))).collect();
+        let blocked: Vec<(&str, &[Option<Vec3>])> = blocked.iter().map(|(n, v)| (*n, v.as_slice())).collect();
+        print_table(&format!("over blocks of {b}x{b} pixels"), &blocks(&irradiance), &halves, noise_scale, &blocked);
     }
     println!(
         "\nThe goal for voxel GI (docs/design-gi.md): a mean absolute error at most half the constant's, {:.2} lux \
-         summed over the channels.",
+         summed over the channels (per pixel).",
         error.element_sum() / 2.0
     );
     if let Some(split) = args.split_x {
@@ -470,6 +474,12 @@ fn gpu_bounce(
     if let Some(rays) = args.probe_rays {
         gi.rays = rays;
     }
+    if let Some(counts) = args.probe_counts {
+        gi.probe_counts = counts;
+    }
+    if let Some(far) = args.far_spacing {
+        gi.far_spacing = far;
+    }
     let gi = gi.sanitized().0;
     let parts = parts_by_albedo(mesh, albedo);
     let sun = (args.sun.normalize(), args.illuminance);
@@ -507,6 +517,13 @@ fn gpu_bounce(
             },
         );
     });
+    // The far probes' passes need no binding arrays, and the tool samples their volume itself (below).
+    if let Err(why) = &app.world().resource::<bevy_hao::GiFarProbesSupport>().0 {
+        if gi.far_spacing > 0 {
+            eprintln!("--gpu: far probes turned on by the tool (Bevy's PBR would not apply them here: {why})");
+        }
+        app.insert_resource(bevy_hao::GiFarProbesSupport(Ok(())));
+    }
     // Until the scene is voxelized, every voxel lit and every probe settled: four windows of its history.
     let frames = 20 + gi.lighting_frames + 4 * gi.accumulation_frames * gi.probe_frames;
     let bar = harness::progress_bar(frames as u64, "GPU frames");
@@ -525,30 +542,41 @@ fn gpu_bounce(
         std::process::exit(1);
     };
     let window = app.world().resource::<bevy_hao::GiProbeWindow>().0.expect("a probe window around the camera");
-    let (tw, th, texel, bytes) = harness::read_image(&mut app, assets.irradiance.clone(), 2);
-    assert_eq!((tw, th, texel), (window.counts.x, 2 * window.counts.y, 8), "the irradiance volume's size");
-    let c = window.counts;
-    let face = |w: UVec3, k: u32| {
-        let t = UVec3::new(w.x, w.y + (k & 1) * c.y, w.z + (k >> 1) * c.z);
-        let at = (((t.z * th + t.y) * tw + t.x) * 8) as usize;
-        Vec3::new(harness::f16_at(&bytes, at), harness::f16_at(&bytes, at + 2), harness::f16_at(&bytes, at + 4))
+    let far_window = app.world().resource::<bevy_hao::GiFarProbeWindow>().0;
+    // A volume's faces by probe, read back (f16, Bevy's layout).
+    let mut read_faces = |image: Handle<Image>, c: UVec3| {
+        let (tw, th, texel, bytes) = harness::read_image(&mut app, image, 2);
+        assert_eq!((tw, th, texel), (c.x, 2 * c.y, 8), "the irradiance volume's size");
+        move |w: UVec3| -> [Vec3; 6] {
+            std::array::from_fn(|k| {
+                let k = k as u32;
+                let t = UVec3::new(w.x, w.y + (k & 1) * c.y, w.z + (k >> 1) * c.z);
+                let at = (((t.z * th + t.y) * tw + t.x) * 8) as usize;
+                Vec3::new(harness::f16_at(&bytes, at), harness::f16_at(&bytes, at + 2), harness::f16_at(&bytes, at + 4))
+            })
+        }
     };
-    let faces = |w: UVec3| std::array::from_fn(|k| face(w, k as u32));
+    let near_faces = read_faces(assets.irradiance.clone(), window.counts);
+    let far = assets.far.as_ref().zip(far_window).map(|(f, w)| (w, read_faces(f.irradiance.clone(), w.counts)));
     eprintln!(
-        "--gpu: {} probes {} apart around the camera, {} rays a probe, cascades {levels} x {cells}^3 from {finest_cell_size}",
+        "--gpu: {} probes {} apart around the camera{}, {} rays a probe, cascades {levels} x {cells}^3 from {finest_cell_size}",
         window.len(),
         window.spacing,
+        far.as_ref().map_or(", no far probes".to_string(), |(w, _)| format!(
+            ", {} far probes {} apart",
+            w.len(),
+            w.spacing
+        )),
         gi.rays
     );
+    let far = far.as_ref().map(|(w, f)| (w, f as &dyn Fn(UVec3) -> [Vec3; 6]));
     surfaces
         .iter()
         .map(|s| {
             let (p, n) = (*s)?;
-            // Outside the window Bevy applies no volume: no indirect light from the probes.
-            Some(
-                bevy_hao::cpu::probes::sample_volume(&window, faces, p, n)
-                    .map_or(Vec3::ZERO, |e| e * std::f32::consts::PI),
-            )
+            // Bevy's mean of the volumes that hold the point; outside both, no indirect light from the probes.
+            let faces = bevy_hao::cpu::far_probes::sample_both((&window, &near_faces), far, p);
+            Some(faces.map_or(Vec3::ZERO, |f| bevy_hao::cpu::probes::ambient_cube(&f, n) * std::f32::consts::PI))
         })
         .collect()
 }
@@ -563,6 +591,77 @@ fn parts_by_albedo(mesh: &bevy_hao::cpu::TriangleMesh, albedo: &[Vec3]) -> Vec<(
         .map(|colour| {
             let triangles = mesh.triangles.iter().zip(albedo).filter(|(_, a)| **a == colour).map(|(t, _)| *t).collect();
             (colour, bevy_hao::cpu::TriangleMesh::new(mesh.positions.clone(), triangles))
+        })
+        .collect()
+}
+
+/// Prints the indirect light's table for `reference` (lux, `None` over the background) and each estimate
+/// at the same places: the reference's mean, the best constant ambient (per channel the median) and its
+/// mean absolute error, the reference's own noise (from its two halves of rays, `halves`, scaled by
+/// `noise_scale`, about a perfect estimate's error), and each estimate's mean and error. Returns the
+/// constant's error.
+fn print_table(
+    title: &str,
+    reference: &[Option<Vec3>],
+    halves: &[Option<[Vec3; 2]>],
+    noise_scale: f32,
+    estimates: &[(&str, &[Option<Vec3>])],
+) -> Vec3 {
+    let shown: Vec<Vec3> = reference.iter().flatten().copied().collect();
+    let n = shown.len().max(1) as f32;
+    let mean = shown.iter().copied().sum::<Vec3>() / n;
+    let median = |c: usize| bevy_hao_tools::harness::median(shown.iter().map(|e| f64::from(e[c])).collect());
+    let constant = Vec3::from_array([0, 1, 2].map(|c| median(c).unwrap_or(0.0) as f32));
+    let error = shown.iter().map(|e| (*e - constant).abs()).sum::<Vec3>() / n;
+    let relative = |e: Vec3| e / mean.max(Vec3::splat(1e-6));
+    let against = |e: Vec3| e / error.max(Vec3::splat(1e-6));
+    println!("\n| indirect irradiance, lux ({title}) | red | green | blue |\n|---|---:|---:|---:|");
+    let row = |name: &str, v: Vec3, digits: usize, suffix: &str| {
+        println!("| {name} | {:.digits$}{suffix} | {:.digits$}{suffix} | {:.digits$}{suffix} |", v.x, v.y, v.z);
+    };
+    row("reference, mean over the view", mean, 2, "");
+    row("best constant ambient (the median)", constant, 2, "");
+    row("its mean absolute error", error, 2, "");
+    row("its error relative to the mean", relative(error), 3, "");
+    // Half the mean difference of the reference's two halves, scaled to all its rays: about the mean absolute
+    // error of a perfect estimate against it (for independent, symmetric noise), which no estimate goes below.
+    let noise = halves.iter().flatten().map(|[e, o]| (*e - *o).abs() / 2.0).sum::<Vec3>() / n * noise_scale;
+    row("the reference's own noise (about a perfect estimate's error)", noise, 2, "");
+    row("that noise against the constant's error", against(noise), 2, "x");
+    for (name, estimate) in estimates {
+        let pairs: Vec<(Vec3, Vec3)> =
+            reference.iter().zip(*estimate).filter_map(|(r, v)| Some(((*r)?, (*v)?))).collect();
+        let m = pairs.len().max(1) as f32;
+        let v_mean = pairs.iter().map(|p| p.1).sum::<Vec3>() / m;
+        let v_error = pairs.iter().map(|(r, v)| (*r - *v).abs()).sum::<Vec3>() / m;
+        row(&format!("{name}, mean"), v_mean, 2, "");
+        row("its mean absolute error", v_error, 2, "");
+        row("its error relative to the mean", relative(v_error), 3, "");
+        row("its error against the constant's", against(v_error), 2, "x");
+    }
+    error
+}
+
+/// The means of `values` over blocks of `b` x `b` pixels of a `w` x `h` view (row-major, the last blocks
+/// clipped), each over the block's pixels where `surface` has a surface and `values` a value; `None` for a
+/// block with none.
+fn block_means(values: &[Option<Vec3>], surface: &[Option<Vec3>], w: u32, h: u32, b: u32) -> Vec<Option<Vec3>> {
+    let (bw, bh) = (w.div_ceil(b), h.div_ceil(b));
+    (0..bw * bh)
+        .map(|k| {
+            let (bx, by) = (k % bw * b, k / bw * b);
+            let mut sum = Vec3::ZERO;
+            let mut n = 0;
+            for y in by..(by + b).min(h) {
+                for x in bx..(bx + b).min(w) {
+                    let i = (y * w + x) as usize;
+                    if let (Some(_), Some(v)) = (surface[i], values[i]) {
+                        sum += v;
+                        n += 1;
+                    }
+                }
+            }
+            (n > 0).then(|| sum / n as f32)
         })
         .collect()
 }
