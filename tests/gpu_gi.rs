@@ -358,12 +358,13 @@ fn the_probes_on_the_gpu_equal_their_cpu_twin_and_light_the_room() {
         lit += (cpu.iter().any(|f| f.max_element() > 0.0)) as u32;
         // Bevy's layout: +x, -x in the first and second half of y; x, y, z faces in the thirds of z.
         let c = (q - window.min).as_uvec3();
-        for (k, face) in faces.iter().enumerate() {
+        let texels = bevy_hao::cpu::far_probes::far_texel(Some(faces), window.edge_fade(q));
+        for (k, face) in texels.iter().enumerate() {
             let texel = UVec3::new(c.x, c.y + (k as u32 & 1) * 8, c.z + (k as u32 >> 1) * 12);
             let t = (((texel.z * ih + texel.y) * iw + texel.x) * 8) as usize;
             let stored = Vec3::new(f16_at(&irradiance, t), f16_at(&irradiance, t + 2), f16_at(&irradiance, t + 4));
-            // Faded toward the window's edges (`ProbeWindow::edge_fade`), within f16's range.
-            let face = (*face * window.edge_fade(q)).min(Vec3::splat(65504.0));
+            // Within f16's range, faded toward the window's edges (`ProbeWindow::edge_fade`).
+            let face = *face;
             let tolerance = face.abs() * 1.0e-3 + Vec3::splat(1.0e-4);
             assert!((stored - face).abs().cmple(tolerance).all(), "probe {q} face {k}: {stored} against {face}");
         }
@@ -466,7 +467,7 @@ fn the_far_probes_on_the_gpu_are_written_as_their_cpu_twin() {
         let q = far_window.min + w.as_ivec3();
         let (faces, lattice, frames, _) = record(&far_records, far_window.slot(q));
         let valid = lattice == q && frames > 0;
-        faces.map(|f| if valid { (f * far_window.edge_fade(q)).min(Vec3::splat(65504.0)) } else { Vec3::ZERO })
+        bevy_hao::cpu::far_probes::far_texel(valid.then_some(faces), far_window.edge_fade(q))
     };
     let mut lit = 0;
     for i in 0..far_window.len() {

@@ -11,7 +11,9 @@
 //! the far volume's light at the probe's point as Bevy samples it ([`sample_faces`]). Bevy's mean at a
 //! point of the near window is then `w F + (1 - w) C`, interpolated: the near light where it is whole, the
 //! far light at the near window's edge, a blend between, without a seam where the near window ends (its
-//! outermost probes hold `C`, and the far volume alone holds `C` just past them). It is exact because the
+//! outermost probes hold `C`, and the far volume alone holds `C` just past them; but on a near axis of
+//! fewer than 4 probes, which does not fade, the light steps there from `F` to `C`). It is exact (up to the
+//! texels' f16 rounding) because the
 //! far lattice's spacing is a whole multiple of the near one's ([`far_window`]): within a far probe cell,
 //! `C` is trilinear, and the near volume's trilinear interpolation of its values at the near lattice points
 //! reproduces it (a trilinear function sampled on a finer aligned lattice is interpolated exactly), but in
@@ -51,6 +53,16 @@ pub fn near_texel(own: [Vec3; 6], fade: f32, far: Option<[Vec3; 6]>) -> [Vec3; 6
         Some(c) => std::array::from_fn(|k| own[k] * (2.0 * fade) + c[k] * (1.0 - 2.0 * fade)),
     }
 }
+
+/// A probe's faces as its window's irradiance volume holds them without a far window (WGSL `far_texel` and
+/// `write_probes`): its history `faces` within f16's range, times its edge fade `fade`; nothing for a
+/// probe not yet gathered (`None`).
+pub fn far_texel(faces: Option<[Vec3; 6]>, fade: f32) -> [Vec3; 6] {
+    faces.map_or([Vec3::ZERO; 6], |f| f.map(|f| f.min(Vec3::splat(F16_MAX)) * fade))
+}
+
+/// The largest finite f16, which the irradiance volumes' texels are held within.
+pub const F16_MAX: f32 = 65504.0;
 
 /// The faces Bevy's PBR reads at `p` from the near and the far volumes together (each a window and its
 /// texels' faces): the mean of those that hold `p`, as Bevy weighs irradiance volumes of no falloff; `None`
@@ -176,5 +188,8 @@ mod tests {
         let c = [Vec3::splat(3.0); 6];
         assert_eq!(near_texel(own, 1.0, Some(c)), [Vec3::splat(-1.0); 6]);
         assert_eq!(near_texel(own, 0.0, Some(c)), c);
+        // A far probe's texel: its faces within f16's range, then faded; nothing before its first update.
+        assert_eq!(far_texel(None, 1.0), [Vec3::ZERO; 6]);
+        assert_eq!(far_texel(Some([Vec3::splat(1.0e9); 6]), 0.5), [Vec3::splat(F16_MAX * 0.5); 6]);
     }
 }

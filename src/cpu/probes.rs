@@ -117,7 +117,8 @@ impl ProbeWindow {
     /// `edge_fade`): 1 near the focus, falling linearly to 0 over the last [`EDGE_FADE_SPACINGS`] spacings
     /// (at most half) of the window's reach on each axis (the product over the axes), so that the outermost
     /// probes, which Bevy's PBR applies out to the window's bounds, hold nothing, and the indirect light
-    /// meets the nothing beyond them without a seam, also as the window moves with the focus. The reach on an
+    /// meets the nothing beyond them without a seam, also as the window moves with the focus (with far
+    /// probes, the near light fades into theirs instead: `cpu::far_probes::near_texel`). The reach on an
     /// axis of `c` probes is `ceil(c / 2) - 1.5` spacings, which the outermost probes lie at or beyond
     /// wherever the focus is in its lattice cell; an axis of fewer than 4 probes does not fade.
     pub fn edge_fade(&self, q: IVec3) -> f32 {

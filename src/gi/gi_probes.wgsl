@@ -264,13 +264,14 @@ fn edge_fade(window: ProbeParams, q: vec3<i32>) -> f32 {
     return weight;
 }
 
-// The far probe `w` (its index in the far window)'s face `f` as its texel holds it: its history faded
-// toward the far window's edges, within f16's range (0 for a probe not yet gathered).
+// cpu/far_probes.rs: far_texel. The far probe `w` (its index in the far window)'s face `f` as its texel
+// holds it: its history within f16's range, faded toward the far window's edges (0 for a probe not yet
+// gathered), as `write_probes` writes it.
 fn far_texel(w: vec3<u32>, f: u32) -> vec3<f32> {
     let q = far_params.window_min + vec3<i32>(w);
     let record = far_records[window_slot(far_params, q)];
     let valid = all(record.lattice == q) && record.frames > 0u;
-    return min(select(vec3<f32>(0.0), record.faces[f].xyz * edge_fade(far_params, q), valid), vec3<f32>(F16_MAX));
+    return min(select(vec3<f32>(0.0), record.faces[f].xyz, valid), vec3<f32>(F16_MAX)) * edge_fade(far_params, q);
 }
 
 // cpu/probes.rs: sample_faces. The far volume's face `f` at the world point `p`, as Bevy's PBR samples it:

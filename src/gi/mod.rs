@@ -56,7 +56,7 @@ use bevy::shader::load_shader_library;
 /// It turns the voxels' attributes on ([`crate::VoxelVolume::attributes`]: each voxel's average albedo and
 /// normal, 64 bytes a voxel), and the lighting volume takes 4 bytes a voxel more: with the default
 /// cascades (4 of 192^3) 1.8 GB and 113 MB; the probes take 128 bytes each and 48 a probe of irradiance
-/// volume (9.3 MB for the default 48 x 24 x 48, 2.9 MB more for far probes of 32 x 16 x 32). Far probes
+/// volume (9.7 MB for the default 48 x 24 x 48, 2.9 MB more for far probes of 32 x 16 x 32). Far probes
 /// ([`Self::far_spacing`], off by default) light what lies beyond the near window, where the device has
 /// binding arrays.
 /// Where the device cannot hold the attributes (their sums exceed `Limits::max_storage_buffer_binding_size`,
@@ -81,7 +81,7 @@ pub struct VoxelGlobalIllumination {
     /// default covers 24 x 12 x 24 m. The indirect light fades out over the last two spacings of the way
     /// from the camera to the window's edge on each axis (from 10.25 m and 4.25 m by default, gone at 11.25
     /// and 5.25 m; not on an axis of fewer than 4 probes); outside the window a surface gets no indirect
-    /// light from the probes.
+    /// light from the probes, but the far probes' where they are on ([`Self::far_spacing`]).
     pub probe_counts: UVec3,
     /// The far probes' spacing, in `probe_spacing`s (0, the default: no far probes; else 2 to 16; 4 puts
     /// them 2 m apart). The far probes are a second, coarser window around the camera
@@ -93,7 +93,8 @@ pub struct VoxelGlobalIllumination {
     /// them): where the device has none, they are off, with a warning. They take 176 bytes a probe.
     pub far_spacing: u32,
     /// Far probes along each axis (2 to 128 each, at most 262,144 in all; raised, with a warning, to hold
-    /// the near window within them): the default, 32 x 16 x 32, covers 64 x 32 x 64 m 2 m apart.
+    /// the near window within them, and past the most in all the fewest that do): the default, 32 x 16 x
+    /// 32, covers 64 x 32 x 64 m at a far spacing of 4 probe spacings of 0.5 m.
     pub far_probe_counts: UVec3,
     /// Rays a probe traces each time it is updated (1 to 1024), near and far.
     pub rays: u32,
@@ -179,11 +180,14 @@ impl VoxelGlobalIllumination {
         }
         if g.far_spacing > 0 {
             let needed = crate::cpu::far_probes::far_counts_needed(g.probe_counts, g.far_spacing);
-            let counts = window(g.far_probe_counts.max(needed));
+            // Past the most probes in all, the fewest that hold the near window (within it for any sanitized
+            // near window).
+            let counts = g.far_probe_counts.max(needed).clamp(UVec3::splat(2), UVec3::splat(128));
+            let counts = if counts.element_product() > MAX_PROBES { needed.max(UVec3::splat(2)) } else { counts };
             if counts != g.far_probe_counts {
                 fixes.push(format!(
-                    "VoxelGlobalIllumination::far_probe_counts is {}; using {counts} (the far probes hold the near \
-                     window of {} within them at a far_spacing of {})",
+                    "VoxelGlobalIllumination::far_probe_counts is {}; using {counts} (the far probes must hold the \
+                     near window of {} within them at a far_spacing of {}, and at most {MAX_PROBES} in all)",
                     g.far_probe_counts, g.probe_counts, g.far_spacing
                 ));
                 g.far_probe_counts = counts;
@@ -239,7 +243,8 @@ impl Plugin for VoxelGlobalIlluminationPlugin {
             return;
         }
         // Bevy 0.19's `binding_arrays_are_usable` (bevy_pbr's light_probe/mod.rs), which decides whether its
-        // PBR applies more than one irradiance volume: the far probes need it.
+        // PBR applies more than one irradiance volume: the far probes need it (all but its GLSL-shaders
+        // condition, a Bevy feature this crate does not turn on).
         let info = render_app.world().resource::<bevy::render::renderer::RenderAdapterInfo>();
         let features = render_app.world().resource::<RenderDevice>().features();
         let elements = (16 + bevy::pbr::MAX_VIEW_LIGHT_PROBES) as u32;
@@ -660,6 +665,17 @@ mod tests {
         let (g, _) = VoxelGlobalIllumination { far_spacing: 4, ..heavy }.sanitized();
         let probes = g.probe_counts.element_product() + g.far_probe_counts.element_product();
         assert_eq!(g.probe_frames, (u64::from(probes) * 1024).div_ceil(MAX_PROBE_RAYS_PER_FRAME) as u32);
+        // Far counts past the most probes in all: the fewest that hold the near window, and the same again.
+        let big = VoxelGlobalIllumination {
+            probe_counts: UVec3::new(128, 16, 128),
+            far_spacing: 2,
+            far_probe_counts: UVec3::splat(128),
+            ..default()
+        };
+        let (g, _) = big.sanitized();
+        let needed = crate::cpu::far_probes::far_counts_needed(g.probe_counts, 2);
+        assert_eq!(g.far_probe_counts, needed);
+        assert!(g.far_probe_counts.element_product() <= MAX_PROBES && g.sanitized().1.is_empty());
         // The default far counts hold the default near window at a far spacing of 4.
         let g = VoxelGlobalIllumination { far_spacing: 4, ..default() };
         assert!(g.far_probe_counts.cmpge(crate::cpu::far_probes::far_counts_needed(g.probe_counts, 4)).all());

@@ -20,9 +20,10 @@
 //! `--gpu` adds the plugin's own voxel GI (`VoxelGlobalIllumination`), rendered headless on the scene as
 //! the reference sees it (its triangles, in their albedo, under the same sun), and read back where Bevy's
 //! PBR reads it: each pixel's indirect irradiance is the plugin's irradiance volume sampled at the pixel's
-//! point and normal as `irradiance_volume.wgsl` samples it (`cpu::probes::sample_volume`), times pi. Its
-//! row in the PNG: the GPU's indirect light, its difference, where it is brighter (red) or darker (blue).
-//! Pixels outside the probes' window get none, as in Bevy, and count so in its error. The probes' escaped rays bring no light (the
+//! point and normal as `irradiance_volume.wgsl` samples it, with the far probes' volume where they are on
+//! (`cpu::far_probes::sample_both`: Bevy's mean of the volumes that hold the point), times pi. Its row in
+//! the PNG: the GPU's indirect light, its difference, where it is brighter (red) or darker (blue). Pixels
+//! outside the probes' windows get none, as in Bevy, and count so in its error. The probes' escaped rays bring no light (the
 //! sky is Bevy's ambient light, apart), so `--sky` should be 0 with `--gpu`.
 //!
 //! ```sh
