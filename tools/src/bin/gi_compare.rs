@@ -218,14 +218,10 @@ fn main() {
     // The voxels' one bounce at the same points, where asked.
     let voxel = args.voxel_twin.map(|cell| voxel_bounce(&mesh, &albedo, cell, args.probes, &sun, &args, &surfaces));
     let gpu = args.gpu.then(|| gpu_bounce(&mesh, &albedo, camera, &args, &surfaces));
-    let shown: Vec<Vec3> = irradiance.iter().flatten().copied().collect();
-    if shown.is_empty() {
+    if irradiance.iter().all(Option::is_none) {
         eprintln!("error: the view shows no surface");
         std::process::exit(1);
     }
-    let mean = shown.iter().copied().sum::<Vec3>() / shown.len() as f32;
-    let median = |c: usize| bevy_hao_tools::harness::median(shown.iter().map(|e| f64::from(e[c])).collect());
-    let constant = Vec3::from_array([0, 1, 2].map(|c| median(c).unwrap_or(0.0) as f32));
     println!(
         "{} ({} triangles), camera at {:.2} looking {:.2}; sun along {:.2}, {} lux; sky {}; {}x{}, {} rays a pixel",
         args.scene,
@@ -247,7 +243,7 @@ fn main() {
     .flatten()
     .collect();
     let noise_scale = 2.0 * (even_rays * odd_rays).sqrt() / args.rays as f32;
-    let error = print_table("per pixel", &irradiance, &halves, noise_scale, &estimates);
+    let (mean, constant, error) = print_table("per pixel", &irradiance, &halves, noise_scale, &estimates);
     if let Some(b) = args.block {
         let blocks = |v: &[Option<Vec3>]| block_means(v, &irradiance, w, h, b);
         let halves: Vec<Option<[Vec3; 2]>> = {
@@ -600,14 +596,14 @@ fn parts_by_albedo(mesh: &bevy_hao::cpu::TriangleMesh, albedo: &[Vec3]) -> Vec<(
 /// at the same places: the reference's mean, the best constant ambient (per channel the median) and its
 /// mean absolute error, the reference's own noise (from its two halves of rays, `halves`, scaled by
 /// `noise_scale`, about a perfect estimate's error), and each estimate's mean and error. Returns the
-/// constant's error.
+/// reference's mean, the constant and the constant's error.
 fn print_table(
     title: &str,
     reference: &[Option<Vec3>],
     halves: &[Option<[Vec3; 2]>],
     noise_scale: f32,
     estimates: &[(&str, &[Option<Vec3>])],
-) -> Vec3 {
+) -> (Vec3, Vec3, Vec3) {
     let shown: Vec<Vec3> = reference.iter().flatten().copied().collect();
     let n = shown.len().max(1) as f32;
     let mean = shown.iter().copied().sum::<Vec3>() / n;
@@ -640,7 +636,7 @@ fn print_table(
         row("its error relative to the mean", relative(v_error), 3, "");
         row("its error against the constant's", against(v_error), 2, "x");
     }
-    error
+    (mean, constant, error)
 }
 
 /// The means of `values` over blocks of `b` x `b` pixels of a `w` x `h` view (row-major, the last blocks
