@@ -423,8 +423,11 @@ fn shared_constants_agree() {
     let gi = "src/gi/gi_common.wgsl";
     let lighting = "src/gi/gi_lighting.wgsl";
     let probes = "src/gi/gi_probes.wgsl";
-    let pairs: [(&str, &str, f64); 56] = [
+    let pairs: [(&str, &str, f64); 59] = [
         (probes, "FACE_REACH", crate::cpu::probes::FACE_REACH as f64),
+        (probes, "PROBE_LANES", crate::cpu::probes::PROBE_LANES as f64),
+        (probes, "PROBE_GROUPS_X", crate::gi::probes::PROBE_GROUPS_X as f64),
+        (probes, "GROUP_PROBES", crate::gi::probes::GROUP_PROBES as f64),
         (probes, "FACE_STEPS", crate::cpu::probes::FACE_STEPS as f64),
         (probes, "FACE_EXIT_STEPS", crate::cpu::probes::FACE_EXIT_STEPS as f64),
         (probes, "PROBE_STEPS", crate::cpu::probes::PROBE_STEPS as f64),

@@ -316,7 +316,8 @@ fn record(bytes: &[u8], slot: u32) -> ([Vec3; 6], IVec3, u32, u32) {
 
 /// The probes on the GPU equal their CPU twin, and Bevy's PBR applies them: with a history of one update,
 /// every probe of the window holds what `cpu::probes::gather_probe` gathers from where
-/// `cpu::probes::relocate_probe` puts it, with the rays of its own seed, through the lighting volume and the
+/// `cpu::probes::relocate_probe` puts it, with the rays of its own seed (40, more than a probe's workgroup
+/// has lanes), through the lighting volume and the
 /// normals the GPU has (within float rounding, but for a few probes whose rays graze a voxel); the
 /// irradiance volume holds each probe's faces in Bevy's layout (in f16); a probe in the floor moves out of
 /// it; the room shows more light with the volume's intensity 1 than 0.
@@ -324,7 +325,8 @@ fn record(bytes: &[u8], slot: u32) -> ([Vec3; 6], IVec3, u32, u32) {
 fn the_probes_on_the_gpu_equal_their_cpu_twin_and_light_the_room() {
     let _gpu = gpu_lock();
     let (volume, gi) = small_room_settings();
-    let gi = VoxelGlobalIllumination { far_spacing: 0, ..gi };
+    // 40 rays a probe: each of its 8 lanes (`cpu::probes::PROBE_LANES`) traces 5.
+    let gi = VoxelGlobalIllumination { far_spacing: 0, rays: 40, ..gi };
     let mut app = lit_room(volume, gi.clone());
     run(&mut app, 12);
     let grid = grid_assets(&app).expect("a voxel grid");

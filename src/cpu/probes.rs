@@ -30,6 +30,10 @@ use std::f32::consts::PI;
 /// +x, -x, +y, -y, +z, -z.
 pub const PROBE_FACES: [Vec3; 6] = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
 
+/// The lanes of a probe's workgroup on the GPU (WGSL `PROBE_LANES`): lane `j` traces the rays `k = j, j +
+/// PROBE_LANES, ...`, and [`gather_probe`] sums them in that order, each lane's rays and then the lanes.
+pub const PROBE_LANES: u32 = 8;
+
 /// The most texel visits a probe's ray makes (WGSL `PROBE_STEPS`).
 pub const PROBE_STEPS: u32 = 64;
 
@@ -249,7 +253,7 @@ pub fn probe_ray_radiance(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec
 /// One update of a probe at `p`, `spacing` from its neighbours (WGSL `gather_probe`): `rays` rays over the
 /// sphere turned by `rotation`, projected on the six faces of [`PROBE_FACES`] as irradiance over pi,
 /// `4 / rays * sum(L * max(d . a, 0))`, each face's rays from its [`face_origin`] (traced once from `p` for
-/// the faces that gather there).
+/// the faces that gather there), summed in the GPU's order ([`PROBE_LANES`]).
 pub fn gather_probe(
     levels: &[TraceLevel],
     voxels: &impl LitVoxels,
@@ -259,21 +263,28 @@ pub fn gather_probe(
     rotation: Vec2,
 ) -> [Vec3; 6] {
     let origins = PROBE_FACES.map(|axis| face_origin(levels, p, axis, spacing));
+    // Each lane's sums of its rays, then the lanes', in the GPU's order.
     let mut faces = [Vec3::ZERO; 6];
-    for k in 0..rays {
-        let d = sphere_direction(k, rays, rotation);
-        let mut here = None;
-        for ((face, axis), origin) in faces.iter_mut().zip(PROBE_FACES).zip(origins) {
-            let w = d.dot(axis);
-            if w <= 0.0 {
-                continue;
+    for lane in 0..PROBE_LANES {
+        let mut lane_faces = [Vec3::ZERO; 6];
+        for k in (lane..rays).step_by(PROBE_LANES as usize) {
+            let d = sphere_direction(k, rays, rotation);
+            let mut here = None;
+            for ((face, axis), origin) in lane_faces.iter_mut().zip(PROBE_FACES).zip(origins) {
+                let w = d.dot(axis);
+                if w <= 0.0 {
+                    continue;
+                }
+                let l = if origin == p {
+                    *here.get_or_insert_with(|| probe_ray_radiance(levels, voxels, p, d))
+                } else {
+                    probe_ray_radiance(levels, voxels, origin, d)
+                };
+                *face += l * w;
             }
-            let l = if origin == p {
-                *here.get_or_insert_with(|| probe_ray_radiance(levels, voxels, p, d))
-            } else {
-                probe_ray_radiance(levels, voxels, origin, d)
-            };
-            *face += l * w;
+        }
+        for (face, lane_face) in faces.iter_mut().zip(lane_faces) {
+            *face += lane_face;
         }
     }
     faces.map(|f| f * (4.0 / rays as f32))

@@ -188,28 +188,52 @@ fn probe_ray_radiance(p: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
     return unpack_rgb9e5(textureLoad(radiance, voxel_texel(level, cell), 0).r);
 }
 
-@compute @workgroup_size(64)
-fn update_probes(@builtin(global_invocation_id) id: vec3<u32>) {
+// cpu/probes.rs: PROBE_LANES. The lanes that share a probe's rays: lane j of a probe traces its rays k = j,
+// j + PROBE_LANES, ... (4 each at the default 32), so that a lane marches a few rays, not all of them.
+const PROBE_LANES: u32 = 8u;
+// Probes a workgroup (of 32 invocations).
+const GROUP_PROBES: u32 = 4u;
+// src/gi/probes.rs: PROBE_GROUPS_X. Workgroups along x of the dispatch (the rest along y).
+const PROBE_GROUPS_X: u32 = 4096u;
+
+// Each probe's face origins, and each lane's sums of its rays on the six faces.
+var<workgroup> face_origins: array<array<vec3<f32>, 6>, GROUP_PROBES>;
+var<workgroup> lane_faces: array<array<vec3<f32>, 6>, 32>;
+
+// GROUP_PROBES probes a workgroup (this frame's share of them: one of `phases`), PROBE_LANES lanes each.
+@compute @workgroup_size(32)
+fn update_probes(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) index: u32) {
     let c = params.counts;
-    let i = id.x * params.phases + params.phase;
-    if i >= c.x * c.y * c.z {
-        return;
-    }
+    let member = index / PROBE_LANES;
+    let lane = index % PROBE_LANES;
+    let i = ((group.y * PROBE_GROUPS_X + group.x) * GROUP_PROBES + member) * params.phases + params.phase;
+    // A lane past the window's last probe does no work, but reaches the barriers as the others do.
+    let live = i < c.x * c.y * c.z;
     let q = params.window_min + vec3<i32>(vec3<u32>(i % c.x, (i / c.x) % c.y, i / (c.x * c.y)));
     let slot = probe_slot(q);
-    var record = records[slot];
+    // Read by every lane before the barriers, written after them by lanes 0-5 of the probe.
+    var record = ProbeRecord();
+    if live {
+        record = records[slot];
+    }
     // A slot another lattice point held starts again.
     let frames = select(0u, record.frames, all(record.lattice == q));
+    let n = min(frames + 1u, max(params.max_frames, 1u));
     // cpu/probes.rs: gather_probe, each face's rays from its origin (traced once from `p` for the faces that
-    // gather there).
-    let p = relocate_probe(vec3<f32>(q) * params.spacing, params.spacing);
-    var origins = array<vec3<f32>, 6>();
-    for (var f = 0u; f < 6u; f++) {
-        origins[f] = face_origin(p, PROBE_FACES[f], params.spacing);
+    // gather there); lanes 0-5 find one face origin each.
+    var p = vec3<f32>(0.0);
+    if live {
+        p = relocate_probe(vec3<f32>(q) * params.spacing, params.spacing);
+        if lane < 6u {
+            face_origins[member][lane] = face_origin(p, PROBE_FACES[lane], params.spacing);
+        }
     }
+    workgroupBarrier();
+    let origins = face_origins[member];
     let rotation = probe_rotation(slot, params.seed);
     var faces = array<vec3<f32>, 6>();
-    for (var k = 0u; k < params.rays; k++) {
+    let rays = select(0u, params.rays, live);
+    for (var k = lane; k < rays; k += PROBE_LANES) {
         let d = sphere_direction(k, params.rays, rotation);
         var here = vec3<f32>(0.0);
         var traced = false;
@@ -231,18 +255,24 @@ fn update_probes(@builtin(global_invocation_id) id: vec3<u32>) {
             faces[f] += l * w;
         }
     }
-    // cpu/probes.rs: blend_probe (a history of one update is that update, exactly)
-    let n = min(frames + 1u, max(params.max_frames, 1u));
-    let w = 1.0 / f32(n);
-    for (var f = 0u; f < 6u; f++) {
-        let update = faces[f] * (4.0 / f32(params.rays));
-        let old = record.faces[f].xyz;
-        record.faces[f] = vec4<f32>(select(old + (update - old) * w, update, n == 1u), 0.0);
+    lane_faces[index] = faces;
+    workgroupBarrier();
+    // The faces' sums over the probe's lanes in their order (lanes 0-5, one face each), then
+    // cpu/probes.rs: blend_probe (a history of one update is that update, exactly).
+    if live && lane < 6u {
+        var sum = vec3<f32>(0.0);
+        for (var j = 0u; j < PROBE_LANES; j++) {
+            sum += lane_faces[member * PROBE_LANES + j][lane];
+        }
+        let update = sum * (4.0 / f32(params.rays));
+        let old = record.faces[lane].xyz;
+        records[slot].faces[lane] = vec4<f32>(select(old + (update - old) * (1.0 / f32(n)), update, n == 1u), 0.0);
     }
-    record.lattice = q;
-    record.frames = n;
-    record.seed = params.seed;
-    records[slot] = record;
+    if live && lane == 0u {
+        records[slot].lattice = q;
+        records[slot].frames = n;
+        records[slot].seed = params.seed;
+    }
 }
 
 // cpu/probes.rs: EDGE_FADE_SPACINGS

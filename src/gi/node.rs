@@ -42,12 +42,11 @@ pub fn gi(
     if let Some((frame, [update, write])) = probe_passes {
         // The far probes first: the near volume is written from their records.
         if let Some(far) = &frame.far {
-            let groups = UVec3::new(far.update_groups, 1, 1);
-            pass("hao_gi_update_far_probes", "hao/gi_far_probes", update, &far.bind_group, groups);
+            pass("hao_gi_update_far_probes", "hao/gi_far_probes", update, &far.bind_group, far.update_groups);
             pass("hao_gi_write_far_probes", "hao/gi_far_write", write, &far.bind_group, far.write_groups);
         }
         let near = &frame.near;
-        pass("hao_gi_update_probes", "hao/gi_probes", update, &near.bind_group, UVec3::new(near.update_groups, 1, 1));
+        pass("hao_gi_update_probes", "hao/gi_probes", update, &near.bind_group, near.update_groups);
         pass("hao_gi_write_probes", "hao/gi_write", write, &near.bind_group, near.write_groups);
     }
 }

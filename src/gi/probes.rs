@@ -1,6 +1,7 @@
 //! The probe passes (`gi_probes.wgsl`): the probes of this frame's share gather the lighting volume's light
-//! into their histories (`update_probes`), then every probe of the window is written into Bevy's irradiance
-//! volume (`write_probes`).
+//! into their histories (`update_probes`: [`GROUP_PROBES`] probes a workgroup, their rays shared by
+//! [`crate::cpu::probes::PROBE_LANES`] lanes each), then every probe of the window is written into Bevy's
+//! irradiance volume (`write_probes`).
 
 use super::extract::ExtractedGi;
 use crate::cpu::probes::ProbeWindow;
@@ -22,8 +23,11 @@ use bytemuck::{Pod, Zeroable};
 /// updates it holds, the seed of the last, padding.
 pub const PROBE_RECORD_BYTES: u64 = 128;
 
-/// The workgroup size of `update_probes` (one probe an invocation).
-const UPDATE_WORKGROUP: u32 = 64;
+/// `update_probes`' workgroups along x (the rest along y: WGSL `PROBE_GROUPS_X`).
+pub(crate) const PROBE_GROUPS_X: u32 = 4096;
+/// Probes in a workgroup of `update_probes` (WGSL `GROUP_PROBES`): 32 invocations, 4 probes of
+/// [`crate::cpu::probes::PROBE_LANES`] lanes.
+pub(crate) const GROUP_PROBES: u32 = 4;
 /// The workgroup edge of `write_probes` (4x4x4 probes).
 const WRITE_WORKGROUP: u32 = 4;
 
@@ -90,7 +94,7 @@ impl FromWorld for GiProbePipelines {
 /// One window's probe passes this frame: their bind group and workgroups.
 pub(crate) struct GiProbePasses {
     pub(crate) bind_group: BindGroup,
-    pub(crate) update_groups: u32,
+    pub(crate) update_groups: UVec3,
     pub(crate) write_groups: UVec3,
 }
 
@@ -184,7 +188,7 @@ pub fn prepare_gi_probes(
         let probes = window.counts.x * window.counts.y * window.counts.z;
         GiProbePasses {
             bind_group,
-            update_groups: probes.div_ceil(phases).div_ceil(UPDATE_WORKGROUP),
+            update_groups: update_groups(probes.div_ceil(phases).div_ceil(GROUP_PROBES)),
             write_groups: (window.counts + UVec3::splat(WRITE_WORKGROUP - 1)) / WRITE_WORKGROUP,
         }
     };
@@ -194,4 +198,10 @@ pub fn prepare_gi_probes(
     let far_bindings = far.as_ref().zip(far_params.as_ref()).map(|((_, _, records), params)| (params, &records.buffer));
     let near = passes("hao_gi_probes_bind_group", &window, &near_params, &records.buffer, irradiance, far_bindings);
     commands.insert_resource(GiProbesFrame { near, far: far_passes });
+}
+
+/// `update_probes`' dispatch for `groups` workgroups: at most [`PROBE_GROUPS_X`] along x (a dispatch holds
+/// at most 65,535 along each axis).
+fn update_groups(groups: u32) -> UVec3 {
+    UVec3::new(groups.clamp(1, PROBE_GROUPS_X), groups.div_ceil(PROBE_GROUPS_X).max(1), 1)
 }
