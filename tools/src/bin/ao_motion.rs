@@ -33,7 +33,11 @@
 //! band (the pixels whose reference AO is under 0.5: contacts and creases), and over the pixels within 1 m of
 //! a moving prop (of any prop where none moves); and the temporal noise, the mean absolute change of the AO
 //! from one frame to the next at pixels whose reference does not change (by under 0.002; 0.01 with
-//! `--motion`), near the props (within 1 m) and away from them. The PNG shows the last four frames of each
+//! `--motion`), near the props (within 1 m) and away from them; beside it the reference's own change at those
+//! pixels (a prop's shadow reaches further than the threshold tells: an AO that follows the reference
+//! exactly changes that much), the noise where the reference does not change at all, and the change beyond
+//! the reference's (|change - the reference's change|, the noise of an AO that follows a changing truth).
+//! The PNG shows the last four frames of each
 //! camera and the reference, one row each, and HAO still and converged in the last frame's pose.
 
 use bevy::anti_alias::taa::TemporalAntiAliasing;
@@ -151,6 +155,16 @@ struct Errors {
     near: Mean,
     noise_near: Mean,
     noise_away: Mean,
+    /// The reference's own mean change from frame to frame at the pixels of `noise_near` and `noise_away`:
+    /// what an AO that follows the truth exactly changes there.
+    reference_change_near: Mean,
+    reference_change_away: Mean,
+    /// The noise where the reference does not change at all (no ray of it changes its hit).
+    unchanged_near: Mean,
+    unchanged_away: Mean,
+    /// At the same pixels, the change that the reference's does not explain: |change - reference's change|.
+    excess_near: Mean,
+    excess_away: Mean,
 }
 
 #[derive(Default, Clone, Copy)]
@@ -475,9 +489,29 @@ fn main() {
             }
             if let Some((prev, prev_ref)) = &last[k] {
                 for i in (0..n).filter(|&i| view.shows(i) && prev.shows(i)) {
-                    if (reference[i] - prev_ref[i]).abs() <= threshold {
+                    let reference_change = (reference[i] - prev_ref[i]).abs();
+                    if reference_change <= threshold {
                         let change = (view.ao[i] - prev.ao[i]).abs();
-                        if near(i) { m.noise_near.add(change) } else { m.noise_away.add(change) }
+                        let excess = (view.ao[i] - prev.ao[i] - (reference[i] - prev_ref[i])).abs();
+                        let is_near = near(i);
+                        if is_near {
+                            m.excess_near.add(excess)
+                        } else {
+                            m.excess_away.add(excess)
+                        }
+                        if is_near {
+                            m.noise_near.add(change)
+                        } else {
+                            m.noise_away.add(change)
+                        }
+                        if is_near {
+                            m.reference_change_near.add(reference_change)
+                        } else {
+                            m.reference_change_away.add(reference_change)
+                        }
+                        if reference_change == 0.0 {
+                            if is_near { m.unchanged_near.add(change) } else { m.unchanged_away.add(change) }
+                        }
                     }
                 }
             }
@@ -538,6 +572,25 @@ fn main() {
             m.noise_away.get()
         );
     }
+    println!(
+        "\nThe reference's own change at those pixels, near / away: {:.4} / {:.4} (an AO that follows it exactly \
+         changes as much). Where the reference does not change at all (no ray of it changes its hit), near / \
+         away: HAO {:.4} / {:.4}, Bevy SSAO (High) {:.4} / {:.4} ({} and {} frame pairs x pixels for HAO). The \
+         change beyond the reference's (|change - the reference's change|), near / away: HAO {:.4} / {:.4}, \
+         Bevy SSAO (High) {:.4} / {:.4}",
+        measured[0].reference_change_near.get(),
+        measured[0].reference_change_away.get(),
+        measured[0].unchanged_near.get(),
+        measured[0].unchanged_away.get(),
+        measured[1].unchanged_near.get(),
+        measured[1].unchanged_away.get(),
+        measured[0].unchanged_near.n,
+        measured[0].unchanged_away.n,
+        measured[0].excess_near.get(),
+        measured[0].excess_away.get(),
+        measured[1].excess_near.get(),
+        measured[1].excess_away.get(),
+    );
     println!(
         "\nHAO in the last frame: in motion / the same frame still and converged: within {NEAR} m of the props \
          {:.4} / {:.4} ({:.2}x), contact band {:.4} / {:.4}, view {:.4} / {:.4}",
