@@ -230,6 +230,8 @@ fn main() {
         warm += 1;
     }
     let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
+    let software =
+        app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().device_type == wgpu::DeviceType::Cpu;
     // The spans' samples, and the wall-clock time of each frame with the device waited for.
     let measure = |app: &mut App, warm_up: usize, spans: &[&str]| -> (Vec<Vec<f64>>, Vec<f64>) {
         bevy_hao_tools::harness::run(app, warm_up);
@@ -569,6 +571,13 @@ fn main() {
             _ => "-".into(),
         };
         println!("| GI alone (the rounds' differences) | | | | | | {} | {ratio} |", f(own));
+        if software {
+            println!(
+                "\n(On a CPU device such as lavapipe the GI spans do not measure GI's passes: skipping them takes \
+                 hundreds of times their spans off the frame. Only the wall clock counts there: docs/figures.md, \
+                 *A probe's rays shared by 8 lanes*.)"
+            );
+        }
     }
     if attributes {
         let kept = bevy_hao_tools::harness::grid_assets(&app).is_some_and(|g| g.attributes.is_some());
