@@ -198,9 +198,10 @@ const PROBE_GROUPS_X: u32 = 4096u;
 
 // Each probe's face origins, and each lane's sums of its rays on the six faces.
 var<workgroup> face_origins: array<array<vec3<f32>, 6>, GROUP_PROBES>;
-var<workgroup> lane_faces: array<array<vec3<f32>, 6>, 32>;
+var<workgroup> lane_faces: array<array<vec3<f32>, 6>, 32>; // GROUP_PROBES x PROBE_LANES
 
-// GROUP_PROBES probes a workgroup (this frame's share of them: one of `phases`), PROBE_LANES lanes each.
+// GROUP_PROBES probes a workgroup (this frame's share of them: one of `phases`), PROBE_LANES lanes each
+// (32 invocations).
 @compute @workgroup_size(32)
 fn update_probes(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) index: u32) {
     let c = params.counts;
@@ -229,6 +230,9 @@ fn update_probes(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
         }
     }
     workgroupBarrier();
+    // (Orders the record's reads above before the writes below in every lane: a workgroup barrier orders
+    // only workgroup memory.)
+    storageBarrier();
     let origins = face_origins[member];
     let rotation = probe_rotation(slot, params.seed);
     var faces = array<vec3<f32>, 6>();
