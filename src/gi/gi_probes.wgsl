@@ -191,18 +191,18 @@ fn probe_ray_radiance(p: vec3<f32>, dir: vec3<f32>) -> vec3<f32> {
 // cpu/probes.rs: PROBE_LANES. The lanes that share a probe's rays: lane j of a probe traces its rays k = j,
 // j + PROBE_LANES, ... (4 each at the default 32), so that a lane marches a few rays, not all of them.
 const PROBE_LANES: u32 = 8u;
-// Probes a workgroup (of 32 invocations).
+// src/gi/probes.rs: GROUP_PROBES. Probes a workgroup, of GROUP_SIZE invocations.
 const GROUP_PROBES: u32 = 4u;
+const GROUP_SIZE: u32 = GROUP_PROBES * PROBE_LANES;
 // src/gi/probes.rs: PROBE_GROUPS_X. Workgroups along x of the dispatch (the rest along y).
 const PROBE_GROUPS_X: u32 = 4096u;
 
 // Each probe's face origins, and each lane's sums of its rays on the six faces.
 var<workgroup> face_origins: array<array<vec3<f32>, 6>, GROUP_PROBES>;
-var<workgroup> lane_faces: array<array<vec3<f32>, 6>, 32>; // GROUP_PROBES x PROBE_LANES
+var<workgroup> lane_faces: array<array<vec3<f32>, 6>, GROUP_SIZE>;
 
-// GROUP_PROBES probes a workgroup (this frame's share of them: one of `phases`), PROBE_LANES lanes each
-// (32 invocations).
-@compute @workgroup_size(32)
+// GROUP_PROBES probes a workgroup (this frame's share of them: one of `phases`), PROBE_LANES lanes each.
+@compute @workgroup_size(GROUP_SIZE)
 fn update_probes(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) index: u32) {
     let c = params.counts;
     let member = index / PROBE_LANES;

@@ -493,24 +493,16 @@ fn main() {
                     if reference_change <= threshold {
                         let change = (view.ao[i] - prev.ao[i]).abs();
                         let excess = (view.ao[i] - prev.ao[i] - (reference[i] - prev_ref[i])).abs();
-                        let is_near = near(i);
-                        if is_near {
-                            m.excess_near.add(excess)
+                        let (noise, reference_moved, beyond, unchanged) = if near(i) {
+                            (&mut m.noise_near, &mut m.reference_change_near, &mut m.excess_near, &mut m.unchanged_near)
                         } else {
-                            m.excess_away.add(excess)
-                        }
-                        if is_near {
-                            m.noise_near.add(change)
-                        } else {
-                            m.noise_away.add(change)
-                        }
-                        if is_near {
-                            m.reference_change_near.add(reference_change)
-                        } else {
-                            m.reference_change_away.add(reference_change)
-                        }
+                            (&mut m.noise_away, &mut m.reference_change_away, &mut m.excess_away, &mut m.unchanged_away)
+                        };
+                        noise.add(change);
+                        reference_moved.add(reference_change);
+                        beyond.add(excess);
                         if reference_change == 0.0 {
-                            if is_near { m.unchanged_near.add(change) } else { m.unchanged_away.add(change) }
+                            unchanged.add(change);
                         }
                     }
                 }

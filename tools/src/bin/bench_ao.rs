@@ -229,9 +229,8 @@ fn main() {
         app.update();
         warm += 1;
     }
-    let adapter = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().name.clone();
-    let software =
-        app.world().resource::<bevy::render::renderer::RenderAdapterInfo>().device_type == wgpu::DeviceType::Cpu;
+    let info = app.world().resource::<bevy::render::renderer::RenderAdapterInfo>();
+    let (adapter, software) = (info.name.clone(), info.device_type == wgpu::DeviceType::Cpu);
     // The spans' samples, and the wall-clock time of each frame with the device waited for.
     let measure = |app: &mut App, warm_up: usize, spans: &[&str]| -> (Vec<Vec<f64>>, Vec<f64>) {
         bevy_hao_tools::harness::run(app, warm_up);
