@@ -423,7 +423,8 @@ fn shared_constants_agree() {
     let gi = "src/gi/gi_common.wgsl";
     let lighting = "src/gi/gi_lighting.wgsl";
     let probes = "src/gi/gi_probes.wgsl";
-    let pairs: [(&str, &str, f64); 59] = [
+    let pairs: [(&str, &str, f64); 60] = [
+        (probes, "MOVED_REACH_RADII", crate::cpu::probes::MOVED_REACH_RADII as f64),
         (probes, "FACE_REACH", crate::cpu::probes::FACE_REACH as f64),
         (probes, "PROBE_LANES", crate::cpu::probes::PROBE_LANES as f64),
         (probes, "PROBE_GROUPS_X", crate::gi::probes::PROBE_GROUPS_X as f64),

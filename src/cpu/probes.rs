@@ -18,11 +18,13 @@
 //!   `GlobalAmbientLight`, added by Bevy's PBR on top).
 //! * The faces hold the irradiance over pi (cd/m^2): what a white Lambertian surface facing each way sends
 //!   out, the value Bevy's PBR multiplies by the diffuse colour ([`gather_probe`]).
-//! * Each update blends into the probe's history, up to a window of frames ([`blend_probe`]).
+//! * Each update blends into the probe's history, up to a window of frames ([`blend_probe`]); near
+//!   occluders that moved, a shorter one ([`moved_cap`]).
 //! * The probes are written into the irradiance volume faded out over the window's last spacings
 //!   ([`ProbeWindow::edge_fade`]), so that the indirect light ends without a seam.
 
 use super::march::{TraceLevel, finest_level_containing, march_cascades};
+use super::temporal::MovedVoxels;
 use glam::{IVec3, UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -302,6 +304,37 @@ pub fn blend_probe(history: [Vec3; 6], frames: u32, update: [Vec3; 6], max_frame
     (std::array::from_fn(|k| history[k] + (update[k] - history[k]) * w), n)
 }
 
+/// How far a moved occluder reaches over the probes' histories (WGSL `MOVED_REACH_RADII`): a probe within
+/// this many of its box's mean half-extents, plus a probe spacing, of the box ([`moved_cap`]). Farther, a
+/// box covers under a fortieth of the probe's sphere and its change is within the history's noise.
+pub const MOVED_REACH_RADII: f32 = 2.0;
+
+/// The updates a probe at `p` holds at most where occluders moved near it (WGSL `moved_cap` in
+/// `gi_probes.wgsl`), with `max_frames` the cap elsewhere and `phases` the frames between its updates (a
+/// probe in `phases` is updated a frame). For each moved box ([`MovedVoxels`], as the voxel grid lists
+/// them: the box around it now and last frame, held for a few frames after it stops) within
+/// [`MOVED_REACH_RADII`] mean half-extents plus a `spacing` of the probe: the updates it takes the
+/// occluder, at the speed it last moved, to move as far as it is from the probe (at least a spacing; what
+/// the probe sees of it changes by about that share a frame), at least 1. An occluder that jumped (or whose
+/// motion is unknown: added, removed) leaves the probes near it their last update alone, as a light that
+/// changed does (`CHANGED_HISTORY`); one that moves steadily, a history about as long as it takes to cross
+/// a spacing, instead of the default 32 updates' (128 frames').
+pub fn moved_cap(p: Vec3, spacing: f32, phases: u32, moved: &[MovedVoxels], max_frames: u32) -> u32 {
+    let mut cap = max_frames.max(1);
+    for m in moved {
+        let center = (m.min + m.max) * 0.5;
+        let half = (m.max - m.min) * 0.5;
+        let r = (half.x + half.y + half.z) / 3.0;
+        let d = ((p - center).abs() - half).max(Vec3::ZERO).length();
+        if !(d <= MOVED_REACH_RADII * r + spacing) {
+            continue;
+        }
+        let updates = d.max(spacing) / (m.motion.max(1.0e-6) * phases.max(1) as f32);
+        cap = cap.min(updates.clamp(1.0, cap as f32) as u32);
+    }
+    cap
+}
+
 /// The irradiance over pi that Bevy's PBR reads from an ambient cube for a surface of unit normal `n`
 /// (Valve's formula, as `irradiance_volume.wgsl` applies it): `sum(n_i^2 * face(sign n_i))`.
 pub fn ambient_cube(faces: &[Vec3; 6], n: Vec3) -> Vec3 {
@@ -490,6 +523,36 @@ mod tests {
         assert_eq!((h[0], n), (Vec3::splat(0.5), 2));
         let (h, n) = blend_probe(h, 4, one, 4);
         assert_eq!((h[0], n), (Vec3::splat(0.625), 4));
+    }
+
+    #[test]
+    fn probes_near_a_moved_occluder_keep_the_history_its_motion_allows() {
+        // A 1 m box sliding 1 cm a frame, listed with the box around it now and last frame; probes 0.5 m
+        // apart, each updated every fourth frame, 32 updates elsewhere.
+        let moved = [MovedVoxels { min: Vec3::new(-0.5, 0.0, -0.5), max: Vec3::new(0.51, 1.0, 0.5), motion: 0.01 }];
+        let cap = |x: f32, motion: f32| {
+            let m = [MovedVoxels { motion, ..moved[0] }];
+            moved_cap(Vec3::new(x, 0.5, 0.0), 0.5, 4, &m, 32)
+        };
+        // Inside it or within a spacing: the frames it takes to cross a spacing (50), in updates (12).
+        assert_eq!((cap(0.0, 0.01), cap(0.9, 0.01)), (12, 12));
+        // Farther: as long as it takes to cross the distance; the reach is 2 mean half-extents past a spacing
+        // (1.5 m from the box), and past the default's 32 updates the cap is the default's.
+        assert_eq!(cap(1.335, 0.01), 20);
+        assert_eq!((cap(2.0, 0.01), cap(2.1, 0.01)), (32, 32));
+        assert_eq!(cap(2.0, 0.02), 18);
+        assert_eq!(cap(2.02, 0.02), 32, "out of reach");
+        // A jump, an unknown motion (`UNKNOWN_MOTION`), or the box everywhere: the last update alone.
+        assert_eq!((cap(0.0, 3.0), cap(1.5, 1.0e30)), (1, 1));
+        let everywhere = [MovedVoxels { min: Vec3::splat(-1.0e30), max: Vec3::splat(1.0e30), motion: 1.0e30 }];
+        assert_eq!(moved_cap(Vec3::new(1.0e4, 3.0, -7.0), 0.5, 4, &everywhere, 32), 1);
+        // Nothing moved, or a probe far off: the cap as given, at least 1; a motion of 0 or NaN takes none.
+        assert_eq!((moved_cap(Vec3::ZERO, 0.5, 4, &[], 32), moved_cap(Vec3::ZERO, 0.5, 4, &[], 0)), (32, 1));
+        assert_eq!(moved_cap(Vec3::new(9.0, 0.0, 0.0), 0.5, 4, &moved, 32), 32);
+        assert_eq!((cap(0.0, 0.0), cap(0.0, f32::NAN)), (32, 32));
+        // Blended with the cap, a history that held 32 updates holds the cap's from the next.
+        let (_, n) = blend_probe([Vec3::ONE; 6], 32, [Vec3::ZERO; 6], cap(0.0, 0.01));
+        assert_eq!(n, 12);
     }
 
     #[test]

@@ -4,7 +4,7 @@
 // written into the irradiance volume Bevy's PBR samples, in its layout (`write_probes`). CPU twin:
 // `bevy_hao::cpu::probes`.
 #import bevy_hao::voxel_grid::{
-    voxel_grid, voxel_occupied, voxel_texel, voxel_normal_at, march_cascades, level_position,
+    voxel_grid, MAX_MOVED_OCCLUDERS, voxel_occupied, voxel_texel, voxel_normal_at, march_cascades, level_position,
     finest_level_containing,
 }
 #import bevy_hao::gi_common::unpack_rgb9e5
@@ -201,6 +201,29 @@ const PROBE_GROUPS_X: u32 = 4096u;
 var<workgroup> face_origins: array<array<vec3<f32>, 6>, GROUP_PROBES>;
 var<workgroup> lane_faces: array<array<vec3<f32>, 6>, GROUP_SIZE>;
 
+// cpu/probes.rs: MOVED_REACH_RADII
+const MOVED_REACH_RADII: f32 = 2.0;
+
+// cpu/probes.rs: moved_cap. The updates the probe at `p` holds at most this frame: `max_frames`, or near an
+// occluder that moved (the voxel grid's list) the updates it takes it to move as far as it is from the probe
+// (at least a spacing), at least 1.
+fn moved_cap(p: vec3<f32>) -> u32 {
+    var cap = max(params.max_frames, 1u);
+    for (var i = 0u; i < min(voxel_grid.moved_count, MAX_MOVED_OCCLUDERS); i++) {
+        let m = voxel_grid.moved[i];
+        let center = (m.min + m.max) * 0.5;
+        let half = (m.max - m.min) * 0.5;
+        let r = (half.x + half.y + half.z) / 3.0;
+        let d = length(max(abs(p - center) - half, vec3<f32>(0.0)));
+        if !(d <= MOVED_REACH_RADII * r + params.spacing) {
+            continue;
+        }
+        let updates = max(d, params.spacing) / (max(m.motion, 1.0e-6) * f32(max(params.phases, 1u)));
+        cap = min(cap, u32(clamp(updates, 1.0, f32(cap))));
+    }
+    return cap;
+}
+
 // GROUP_PROBES probes a workgroup (this frame's share of them: one of `phases`), PROBE_LANES lanes each.
 @compute @workgroup_size(GROUP_SIZE)
 fn update_probes(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) index: u32) {
@@ -219,7 +242,7 @@ fn update_probes(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
     }
     // A slot another lattice point held starts again.
     let frames = select(0u, record.frames, all(record.lattice == q));
-    let n = min(frames + 1u, max(params.max_frames, 1u));
+    let n = min(frames + 1u, moved_cap(vec3<f32>(q) * params.spacing));
     // cpu/probes.rs: gather_probe, each face's rays from its origin (traced once from `p` for the faces that
     // gather there); lanes 0-5 find one face origin each.
     var p = vec3<f32>(0.0);

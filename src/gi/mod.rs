@@ -101,7 +101,9 @@ pub struct VoxelGlobalIllumination {
     /// Frames over which every probe is updated once (1 to 64): each frame one probe in this many.
     pub probe_frames: u32,
     /// Updates a probe's history averages (1 to 256): more is smoother and slower to follow a change.
-    /// Where the lights change, for a few frames the probes keep [`CHANGED_HISTORY`] updates.
+    /// Where the lights change, for a few frames the probes keep [`CHANGED_HISTORY`] updates; near occluders
+    /// that move (`DynamicOccluder`s, static ones added or removed), about as many as it takes them to cross a
+    /// probe spacing (a jump: one).
     pub accumulation_frames: u32,
     /// Frames over which the lighting volume is refreshed: each frame lights one slab in this many of every
     /// level's voxels, so a light that moves or changes shows in the voxels within this many frames (1 to
