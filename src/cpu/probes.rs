@@ -313,23 +313,28 @@ pub const MOVED_REACH_RADII: f32 = 2.0;
 /// `gi_probes.wgsl`), with `max_frames` the cap elsewhere and `phases` the frames between its updates (a
 /// probe in `phases` is updated a frame). For each moved box ([`MovedVoxels`], as the voxel grid lists
 /// them: the box around it now and last frame, held for a few frames after it stops) within
-/// [`MOVED_REACH_RADII`] mean half-extents plus a `spacing` of the probe: the updates it takes the
-/// occluder, at the speed it last moved, to move as far as it is from the probe (at least a spacing; what
-/// the probe sees of it changes by about that share a frame), at least 1. An occluder that jumped (or whose
-/// motion is unknown: added, removed) leaves the probes near it their last update alone, as a light that
-/// changed does (`CHANGED_HISTORY`); one that moves steadily, a history about as long as it takes to cross
-/// a spacing, instead of the default 32 updates' (128 frames').
+/// [`MOVED_REACH_RADII`] mean half-extents plus a `spacing` of the probe, the history its change allows:
+/// `u` the updates it takes the occluder, at the speed it last moved, to move as far as it is from the probe
+/// (at least a spacing), and `c` the share of the probe's view it covers (a sphere of its mean half-extent
+/// `r` at the box's centre, `dc` away: `(r / dc)^2`, 1 within it), `1 + (u - 1) / c` updates: over them what
+/// the probe sees of it changes by about its whole share, as `hao_change` weighs a moved occluder by the
+/// share it covers. A big occluder near the probe that moves its distance in a few updates leaves it a few,
+/// a small one (a ball rolling past) most of the default's (32 updates, 128 frames), whose noise would
+/// otherwise outweigh the lag; one that jumped or whose motion is unknown (added, removed; `u` at most 1),
+/// the last update alone, as a light that changed does (`CHANGED_HISTORY`). At least 1.
 pub fn moved_cap(p: Vec3, spacing: f32, phases: u32, moved: &[MovedVoxels], max_frames: u32) -> u32 {
     let mut cap = max_frames.max(1);
     for m in moved {
         let center = (m.min + m.max) * 0.5;
         let half = (m.max - m.min) * 0.5;
-        let r = (half.x + half.y + half.z) / 3.0;
+        let r = ((half.x + half.y + half.z) / 3.0).max(1.0e-4);
         let d = ((p - center).abs() - half).max(Vec3::ZERO).length();
         if !(d <= MOVED_REACH_RADII * r + spacing) {
             continue;
         }
-        let updates = d.max(spacing) / (m.motion.max(1.0e-6) * phases.max(1) as f32);
+        let u = d.max(spacing) / (m.motion.max(1.0e-6) * phases.max(1) as f32);
+        let s = r / p.distance(center).max(r);
+        let updates = if u <= 1.0 { 1.0 } else { 1.0 + (u - 1.0) / (s * s) };
         cap = cap.min(updates.clamp(1.0, cap as f32) as u32);
     }
     cap
@@ -534,18 +539,23 @@ mod tests {
             let m = [MovedVoxels { motion, ..moved[0] }];
             moved_cap(Vec3::new(x, 0.5, 0.0), 0.5, 4, &m, 32)
         };
-        // Inside it or within a spacing: the frames it takes to cross a spacing (50), in updates (12).
-        assert_eq!((cap(0.0, 0.01), cap(0.9, 0.01)), (12, 12));
-        // Farther: as long as it takes to cross the distance; the reach is 2 mean half-extents past a spacing
-        // (1.5 m from the box), and past the default's 32 updates the cap is the default's.
-        assert_eq!(cap(1.335, 0.01), 20);
-        assert_eq!((cap(2.0, 0.01), cap(2.1, 0.01)), (32, 32));
-        assert_eq!(cap(2.0, 0.02), 18);
-        assert_eq!(cap(2.02, 0.02), 32, "out of reach");
-        // A jump, an unknown motion (`UNKNOWN_MOTION`), or the box everywhere: the last update alone.
-        assert_eq!((cap(0.0, 3.0), cap(1.5, 1.0e30)), (1, 1));
+        // Inside it, where it covers the whole view: the updates it takes to cross a spacing (50 frames, 12.5
+        // updates); at 5 cm a frame, 2.5.
+        assert_eq!((cap(0.0, 0.01), cap(0.5, 0.01), cap(0.0, 0.05)), (12, 12, 2));
+        // Outside, the share of the view it covers stretches them: 0.39 m from its side (0.9 m from its
+        // centre, a third of the view), 1 + 1.5 / 0.31; farther, 1 + 3.1 / 0.14; at 1 cm a frame, already
+        // the default's.
+        assert_eq!((cap(0.9, 0.05), cap(1.335, 0.05), cap(0.9, 0.01)), (5, 22, 32));
+        // Past the reach (2 mean half-extents past a spacing, 1.5 m from the box) the cap is the default's.
+        assert_eq!((cap(2.0, 0.1), cap(2.02, 100.0)), (32, 32));
+        // A jump (farther in an update than from the probe), an unknown motion (`UNKNOWN_MOTION`), or the
+        // box everywhere: the last update alone.
+        assert_eq!((cap(0.9, 0.1), cap(0.0, 3.0), cap(1.5, 1.0e30)), (1, 1, 1));
         let everywhere = [MovedVoxels { min: Vec3::splat(-1.0e30), max: Vec3::splat(1.0e30), motion: 1.0e30 }];
         assert_eq!(moved_cap(Vec3::new(1.0e4, 3.0, -7.0), 0.5, 4, &everywhere, 32), 1);
+        // A box of no size still counts (as a point of 0.1 mm), moved by 1 m a frame: a jump.
+        let point = [MovedVoxels { min: Vec3::ZERO, max: Vec3::ZERO, motion: 1.0 }];
+        assert_eq!(moved_cap(Vec3::new(0.3, 0.0, 0.0), 0.5, 4, &point, 32), 1);
         // Nothing moved, or a probe far off: the cap as given, at least 1; a motion of 0 or NaN takes none.
         assert_eq!((moved_cap(Vec3::ZERO, 0.5, 4, &[], 32), moved_cap(Vec3::ZERO, 0.5, 4, &[], 0)), (32, 1));
         assert_eq!(moved_cap(Vec3::new(9.0, 0.0, 0.0), 0.5, 4, &moved, 32), 32);

@@ -205,20 +205,23 @@ var<workgroup> lane_faces: array<array<vec3<f32>, 6>, GROUP_SIZE>;
 const MOVED_REACH_RADII: f32 = 2.0;
 
 // cpu/probes.rs: moved_cap. The updates the probe at `p` holds at most this frame: `max_frames`, or near an
-// occluder that moved (the voxel grid's list) the updates it takes it to move as far as it is from the probe
-// (at least a spacing), at least 1.
+// occluder that moved (the voxel grid's list) `1 + (u - 1) / c`, with `u` the updates it takes it to move as
+// far as it is from the probe (at least a spacing) and `c` the share of the probe's view it covers; 1 where
+// it jumped (`u` at most 1).
 fn moved_cap(p: vec3<f32>) -> u32 {
     var cap = max(params.max_frames, 1u);
     for (var i = 0u; i < min(voxel_grid.moved_count, MAX_MOVED_OCCLUDERS); i++) {
         let m = voxel_grid.moved[i];
         let center = (m.min + m.max) * 0.5;
         let half = (m.max - m.min) * 0.5;
-        let r = (half.x + half.y + half.z) / 3.0;
+        let r = max((half.x + half.y + half.z) / 3.0, 1.0e-4);
         let d = length(max(abs(p - center) - half, vec3<f32>(0.0)));
         if !(d <= MOVED_REACH_RADII * r + params.spacing) {
             continue;
         }
-        let updates = max(d, params.spacing) / (max(m.motion, 1.0e-6) * f32(max(params.phases, 1u)));
+        let u = max(d, params.spacing) / (max(m.motion, 1.0e-6) * f32(max(params.phases, 1u)));
+        let s = r / max(distance(p, center), r);
+        let updates = select(1.0 + (u - 1.0) / (s * s), 1.0, u <= 1.0);
         cap = min(cap, u32(clamp(updates, 1.0, f32(cap))));
     }
     return cap;

@@ -102,8 +102,8 @@ pub struct VoxelGlobalIllumination {
     pub probe_frames: u32,
     /// Updates a probe's history averages (1 to 256): more is smoother and slower to follow a change.
     /// Where the lights change, for a few frames the probes keep [`CHANGED_HISTORY`] updates; near occluders
-    /// that move (`DynamicOccluder`s, static ones added or removed), about as many as it takes them to cross a
-    /// probe spacing (a jump: one).
+    /// that move (`DynamicOccluder`s, static ones added or removed), fewer the faster they move and the more
+    /// of the probe's view they cover (a jump: one; a small prop rolling past: most of these).
     pub accumulation_frames: u32,
     /// Frames over which the lighting volume is refreshed: each frame lights one slab in this many of every
     /// level's voxels, so a light that moves or changes shows in the voxels within this many frames (1 to

@@ -607,10 +607,12 @@ pub fn read_frames(
         .iter()
         .zip(sinks)
         .map(|(image, sink)| {
+            // Rows of every layer of a 3D image, as `read_image` reads them.
             let (w, h, texel) = {
                 let img = app.world().resource::<Assets<Image>>().get(image).expect("image asset");
                 let size = img.texture_descriptor.size;
-                (size.width, size.height, img.texture_descriptor.format.block_copy_size(None).expect("uncompressed"))
+                let texel = img.texture_descriptor.format.block_copy_size(None).expect("uncompressed");
+                (size.width, size.height * size.depth_or_array_layers, texel)
             };
             let row = (w * texel) as usize;
             let padded = row.div_ceil(256) * 256;
