@@ -250,6 +250,7 @@ fn inspector_window(
             ui.add(egui::Slider::new(&mut gi.probe_frames, 1..=16).text("frames to update every probe"));
             ui.add(egui::Slider::new(&mut gi.accumulation_frames, 1..=64).text("updates a probe averages"));
             ui.add(egui::Slider::new(&mut gi.lighting_frames, 1..=16).text("frames to light every voxel"));
+            ui.add(egui::Slider::new(&mut gi.bounce_feedback, 0.0..=1.0).text("bounce feedback (0: one bounce)"));
             let c = gi.probe_counts;
             ui.label(format!(
                 "{}x{}x{} probes, {:.1} x {:.1} x {:.1} m around the camera",

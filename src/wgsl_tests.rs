@@ -229,7 +229,7 @@ fn layouts() -> Vec<(&'static str, &'static str, usize, Vec<usize>)> {
             "src/gi/gi_lighting.wgsl",
             "GiLightingParams",
             GpuGiLightingParams,
-            [light_count, phase, phases, blocks_z]
+            [light_count, phase, phases, blocks_z, bounce_feedback, _pad_a, _pad_b, _pad_c]
         ),
         layout!(
             "src/gi/gi_probes.wgsl",
@@ -423,7 +423,7 @@ fn shared_constants_agree() {
     let gi = "src/gi/gi_common.wgsl";
     let lighting = "src/gi/gi_lighting.wgsl";
     let probes = "src/gi/gi_probes.wgsl";
-    let pairs: [(&str, &str, f64); 60] = [
+    let pairs: [(&str, &str, f64); 63] = [
         (probes, "MOVED_REACH_RADII", crate::cpu::probes::MOVED_REACH_RADII as f64),
         (probes, "FACE_REACH", crate::cpu::probes::FACE_REACH as f64),
         (probes, "PROBE_LANES", crate::cpu::probes::PROBE_LANES as f64),
@@ -439,9 +439,12 @@ fn shared_constants_agree() {
         (gi, "GI_LIGHT_POINT", crate::cpu::lighting::LightKind::Point as u32 as f64),
         (gi, "GI_LIGHT_SPOT", crate::cpu::lighting::LightKind::Spot as u32 as f64),
         (gi, "RGB9E5_MAX", crate::cpu::lighting::RGB9E5_MAX as f64),
+        (gi, "EDGE_FADE_SPACINGS", crate::cpu::probes::EDGE_FADE_SPACINGS as f64),
         (lighting, "SHADOW_START_CELLS", crate::cpu::lighting::SHADOW_START_CELLS as f64),
         (lighting, "SHADOW_STEPS", crate::cpu::lighting::SHADOW_STEPS as f64),
         (lighting, "SHADOW_NORMAL_MIN", crate::cpu::lighting::SHADOW_NORMAL_MIN as f64),
+        (lighting, "BOUNCE_LIFT_CELLS", crate::cpu::lighting::BOUNCE_LIFT_CELLS as f64),
+        (lighting, "BOUNCE_VISIBILITY_STEPS", crate::cpu::lighting::BOUNCE_VISIBILITY_STEPS as f64),
         (common, "CONSERVATIVE_PAD", voxelize::CONSERVATIVE_PAD as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", bindings::MAX_VOXEL_LEVELS as f64),
         ("src/voxel/voxel_grid.wgsl", "MAX_VOXEL_LEVELS", cascade::MAX_CASCADES as f64),

@@ -1,6 +1,6 @@
 //! The light that Bevy's lights put on a surface, in Bevy 0.19's units and by its PBR shader's formulas:
-//! the first piece of the voxels' lighting volume for diffuse global illumination (docs/design-gi.md; the
-//! GPU pass is not built yet, and this is its CPU twin to be).
+//! the voxels' lighting volume for diffuse global illumination (docs/design-gi.md), the CPU twin of
+//! `src/gi/gi_lighting.wgsl`.
 //!
 //! * `DirectionalLight`: `illuminance` in lux, uploaded as `color * illuminance`.
 //! * `PointLight` and `SpotLight`: `intensity` in lumens, divided by 4 pi for both (candela), attenuated
@@ -11,11 +11,13 @@
 //! ([`voxel_radiance`]), each shadowed by a march through the voxel levels toward it ([`light_reaches`]), from
 //! the multi-valued voxels' average albedo and normal. Exposure is not here: Bevy's shader multiplies all
 //! non-emissive light by the view's exposure at the end, irradiance volumes included, so the volume keeps
-//! physical units.
+//! physical units. With a bounce feedback each voxel also takes back the indirect light the probes hold
+//! around it ([`bounced_radiance`]), for further bounces.
 
 use super::attributes::VoxelAttributes;
 use super::march::{TraceLevel, march_cascades};
-use glam::{IVec3, Vec3};
+use super::probes::ProbeWindow;
+use glam::{IVec3, UVec3, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI};
 
 /// A light, as Bevy's PBR shader sees it.
@@ -294,6 +296,120 @@ pub fn voxel_radiance(
         .sum()
 }
 
+/// How far off its voxel's centre a voxel reads the probes' indirect light for further bounces, along its
+/// average normal, in cells of its level (WGSL `BOUNCE_LIFT_CELLS`): as its shadow rays start, out of its own
+/// voxel, in the space its surface looks out into.
+pub const BOUNCE_LIFT_CELLS: f32 = 1.0;
+/// The most texel visits of the march that tells whether a probe sees the point a voxel reads it from (WGSL
+/// `BOUNCE_VISIBILITY_STEPS`): the probes are at most a spacing and a half away.
+pub const BOUNCE_VISIBILITY_STEPS: u32 = 16;
+
+/// Whether the probe that gathered from `at` ([`crate::cpu::probes::relocate_probe`]'s point) sees the point
+/// `p` that a voxel of level `level` with unit normal `n` reads it from, [`BOUNCE_LIFT_CELLS`] off its centre
+/// (WGSL `probe_visible`): in front of the plane through the voxel's centre along `n`, outside the voxels,
+/// and a march from `p` toward it, from half a cell of that level along, that no run of occupied cells stops
+/// before it (a probe within half a cell: yes). Bevy's PBR weighs the probes around a point by distance alone, so a surface
+/// beside a wall takes the light of the probes beyond it (behind a thin wall, the lit room's) and of those
+/// behind itself: what the voxels send on is kept to what they see.
+pub fn probe_visible(levels: &[TraceLevel], level: usize, p: Vec3, n: Vec3, at: Vec3) -> bool {
+    let cell = levels[level].cell_size;
+    if (at - p).dot(n) < -BOUNCE_LIFT_CELLS * cell {
+        return false;
+    }
+    // A probe that gathered from inside a voxel (one that could not move out: a thin wall's, whose normals
+    // cancel) sees both of its sides.
+    if super::probes::occupied_at(&levels[super::march::finest_level_containing(levels, at)], at) {
+        return false;
+    }
+    let d = p.distance(at);
+    if d <= 0.5 * cell {
+        return true;
+    }
+    let start = super::march::finest_level_containing(levels, p);
+    let start_cells = 0.5 * cell / levels[start].cell_size;
+    march_cascades(levels, p, (at - p) / d, start, start_cells, d, BOUNCE_VISIBILITY_STEPS).is_none()
+}
+
+/// The faces the probes of `window` that see `p` (read for a voxel of level `level` and unit normal `n`)
+/// hold there (WGSL `window_faces`): Bevy's sampling of the
+/// volume ([`crate::cpu::probes::sample_faces`]: trilinear between the eight probes around `p`, the point
+/// clamped half a probe inside the window, each probe's faces faded toward the window's edges), over the
+/// probes [`probe_visible`] from `p` alone, their weights renormalised over them (all zero where none is).
+/// `probe(q)` is lattice point `q`'s record: its faces and where it gathered from, or `None` where its slot
+/// holds another lattice point or it has not gathered yet (a probe of no light, as Bevy reads it). Zero
+/// outside the window's bounds.
+pub fn window_faces(
+    levels: &[TraceLevel],
+    level: usize,
+    window: &ProbeWindow,
+    probe: impl Fn(IVec3) -> Option<([Vec3; 6], Vec3)>,
+    p: Vec3,
+    n: Vec3,
+) -> [Vec3; 6] {
+    let mut e = [Vec3::ZERO; 6];
+    let (lo, hi) = window.bounds();
+    if p.cmplt(lo).any() || p.cmpgt(hi).any() {
+        return e;
+    }
+    let r = window.counts.as_vec3();
+    let stp = ((p - lo) / (hi - lo) * r).clamp(Vec3::splat(0.5), r - Vec3::splat(0.5)) - Vec3::splat(0.5);
+    let base = stp.floor().as_uvec3().min(window.counts - UVec3::ONE);
+    let f = stp - base.as_vec3();
+    let mut total = 0.0;
+    for corner in 0..8u32 {
+        let o = UVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2);
+        let w = Vec3::select(o.cmpeq(UVec3::ONE), f, Vec3::ONE - f).element_product();
+        if w > 0.0 {
+            let q = window.min + (base + o).min(window.counts - UVec3::ONE).as_ivec3();
+            if let Some((faces, at)) = probe(q) {
+                if !probe_visible(levels, level, p, n, at) {
+                    continue;
+                }
+                let k = w * window.edge_fade(q);
+                for (sum, face) in e.iter_mut().zip(faces) {
+                    *sum += k * face;
+                }
+            }
+            total += w;
+        }
+    }
+    if total > 0.0 {
+        for sum in &mut e {
+            *sum *= 1.0 / total;
+        }
+    }
+    e
+}
+
+/// The light a voxel sends on of the indirect light around it (WGSL `bounced_radiance`): `feedback` times
+/// its albedo times the irradiance over pi that the probes of `window` that see the point
+/// [`BOUNCE_LIFT_CELLS`] off cell `cell`'s centre along its average normal hold there ([`window_faces`];
+/// `probe` as there), read along that normal ([`crate::cpu::probes::ambient_cube`]), times the normal's
+/// length (as [`voxel_radiance`], less where the points' normals disagree). Nothing for a normal shorter
+/// than [`SHADOW_NORMAL_MIN`] or a `feedback` of 0. Added to [`voxel_radiance`] each time a voxel is lit, it
+/// brings one bounce more each time the voxels and then the probes have been updated: a `feedback` of 1 is
+/// every bounce a surface of that albedo gives.
+#[allow(clippy::too_many_arguments)]
+pub fn bounced_radiance(
+    levels: &[TraceLevel],
+    level: usize,
+    cell: IVec3,
+    attributes: &VoxelAttributes,
+    feedback: f32,
+    window: &ProbeWindow,
+    probe: impl Fn(IVec3) -> Option<([Vec3; 6], Vec3)>,
+) -> Vec3 {
+    let length = attributes.normal.length();
+    if !(feedback > 0.0) || length < SHADOW_NORMAL_MIN {
+        return Vec3::ZERO;
+    }
+    let n = attributes.normal / length;
+    let l = &levels[level];
+    let p = cell_center(l, cell) + n * (BOUNCE_LIFT_CELLS * l.cell_size);
+    let faces = window_faces(levels, level, window, probe, p, n);
+    attributes.albedo * (super::probes::ambient_cube(&faces, n) * (length.min(1.0) * feedback))
+}
+
 /// The largest value [`pack_rgb9e5`] holds: `(511 / 512) * 2^16`. Brighter radiance is clamped to it.
 pub const RGB9E5_MAX: f32 = 65_408.0;
 
@@ -442,6 +558,63 @@ mod tests {
         assert!(twice.distance(2.0 * expected) < 1.0e-3 * expected.length());
         let below = Light::Directional { direction: Vec3::Y, color: Vec3::ONE, illuminance: 10_000.0 };
         assert_eq!(voxel_radiance(&levels, 0, IVec3::new(24, 2, 16), &floor, &[below]), Vec3::ZERO);
+    }
+
+    #[test]
+    fn a_voxel_sends_on_its_share_of_the_light_of_the_probes_that_see_it() {
+        let (mips, origin) = floor_under_a_roof();
+        let levels = [TraceLevel { origin, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
+        let floor = VoxelAttributes { albedo: Vec3::new(0.8, 0.5, 0.2), normal: Vec3::Y };
+        // A floor voxel in the open (x = 6.125 m, z = 4.125 m; its top at y = 0.75 m); probes 1 m apart, the
+        // window wide enough that its edges fade nothing there.
+        let cell = IVec3::new(24, 2, 16);
+        let window = crate::cpu::probes::probe_window(Vec3::new(6.0, 1.0, 4.0), 1.0, UVec3::splat(16)).unwrap();
+        // Every probe's +y face 3 (irradiance over pi), every other face 100; each gathered from its lattice
+        // point, or from under the floor (y = 0) where `below`.
+        let mut faces = [Vec3::splat(100.0); 6];
+        faces[2] = Vec3::splat(3.0);
+        let probes = |below: bool| {
+            move |q: IVec3| {
+                let at = window.position(q);
+                Some((faces, if below { Vec3::new(at.x, 0.0, at.z) } else { at }))
+            }
+        };
+        let bounced = bounced_radiance(&levels, 0, cell, &floor, 1.0, &window, probes(false));
+        assert!(bounced.distance(floor.albedo * 3.0) < 1.0e-4, "{bounced}");
+        // Half the feedback, half the light; a normal half cancelled, half again; none for a cancelled normal,
+        // a feedback of 0 or NaN, or probes that have not gathered.
+        let half = bounced_radiance(&levels, 0, cell, &floor, 0.5, &window, probes(false));
+        assert!(half.distance(floor.albedo * 1.5) < 1.0e-4, "{half}");
+        let worn = VoxelAttributes { normal: Vec3::Y * 0.5, ..floor };
+        let worn = bounced_radiance(&levels, 0, cell, &worn, 1.0, &window, probes(false));
+        assert!(worn.distance(floor.albedo * 1.5) < 1.0e-4, "{worn}");
+        let cancelled = VoxelAttributes { normal: Vec3::Y * 0.1, ..floor };
+        assert_eq!(bounced_radiance(&levels, 0, cell, &cancelled, 1.0, &window, probes(false)), Vec3::ZERO);
+        for feedback in [0.0, f32::NAN] {
+            assert_eq!(bounced_radiance(&levels, 0, cell, &floor, feedback, &window, probes(false)), Vec3::ZERO);
+        }
+        assert_eq!(bounced_radiance(&levels, 0, cell, &floor, 1.0, &window, |_| None), Vec3::ZERO);
+        // Probes that gathered under the floor do not see the point over it: their light is not sent on.
+        assert_eq!(bounced_radiance(&levels, 0, cell, &floor, 1.0, &window, probes(true)), Vec3::ZERO);
+        // Nor is the light of the probes under the roof for a voxel of the roof's top beside its edge
+        // (x = 3.875 m): the one above the roof sees it, and takes all of the weight.
+        let roof = IVec3::new(15, 10, 16);
+        let over = |q: IVec3| {
+            let at = window.position(q);
+            Some((if at.y > 2.5 { faces } else { [Vec3::splat(50.0); 6] }, at))
+        };
+        let top = bounced_radiance(&levels, 0, roof, &floor, 1.0, &window, over);
+        assert!(top.distance(floor.albedo * 3.0) < 1.0e-4, "{top}");
+        // Seen: a probe over the floor; not: one under it, one behind a surface facing away from it (the
+        // floor's underside), and one beyond the roof's edge for a point under the roof (a run of it between).
+        let over_floor = Vec3::new(6.1, 1.0, 4.1);
+        assert!(probe_visible(&levels, 0, over_floor, Vec3::Y, Vec3::new(6.0, 2.0, 4.0)));
+        assert!(!probe_visible(&levels, 0, over_floor, Vec3::Y, Vec3::new(6.0, 0.0, 4.0)));
+        assert!(!probe_visible(&levels, 0, Vec3::new(6.1, 0.2, 4.1), Vec3::NEG_Y, Vec3::new(6.0, 1.0, 4.0)));
+        assert!(!probe_visible(&levels, 0, Vec3::new(3.5, 2.0, 4.1), Vec3::Y, Vec3::new(3.5, 3.0, 4.0)));
+        // Nor one that gathered from inside the roof's voxels, in front of the point's plane and a march too
+        // short into the roof to stop.
+        assert!(!probe_visible(&levels, 0, Vec3::new(3.5, 2.0, 4.1), Vec3::X, Vec3::new(3.9, 2.6, 4.1)));
     }
 
     #[test]

@@ -7,43 +7,7 @@
     voxel_grid, MAX_MOVED_OCCLUDERS, voxel_occupied, voxel_texel, voxel_normal_at, march_cascades, level_position,
     finest_level_containing,
 }
-#import bevy_hao::gi_common::unpack_rgb9e5
-
-// src/gi/probes.rs: `GpuProbeParams`.
-struct ProbeParams {
-    // The lattice point of the window's first probe.
-    window_min: vec3<i32>,
-    // Rays a probe traces on an update.
-    rays: u32,
-    // Probes along each axis.
-    counts: vec3<u32>,
-    // This frame's share of the probes, of `phases`.
-    phase: u32,
-    spacing: f32,
-    phases: u32,
-    // The updates a probe's history holds at most this frame.
-    max_frames: u32,
-    // This frame's number, which turns the probes' rays.
-    seed: u32,
-    // The world point the window follows, which its probes fade out away from (`edge_fade`).
-    focus: vec3<f32>,
-    // 1 where these are the near probes and a far window is written beside them (`far_params`), which
-    // `write_probes` fades them into (cpu/far_probes.rs); else 0.
-    far: u32,
-}
-
-// src/gi/probes.rs: `PROBE_RECORD_BYTES`. A probe's history: its six faces (irradiance over pi, rgb), the
-// lattice point it holds (a slot is shared by the lattice points the window's counts apart), the updates it
-// holds, and the seed of the last.
-struct ProbeRecord {
-    faces: array<vec4<f32>, 6>,
-    lattice: vec3<i32>,
-    frames: u32,
-    seed: u32,
-    pad_a: u32,
-    pad_b: u32,
-    pad_c: u32,
-}
+#import bevy_hao::gi_common::{unpack_rgb9e5, ProbeParams, ProbeRecord, window_slot, edge_fade}
 
 @group(0) @binding(0) var<uniform> params: ProbeParams;
 @group(0) @binding(1) var<storage, read_write> records: array<ProbeRecord>;
@@ -77,14 +41,6 @@ const PROBE_FACES: array<vec3<f32>, 6> = array<vec3<f32>, 6>(
     vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, -1.0, 0.0),
     vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(0.0, 0.0, -1.0),
 );
-
-// cpu/probes.rs: ProbeWindow::slot. Lattice point q's record in window `window`: q modulo the counts, x
-// fastest.
-fn window_slot(window: ProbeParams, q: vec3<i32>) -> u32 {
-    let c = vec3<i32>(window.counts);
-    let s = vec3<u32>(((q % c) + c) % c);
-    return s.x + window.counts.x * (s.y + window.counts.y * s.z);
-}
 
 fn probe_slot(q: vec3<i32>) -> u32 {
     return window_slot(params, q);
@@ -302,26 +258,10 @@ fn update_probes(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocat
         records[slot].lattice = q;
         records[slot].frames = n;
         records[slot].seed = params.seed;
+        records[slot].at_x = p.x;
+        records[slot].at_y = p.y;
+        records[slot].at_z = p.z;
     }
-}
-
-// cpu/probes.rs: EDGE_FADE_SPACINGS
-const EDGE_FADE_SPACINGS: f32 = 2.0;
-
-// cpu/probes.rs: ProbeWindow::edge_fade. The weight of lattice point `q`'s faces in the irradiance volume: 1
-// near the focus, falling linearly to 0 over the last EDGE_FADE_SPACINGS spacings (at most half) of the
-// window's reach (ceil(c / 2) - 1.5 spacings) on each axis of at least 4 probes, the product over the axes.
-fn edge_fade(window: ProbeParams, q: vec3<i32>) -> f32 {
-    let d = abs(vec3<f32>(q) - window.focus / window.spacing);
-    var weight = 1.0;
-    for (var a = 0u; a < 3u; a++) {
-        let c = window.counts[a];
-        if c >= 4u {
-            let reach = f32((c + 1u) / 2u) - 1.5;
-            weight *= clamp((reach - d[a]) / min(EDGE_FADE_SPACINGS, 0.5 * reach), 0.0, 1.0);
-        }
-    }
-    return weight;
 }
 
 // cpu/far_probes.rs: far_texel. The far probe `w` (its index in the far window)'s face `f` as its texel

@@ -1,7 +1,9 @@
 //! The lighting pass (`gi_lighting.wgsl`): each occupied voxel's outgoing diffuse radiance under the lights,
-//! into the lighting volume, one slab of each level a frame.
+//! into the lighting volume, one slab of each level a frame; with a bounce feedback, plus its share of the
+//! indirect light the near probes held at the end of last frame.
 
 use super::extract::ExtractedGi;
+use super::probes::{GpuProbeParams, PROBE_RECORD_BYTES};
 use crate::cpu::lighting::PreparedLight;
 use crate::gpu::queue_compute;
 use crate::voxel::{VoxelGridBindings, voxel_grid_layout};
@@ -13,6 +15,7 @@ use bevy::render::render_resource::binding_types::{
 };
 use bevy::render::render_resource::*;
 use bevy::render::renderer::RenderDevice;
+use bevy::render::storage::GpuShaderBuffer;
 use bevy::render::texture::GpuImage;
 use bytemuck::{Pod, Zeroable};
 
@@ -60,6 +63,10 @@ pub(crate) struct GpuGiLightingParams {
     pub(crate) phase: u32,
     pub(crate) phases: u32,
     pub(crate) blocks_z: u32,
+    pub(crate) bounce_feedback: f32,
+    pub(crate) _pad_a: u32,
+    pub(crate) _pad_b: u32,
+    pub(crate) _pad_c: u32,
 }
 
 /// The lighting pass's pipeline and layout.
@@ -67,6 +74,8 @@ pub(crate) struct GpuGiLightingParams {
 pub struct GiLightingPipeline {
     layout: BindGroupLayoutDescriptor,
     pub(crate) pipeline: CachedComputePipelineId,
+    /// Bound as the probes' records where there are none yet (one record's bytes).
+    no_records: Buffer,
 }
 
 impl FromWorld for GiLightingPipeline {
@@ -79,6 +88,8 @@ impl FromWorld for GiLightingPipeline {
                     uniform_buffer::<GpuGiLightingParams>(false),
                     storage_buffer_read_only_sized(false, None),
                     texture_storage_3d(TextureFormat::R32Uint, StorageTextureAccess::WriteOnly),
+                    uniform_buffer::<GpuProbeParams>(false),
+                    storage_buffer_read_only_sized(false, None),
                 ),
             ),
         );
@@ -92,7 +103,13 @@ impl FromWorld for GiLightingPipeline {
             "light_voxels",
             vec![],
         );
-        Self { layout, pipeline }
+        let no_records = world.resource::<RenderDevice>().create_buffer(&BufferDescriptor {
+            label: Some("hao_gi_lighting_no_records"),
+            size: PROBE_RECORD_BYTES,
+            usage: BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        Self { layout, pipeline, no_records }
     }
 }
 
@@ -111,7 +128,9 @@ pub(crate) fn lighting_workgroups(dims: UVec3, levels: u32, phases: u32) -> (UVe
     (UVec3::new(blocks.x, blocks.y, levels * blocks.z.div_ceil(phases)), blocks.z)
 }
 
-/// Prepares the lighting pass: the lights, this frame's slab, and the lighting volume as a storage texture.
+/// Prepares the lighting pass: the lights, this frame's slab, the lighting volume as a storage texture, and
+/// the near probes' window and records for the bounce feedback (none while they are not ready).
+#[allow(clippy::too_many_arguments)]
 pub fn prepare_gi_lighting(
     mut commands: Commands,
     device: Res<RenderDevice>,
@@ -120,6 +139,7 @@ pub fn prepare_gi_lighting(
     extracted: Res<ExtractedGi>,
     voxel_grid: Option<Res<VoxelGridBindings>>,
     images: Res<RenderAssets<GpuImage>>,
+    buffers: Res<RenderAssets<GpuShaderBuffer>>,
     mut frame: Local<u32>,
 ) {
     commands.remove_resource::<GiLightingFrame>();
@@ -131,10 +151,27 @@ pub fn prepare_gi_lighting(
     }
     let phases = settings.lighting_frames.max(1);
     let (workgroups, blocks_z) = lighting_workgroups(grid.levels[0].dims, grid.level_count, phases);
-    let params =
-        GpuGiLightingParams { light_count: extracted.lights.len() as u32, phase: *frame % phases, phases, blocks_z };
+    // The near probes as last frame left them (the probe passes run after this one), where they are.
+    let probes = extracted.window.zip(buffers.get(&assets.probe_records));
+    let window = probes.map_or(GpuProbeParams::zeroed(), |(w, _)| GpuProbeParams {
+        window_min: w.min,
+        counts: w.counts,
+        spacing: w.spacing,
+        focus: w.focus,
+        ..GpuProbeParams::zeroed()
+    });
+    let records = probes.map_or(&pipeline.no_records, |(_, r)| &r.buffer);
+    let params = GpuGiLightingParams {
+        light_count: extracted.lights.len() as u32,
+        phase: *frame % phases,
+        phases,
+        blocks_z,
+        bounce_feedback: if probes.is_some() { settings.bounce_feedback } else { 0.0 },
+        ..GpuGiLightingParams::zeroed()
+    };
     *frame = frame.wrapping_add(1);
     let params = crate::gpu::uniform_buffer(&device, "hao_gi_lighting_params", &params, BufferUsages::UNIFORM);
+    let window = crate::gpu::uniform_buffer(&device, "hao_gi_lighting_probe_window", &window, BufferUsages::UNIFORM);
     // At least one light's worth: a storage binding is never empty.
     let mut lights: Vec<GpuGiLight> = extracted.lights.iter().map(GpuGiLight::from).collect();
     if lights.is_empty() {
@@ -148,7 +185,13 @@ pub fn prepare_gi_lighting(
     let bind_group = device.create_bind_group(
         "hao_gi_lighting_bind_group",
         &cache.get_bind_group_layout(&pipeline.layout),
-        &BindGroupEntries::sequential((params.as_entire_binding(), lights.as_entire_binding(), &radiance.texture_view)),
+        &BindGroupEntries::sequential((
+            params.as_entire_binding(),
+            lights.as_entire_binding(),
+            &radiance.texture_view,
+            window.as_entire_binding(),
+            records.as_entire_binding(),
+        )),
     );
     let empty = device.create_bind_group(
         "hao_gi_empty_bind_group",

@@ -6,9 +6,11 @@
 //! 1. **lighting** (`gi_lighting.wgsl`, GPU span `hao/gi_lighting`): each occupied voxel's outgoing
 //!    diffuse radiance under Bevy's directional, point and spot lights, each shadowed by a march through
 //!    the voxels toward it, from the multi-valued voxels' average albedo and normal, in Bevy's units before
-//!    exposure (cd/m^2), into the *lighting volume*: an `R32Uint` texture of `rgb9e5` words laid out as the
-//!    voxel texture's mip 0 (4 bytes a voxel). One of [`VoxelGlobalIllumination::lighting_frames`] slabs of
-//!    each level a frame, in turn;
+//!    exposure (cd/m^2), plus [`VoxelGlobalIllumination::bounce_feedback`] times its albedo times the
+//!    indirect light the probes held around it at the end of last frame (further bounces), into the
+//!    *lighting volume*: an `R32Uint` texture of `rgb9e5` words laid out as the voxel texture's mip 0 (4
+//!    bytes a voxel). One of [`VoxelGlobalIllumination::lighting_frames`] slabs of each level a frame, in
+//!    turn;
 //! 2. **probes** (`gi_probes.wgsl`, `hao/gi_probes`): a grid of probes following the camera (snapped to
 //!    their spacing, stored toroidally), one of [`VoxelGlobalIllumination::probe_frames`] of them a frame,
 //!    each moved out of the voxel it may lie in, gathers the lighting volume's light along
@@ -18,8 +20,8 @@
 //!    behind the `LightProbe` + `IrradianceVolume` the plugin keeps around the camera, which Bevy's PBR
 //!    applies to every mesh (forward and deferred), dimmed by the AO as all indirect light.
 //!
-//! The CPU twins: [`crate::cpu::lighting`] (`voxel_radiance`, `light_reaches`, `pack_rgb9e5`) and
-//! [`crate::cpu::probes`].
+//! The CPU twins: [`crate::cpu::lighting`] (`voxel_radiance`, `light_reaches`, `bounced_radiance`,
+//! `pack_rgb9e5`) and [`crate::cpu::probes`].
 
 pub(crate) mod extract;
 pub(crate) mod lighting;
@@ -49,7 +51,8 @@ use bevy::shader::load_shader_library;
 /// shadows included: [`crate::HaoDebugView::LitVoxels`] shows it), gathered by a grid of probes around the
 /// camera through the voxels, and written into an irradiance volume (a `LightProbe` + `IrradianceVolume`
 /// the plugin keeps) that Bevy's own PBR applies to every mesh in it, in forward and deferred rendering, as
-/// one bounce of diffuse indirect light, dimmed by the AO. Bevy still adds its `GlobalAmbientLight` on top
+/// diffuse indirect light, dimmed by the AO; the voxels take a share of it back
+/// ([`Self::bounce_feedback`]), so the light bounces on. Bevy still adds its `GlobalAmbientLight` on top
 /// (the probes' rays that escape bring no light), and an environment map's diffuse light is turned off by
 /// Bevy wherever an irradiance volume is in view. Emissive materials do not light the voxels.
 ///
@@ -109,6 +112,13 @@ pub struct VoxelGlobalIllumination {
     /// level's voxels, so a light that moves or changes shows in the voxels within this many frames (1 to
     /// 16; 1: all of them every frame).
     pub lighting_frames: u32,
+    /// How much of the indirect light the voxels send on (0 to 1; Godot's SDFGI calls it the same): each time
+    /// a voxel is lit it also takes this share of the light the probes hold around it (at the end of last
+    /// frame) times its albedo, so the light bounces on, one bounce more each time the voxels and the
+    /// probes have been updated (`lighting_frames` + `probe_frames` frames). 1, the default, is every
+    /// bounce the surfaces' albedo gives, as the ray-traced reference with as many bounces; 0 is one bounce
+    /// (the lights' light off the voxels, and no more). Only the near probes' light is sent on.
+    pub bounce_feedback: f32,
 }
 
 impl Default for VoxelGlobalIllumination {
@@ -123,6 +133,7 @@ impl Default for VoxelGlobalIllumination {
             probe_frames: 4,
             accumulation_frames: 32,
             lighting_frames: 4,
+            bounce_feedback: 1.0,
         }
     }
 }
@@ -166,6 +177,7 @@ impl VoxelGlobalIllumination {
         };
         check_f32("intensity", &mut g.intensity, 0.0, 1000.0, 1.0);
         check_f32("probe_spacing", &mut g.probe_spacing, 0.01, 100.0, 0.5);
+        check_f32("bounce_feedback", &mut g.bounce_feedback, 0.0, 1.0, 1.0);
         let window = |counts: UVec3| {
             let counts = counts.clamp(UVec3::splat(2), UVec3::splat(128));
             if counts.element_product() > MAX_PROBES { UVec3::new(64, 32, 64) } else { counts }
@@ -635,9 +647,13 @@ mod tests {
             probe_frames: 0,
             accumulation_frames: 100_000,
             lighting_frames: 0,
+            bounce_feedback: 7.0,
         };
         let (g, fixes) = bad.sanitized();
-        assert_eq!(fixes.len(), 9, "{fixes:?}");
+        assert_eq!(fixes.len(), 10, "{fixes:?}");
+        assert_eq!(g.bounce_feedback, 1.0, "a feedback over 1 would add light with each bounce");
+        let nan = VoxelGlobalIllumination { bounce_feedback: f32::NAN, ..default() }.sanitized().0;
+        assert_eq!(nan.bounce_feedback, 1.0);
         assert_eq!((g.intensity, g.probe_spacing, g.probe_counts), (1.0, 0.01, UVec3::new(2, 128, 8)));
         // The far probes at least twice as far apart, and enough of them to hold the near window.
         let needed = crate::cpu::far_probes::far_counts_needed(g.probe_counts, 2);

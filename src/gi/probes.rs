@@ -20,7 +20,7 @@ use bevy::render::texture::GpuImage;
 use bytemuck::{Pod, Zeroable};
 
 /// Bytes of a probe's record (WGSL `ProbeRecord`): six faces of four floats, its lattice point, the
-/// updates it holds, the seed of the last, padding.
+/// updates it holds, the seed of the last, and where it gathered from (three floats).
 pub const PROBE_RECORD_BYTES: u64 = 128;
 
 /// `update_probes`' workgroups along x (the rest along y: WGSL `PROBE_GROUPS_X`).

@@ -2,7 +2,7 @@
 //! against the scene's real triangles, through a BVH (obvhs), with the same maximum distance, falloff and
 //! intensity as the HAO settings and the same ray directions as the GPU's (`cpu::ao::hemisphere_direction`).
 //! And the indirect diffuse light that voxel global illumination will be measured against
-//! ([`reference_indirect`]): one bounce of Bevy's lights off the triangles' albedo, shadow rays included.
+//! ([`reference_indirect`]): bounces of Bevy's lights off the triangles' albedo, shadow rays included.
 
 use bevy::math::{Vec2, Vec3, Vec3A};
 use bevy_hao::cpu::TriangleMesh;
@@ -144,12 +144,11 @@ pub fn reference_ao(
 }
 
 /// The indirect diffuse irradiance (lux per colour channel, before exposure) at `position` (world) with
-/// shading normal `normal`: one bounce of `lights` off the scene's triangles, from `rays` cosine-weighted
-/// rays (`cpu::ao::hemisphere_direction`, turned by `rotation`). A ray that hits a triangle takes its
-/// outgoing radiance, `albedo / pi * E * max(n . l, 0)` for each light whose shadow ray reaches it (the face's
-/// normal turned toward the ray, as a two-sided surface); a ray that hits nothing takes `sky` (the radiance of
-/// the environment or `GlobalAmbientLight`). The irradiance is pi times the rays' mean radiance. `epsilon`
-/// (world units) lifts each ray's start off its surface.
+/// shading normal `normal`: `bounces` bounces of `lights` off the scene's triangles (1: one; at least 1),
+/// from `rays` cosine-weighted rays (`cpu::ao::hemisphere_direction`, turned by `rotation`). A ray that hits
+/// a triangle takes its outgoing radiance ([`path_radiance`]), a ray that hits nothing takes `sky` (the
+/// radiance of the environment or `GlobalAmbientLight`). The irradiance is pi times the rays' mean radiance.
+/// `epsilon` (world units) lifts each ray's start off its surface.
 #[allow(clippy::too_many_arguments)]
 pub fn reference_indirect(
     scene: &ReferenceScene,
@@ -160,8 +159,9 @@ pub fn reference_indirect(
     rays: u32,
     rotation: Vec2,
     epsilon: f32,
+    bounces: u32,
 ) -> Vec3 {
-    let [even, odd] = reference_indirect_halves(scene, lights, sky, position, normal, rays, rotation, epsilon);
+    let [even, odd] = reference_indirect_halves(scene, lights, sky, position, normal, rays, rotation, epsilon, bounces);
     let even_rays = rays.div_ceil(2) as f32;
     (even * even_rays + odd * (rays - rays.div_ceil(2)) as f32) / rays.max(1) as f32
 }
@@ -179,42 +179,73 @@ pub fn reference_indirect_halves(
     rays: u32,
     rotation: Vec2,
     epsilon: f32,
+    bounces: u32,
 ) -> [Vec3; 2] {
     let origin = position + normal * epsilon;
     let basis = orthonormal_basis(normal);
     let mut sums = [Vec3::ZERO; 2];
+    // Each ray's path draws its own further directions.
+    let seed = rotation.x.to_bits() ^ rotation.y.to_bits().rotate_left(16);
     for i in 0..rays {
         let dir = hemisphere_direction(basis, i, rays, rotation);
-        let radiance = match scene.closest_hit(origin, dir, epsilon, f32::INFINITY) {
-            None => sky,
-            Some((t, triangle)) => {
-                let n = scene.normal(triangle);
-                let n = if n.dot(dir) > 0.0 { -n } else { n };
-                let hit = origin + dir * t + n * epsilon;
-                lights
-                    .iter()
-                    .filter_map(|light| light.incident(hit))
-                    .filter(|incident| n.dot(incident.to_light) > 0.0)
-                    .filter(|incident| scene.closest_hit(hit, incident.to_light, epsilon, incident.distance).is_none())
-                    .map(|incident| diffuse_radiance(scene.albedo[triangle], n, &incident))
-                    .sum()
-            }
-        };
-        sums[(i % 2) as usize] += radiance;
+        let path = seed ^ i.wrapping_mul(0x9e37_79b9);
+        sums[(i % 2) as usize] += path_radiance(scene, lights, sky, origin, dir, epsilon, bounces.max(1), path);
     }
     let counts = [rays.div_ceil(2), rays / 2];
     [0, 1].map(|k| sums[k] * std::f32::consts::PI / counts[k].max(1) as f32)
 }
 
-/// A hash of an integer to [0, 1): the tools' per-pixel ray rotations and jitters (the same pixel gets the
-/// same rays in every frame and every run).
-pub fn hash(mut x: u32) -> f32 {
+/// The radiance a ray from `origin` along `dir` brings back, of `bounces` bounces of the lights: `sky` where
+/// it hits nothing; where it hits a triangle (its face's normal turned toward the ray, a two-sided surface),
+/// the triangle's outgoing radiance, `albedo / pi * E * max(n . l, 0)` for each light whose shadow ray reaches
+/// it, and for more than one bounce its albedo times the radiance of one more cosine-weighted ray from there
+/// of a bounce fewer (pi times one ray's radiance estimates the irradiance there: a path traced one ray at a
+/// time, its directions drawn from `path`).
+#[allow(clippy::too_many_arguments)]
+pub fn path_radiance(
+    scene: &ReferenceScene,
+    lights: &[Light],
+    sky: Vec3,
+    origin: Vec3,
+    dir: Vec3,
+    epsilon: f32,
+    bounces: u32,
+    path: u32,
+) -> Vec3 {
+    let Some((t, triangle)) = scene.closest_hit(origin, dir, epsilon, f32::INFINITY) else { return sky };
+    let n = scene.normal(triangle);
+    let n = if n.dot(dir) > 0.0 { -n } else { n };
+    let hit = origin + dir * t + n * epsilon;
+    let albedo = scene.albedo[triangle];
+    let direct: Vec3 = lights
+        .iter()
+        .filter_map(|light| light.incident(hit))
+        .filter(|incident| n.dot(incident.to_light) > 0.0)
+        .filter(|incident| scene.closest_hit(hit, incident.to_light, epsilon, incident.distance).is_none())
+        .map(|incident| diffuse_radiance(albedo, n, &incident))
+        .sum();
+    if bounces <= 1 || albedo.max_element() <= 0.0 {
+        return direct;
+    }
+    let next = path.wrapping_mul(0x2c1b_3c6d).wrapping_add(bounces);
+    let rotation = Vec2::new(hash(next), hash(next ^ 0x68e3_1da4));
+    let on = hemisphere_direction(orthonormal_basis(n), 0, 1, rotation);
+    direct + albedo * path_radiance(scene, lights, sky, hit, on, epsilon, bounces - 1, hash_u32(next))
+}
+
+/// A 32-bit integer hash (the bits [`hash`] takes its value from).
+fn hash_u32(mut x: u32) -> u32 {
     x ^= x >> 16;
     x = x.wrapping_mul(0x7feb_352d);
     x ^= x >> 15;
     x = x.wrapping_mul(0x846c_a68b);
-    x ^= x >> 16;
-    (x >> 8) as f32 / (1u32 << 24) as f32
+    x ^ (x >> 16)
+}
+
+/// A hash of an integer to [0, 1): the tools' per-pixel ray rotations and jitters (the same pixel gets the
+/// same rays in every frame and every run).
+pub fn hash(x: u32) -> f32 {
+    (hash_u32(x) >> 8) as f32 / (1u32 << 24) as f32
 }
 
 #[cfg(test)]
@@ -287,13 +318,15 @@ mod tests {
             256,
             Vec2::ZERO,
             1e-4,
+            1,
         );
         assert!((e - Vec3::new(500.0, 250.0, 0.0)).abs().max_element() < 1.0, "{e}");
         // Its halves: each the same irradiance from half the rays, their mean the whole's (odd counts too).
         for rays in [255, 256] {
             let at = (Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y);
-            let whole = reference_indirect(&scene, &[sun], Vec3::ZERO, at.0, at.1, rays, Vec2::ZERO, 1e-4);
-            let [even, odd] = reference_indirect_halves(&scene, &[sun], Vec3::ZERO, at.0, at.1, rays, Vec2::ZERO, 1e-4);
+            let whole = reference_indirect(&scene, &[sun], Vec3::ZERO, at.0, at.1, rays, Vec2::ZERO, 1e-4, 1);
+            let [even, odd] =
+                reference_indirect_halves(&scene, &[sun], Vec3::ZERO, at.0, at.1, rays, Vec2::ZERO, 1e-4, 1);
             let mean = (even * rays.div_ceil(2) as f32 + odd * (rays / 2) as f32) / rays as f32;
             assert!((mean - whole).abs().max_element() < 1e-3, "{mean} {whole}");
             assert!((even - odd).abs().max_element() < 1.0, "{even} {odd}");
@@ -303,15 +336,38 @@ mod tests {
         let roof = [(-1e3, -1e3), (1e3, -1e3), (1e3, 1e3), (-1e3, 1e3)].map(|(x, z)| Vec3::new(x, 3.0, z));
         shaded.append(&TriangleMesh::new(roof.to_vec(), vec![[0, 1, 2], [0, 2, 3]]), Default::default());
         let scene = ReferenceScene::with_albedo(&shaded, |_| Vec3::new(0.5, 0.25, 0.0));
-        let e =
-            reference_indirect(&scene, &[sun], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y, 64, Vec2::ZERO, 1e-4);
+        let e = reference_indirect(
+            &scene,
+            &[sun],
+            Vec3::ONE,
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::NEG_Y,
+            64,
+            Vec2::ZERO,
+            1e-4,
+            1,
+        );
         assert_eq!(e, Vec3::ZERO);
         // Facing up, toward the roof, under no light at all but a sky of radiance 1 that it hides: none.
-        let e = reference_indirect(&scene, &[], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 64, Vec2::ZERO, 1e-4);
+        let e = reference_indirect(&scene, &[], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 64, Vec2::ZERO, 1e-4, 1);
         assert_eq!(e, Vec3::ZERO);
         // Facing up over the floor alone, every ray goes to the sky: pi times its radiance.
         let open = ReferenceScene::new(&floor);
-        let e = reference_indirect(&open, &[sun], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 16, Vec2::ZERO, 1e-4);
+        let e =
+            reference_indirect(&open, &[sun], Vec3::ONE, Vec3::new(0.0, 1.0, 0.0), Vec3::Y, 16, Vec2::ZERO, 1e-4, 1);
         assert!((e - Vec3::splat(std::f32::consts::PI)).abs().max_element() < 1e-4, "{e}");
+        // Facing down over the floor under a sky of radiance 1 and no light: one bounce brings nothing (the
+        // floor is lit by no light); two, the floor's albedo times the sky it sees; more, no more (the floor's
+        // further rays all escape).
+        let scene_open = ReferenceScene::with_albedo(&floor, |_| Vec3::new(0.5, 0.25, 0.0));
+        let floor_lit = |bounces| {
+            let at = (Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y);
+            reference_indirect(&scene_open, &[], Vec3::ONE, at.0, at.1, 64, Vec2::new(0.2, 0.6), 1e-4, bounces)
+        };
+        assert_eq!(floor_lit(1), Vec3::ZERO);
+        let expected = Vec3::new(0.5, 0.25, 0.0) * std::f32::consts::PI;
+        for bounces in [2, 3] {
+            assert!((floor_lit(bounces) - expected).abs().max_element() < 1e-4, "{bounces}: {}", floor_lit(bounces));
+        }
     }
 }

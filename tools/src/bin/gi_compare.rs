@@ -4,8 +4,9 @@
 //! half that error.
 //!
 //! Each pixel's camera ray meets the scene's triangles (Bevy's default perspective, 45 degrees vertical);
-//! from that point `--rays` cosine-weighted rays gather one bounce of the sun off the triangles' albedo,
-//! shadow rays included, the sky's radiance where they miss (`bevy_hao_tools::reference::reference_indirect`).
+//! from that point `--rays` cosine-weighted rays gather `--bounces` bounces of the sun off the triangles'
+//! albedo (a path traced one ray at a time past the first), shadow rays included, the sky's radiance where
+//! they miss (`bevy_hao_tools::reference::reference_indirect`).
 //! The built-in GI scenes (`builtin:gi-room`, `builtin:thin-wall`) carry their parts' albedo; any other scene
 //! is white. The best constant is, per colour channel, the median of the pixels' irradiance (the constant
 //! that minimises the mean absolute error). It prints both, with the error relative to the mean irradiance,
@@ -29,7 +30,9 @@
 //! ```sh
 //! cargo run --release -p bevy_hao_tools --bin gi_compare -- [SCENE] [--size 320x180] [--rays 1024]
 //!     [--sun X,Y,Z] [--illuminance LUX] [--sky R,G,B] [--camera X,Y,Z --look X,Y,Z] [--voxel-twin CELL [--probes M]]
-//!     [--gpu [--cascades L,C,F] [--probe-spacing M] [--probe-rays N]] [--out gi_compare.png]
+//!     [--bounces N] [--gpu [--cascades L,C,F] [--probe-spacing M] [--probe-rays N] [--bounce-feedback X]
+//!     [--frames N]]
+//!     [--out gi_compare.png]
 //! ```
 
 use bevy::prelude::*;
@@ -56,6 +59,10 @@ struct Args {
     /// ceiling's opening onto the red wall's foot and the floor before it).
     #[arg(long, value_parser = args::vec3, default_value = "-1,-0.9,0.15")]
     sun: Vec3,
+    /// Bounces the reference traces (1: the sun's light off the triangles, and no more). The plugin's
+    /// default `bounce_feedback` of 1 sends on every bounce: compare it with 8 or more.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64))]
+    bounces: u32,
     /// The sun's illuminance, lux.
     #[arg(long, default_value_t = 10_000.0)]
     illuminance: f32,
@@ -98,6 +105,13 @@ struct Args {
     /// sanitizes the values, with a warning).
     #[arg(long, value_parser = args::uvec3, requires = "gpu")]
     probe_counts: Option<UVec3>,
+    /// With --gpu: `VoxelGlobalIllumination::bounce_feedback` (0: one bounce; default the component's).
+    #[arg(long, requires = "gpu")]
+    bounce_feedback: Option<f32>,
+    /// With --gpu: the frames run before the volume is read (default: four histories of every probe,
+    /// 20 + `lighting_frames` + 4 x `accumulation_frames` x `probe_frames`).
+    #[arg(long, requires = "gpu")]
+    frames: Option<u32>,
     /// With --gpu: `VoxelGlobalIllumination::far_spacing` (0: no far probes; default the component's). The
     /// tool turns the far probes on where the device has no binding arrays (lavapipe), which Bevy's PBR
     /// needs to apply them but the tool does not: it samples the volumes itself as Bevy's PBR does.
@@ -201,7 +215,17 @@ fn main() {
                             bar.inc(1);
                             surfaces[i as usize].map(|(p, n)| {
                                 let rotation = Vec2::new(hash(i * 2 + 1), hash(i * 2 + 2));
-                                reference_indirect_halves(scene, &[sun], args.sky, p, n, args.rays, rotation, epsilon)
+                                reference_indirect_halves(
+                                    scene,
+                                    &[sun],
+                                    args.sky,
+                                    p,
+                                    n,
+                                    args.rays,
+                                    rotation,
+                                    epsilon,
+                                    args.bounces,
+                                )
                             })
                         })
                         .collect::<Vec<_>>()
@@ -223,7 +247,8 @@ fn main() {
         std::process::exit(1);
     }
     println!(
-        "{} ({} triangles), camera at {:.2} looking {:.2}; sun along {:.2}, {} lux; sky {}; {}x{}, {} rays a pixel",
+        "{} ({} triangles), camera at {:.2} looking {:.2}; sun along {:.2}, {} lux; sky {}; {}x{}, {} rays a pixel, \
+         {} bounce(s)",
         args.scene,
         mesh.triangle_count(),
         camera.translation,
@@ -233,7 +258,8 @@ fn main() {
         args.sky,
         w,
         h,
-        args.rays
+        args.rays,
+        args.bounces
     );
     let estimates: Vec<(&str, &[Option<Vec3>])> = [
         voxel.as_deref().map(|v| ("the voxels' one bounce (CPU prototype)", v)),
@@ -474,6 +500,9 @@ fn gpu_bounce(
     if let Some(counts) = args.probe_counts {
         gi.probe_counts = counts;
     }
+    if let Some(feedback) = args.bounce_feedback {
+        gi.bounce_feedback = feedback;
+    }
     if let Some(far) = args.far_spacing {
         gi.far_spacing = far;
     }
@@ -521,8 +550,10 @@ fn gpu_bounce(
         }
         app.insert_resource(bevy_hao::GiFarProbesSupport(Ok(())));
     }
-    // Until the scene is voxelized, every voxel lit and every probe settled: four windows of its history.
-    let frames = 20 + gi.lighting_frames + 4 * gi.accumulation_frames * gi.probe_frames;
+    // Until the scene is voxelized, every voxel lit and every probe settled: four windows of its history
+    // (or as many frames as asked: the light the voxels send on settles over several histories where the
+    // surfaces send most of it on).
+    let frames = args.frames.unwrap_or(20 + gi.lighting_frames + 4 * gi.accumulation_frames * gi.probe_frames);
     let bar = harness::progress_bar(frames as u64, "GPU frames");
     for _ in 0..frames {
         app.update();
@@ -556,7 +587,8 @@ fn gpu_bounce(
     let near_faces = read_faces(assets.irradiance.clone(), window.counts);
     let far = assets.far.as_ref().zip(far_window).map(|(f, w)| (w, read_faces(f.irradiance.clone(), w.counts)));
     eprintln!(
-        "--gpu: {} probes {} apart around the camera{}, {} rays a probe, cascades {levels} x {cells}^3 from {finest_cell_size}",
+        "--gpu: {} probes {} apart around the camera{}, {} rays a probe, cascades {levels} x {cells}^3 from \
+         {finest_cell_size}, bounce feedback {}, {frames} frames",
         window.len(),
         window.spacing,
         far.as_ref().map_or(", no far probes".to_string(), |(w, _)| format!(
@@ -564,7 +596,8 @@ fn gpu_bounce(
             w.len(),
             w.spacing
         )),
-        gi.rays
+        gi.rays,
+        gi.bounce_feedback
     );
     let far = far.as_ref().map(|(w, f)| (w, f as &dyn Fn(UVec3) -> [Vec3; 6]));
     surfaces

@@ -101,7 +101,7 @@ mod tests {
         let sun = sun(Vec3::new(-1.0, -0.8, 0.0));
         let ceiling = |x: f32| {
             let at = Vec3::new(x, 3.0, 0.0);
-            reference_indirect(&scene, &[sun], Vec3::ZERO, at, Vec3::NEG_Y, 1024, Vec2::new(0.3, 0.7), 1e-3)
+            reference_indirect(&scene, &[sun], Vec3::ZERO, at, Vec3::NEG_Y, 1024, Vec2::new(0.3, 0.7), 1e-3, 1)
         };
         let (near_red, near_green) = (ceiling(-2.5), ceiling(2.5));
         // The white ceiling's indirect light is the red wall's colour (red eight times green and blue), and
@@ -118,7 +118,17 @@ mod tests {
         let scene = ReferenceScene::with_albedo(&mesh, |t| albedo[t]);
         let sun = sun(Vec3::new(-0.3, -1.0, 0.2));
         let at = |x: f32| {
-            reference_indirect(&scene, &[sun], Vec3::splat(0.1), Vec3::new(x, 1.0, 0.3), Vec3::Y, 256, Vec2::ZERO, 1e-3)
+            reference_indirect(
+                &scene,
+                &[sun],
+                Vec3::splat(0.1),
+                Vec3::new(x, 1.0, 0.3),
+                Vec3::Y,
+                256,
+                Vec2::ZERO,
+                1e-3,
+                1,
+            )
         };
         let (lit, closed) = (at(2.0), at(-2.0));
         assert!(lit.x > 100.0, "{lit}");
