@@ -23,8 +23,8 @@ cargo run --release -p bevy_hao_tools --bin ao_compare -- --size 320x180 --rays 
 # indirect light beside the plugin's (gi_compare's first panel of each row, under the example's sun).
 room=(builtin:gi-room --headless --size 480x270 --camera=2.47,0.9,0 --look=-3,0.8,0)
 run sibenik -- "${room[@]}" --frames 40 --screenshot $out/gi_room_no_gi.png
-run sibenik -- "${room[@]}" --gi --frames 420 --screenshot $out/gi_room_gi.png
-cargo run --release -p bevy_hao_tools --bin gi_compare -- builtin:gi-room --gpu --sun=-0.4,-0.55,-0.25 \
+run sibenik -- "${room[@]}" --gi --frames 840 --screenshot $out/gi_room_gi.png
+cargo run --release -p bevy_hao_tools --bin gi_compare -- builtin:gi-room --gpu --bounces 16 --sun=-0.4,-0.55,-0.25 \
     --illuminance 25000 --camera=2.47,0.9,0 --look=-3,0.8,0 --size 480x270 --out /tmp/gi_room_compare.png
 python3 -c "
 from PIL import Image
