@@ -17,7 +17,7 @@
 use super::attributes::VoxelAttributes;
 use super::march::{TraceLevel, march_cascades};
 use super::probes::ProbeWindow;
-use glam::{IVec3, UVec3, Vec3};
+use glam::{IVec3, Vec3};
 use std::f32::consts::{FRAC_PI_2, PI};
 
 /// A light, as Bevy's PBR shader sees it.
@@ -347,31 +347,20 @@ pub fn window_faces(
     n: Vec3,
 ) -> [Vec3; 6] {
     let mut e = [Vec3::ZERO; 6];
-    let (lo, hi) = window.bounds();
-    if p.cmplt(lo).any() || p.cmpgt(hi).any() {
-        return e;
-    }
-    let r = window.counts.as_vec3();
-    let stp = ((p - lo) / (hi - lo) * r).clamp(Vec3::splat(0.5), r - Vec3::splat(0.5)) - Vec3::splat(0.5);
-    let base = stp.floor().as_uvec3().min(window.counts - UVec3::ONE);
-    let f = stp - base.as_vec3();
+    let Some(corners) = super::probes::trilinear_probes(window, p) else { return e };
     let mut total = 0.0;
-    for corner in 0..8u32 {
-        let o = UVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2);
-        let w = Vec3::select(o.cmpeq(UVec3::ONE), f, Vec3::ONE - f).element_product();
-        if w > 0.0 {
-            let q = window.min + (base + o).min(window.counts - UVec3::ONE).as_ivec3();
-            if let Some((faces, at)) = probe(q) {
-                if !probe_visible(levels, level, p, n, at) {
-                    continue;
-                }
-                let k = w * window.edge_fade(q);
-                for (sum, face) in e.iter_mut().zip(faces) {
-                    *sum += k * face;
-                }
+    for (c, w) in corners {
+        let q = window.min + c.as_ivec3();
+        if let Some((faces, at)) = probe(q) {
+            if !probe_visible(levels, level, p, n, at) {
+                continue;
             }
-            total += w;
+            let k = w * window.edge_fade(q);
+            for (sum, face) in e.iter_mut().zip(faces) {
+                *sum += k * face;
+            }
         }
+        total += w;
     }
     if total > 0.0 {
         for sum in &mut e {
@@ -568,7 +557,7 @@ mod tests {
         // A floor voxel in the open (x = 6.125 m, z = 4.125 m; its top at y = 0.75 m); probes 1 m apart, the
         // window wide enough that its edges fade nothing there.
         let cell = IVec3::new(24, 2, 16);
-        let window = crate::cpu::probes::probe_window(Vec3::new(6.0, 1.0, 4.0), 1.0, UVec3::splat(16)).unwrap();
+        let window = crate::cpu::probes::probe_window(Vec3::new(6.0, 1.0, 4.0), 1.0, glam::UVec3::splat(16)).unwrap();
         // Every probe's +y face 3 (irradiance over pi), every other face 100; each gathered from its lattice
         // point, or from under the floor (y = 0) where `below`.
         let mut faces = [Vec3::splat(100.0); 6];

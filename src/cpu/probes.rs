@@ -360,6 +360,21 @@ pub fn sample_volume(window: &ProbeWindow, faces: impl Fn(UVec3) -> [Vec3; 6], p
 /// samples it; `faces` of a probe by its index in the window), before the ambient cube's weights; `None`
 /// outside the window's bounds.
 pub fn sample_faces(window: &ProbeWindow, faces: impl Fn(UVec3) -> [Vec3; 6], p: Vec3) -> Option<[Vec3; 6]> {
+    let mut e = [Vec3::ZERO; 6];
+    for (c, w) in trilinear_probes(window, p)? {
+        let probe = faces(c);
+        for k in 0..PROBE_FACES.len() {
+            e[k] += w * probe[k];
+        }
+    }
+    Some(e)
+}
+
+/// The probes Bevy's PBR reads at `p` from the volume over `window` and their trilinear weights (each a
+/// probe's index in the window, the point clamped half a probe inside the window, as
+/// `irradiance_volume.wgsl` samples it; corners of weight 0 left out), or `None` outside the window's
+/// bounds: what [`sample_faces`] and `cpu::lighting::window_faces` weigh.
+pub fn trilinear_probes(window: &ProbeWindow, p: Vec3) -> Option<impl Iterator<Item = (UVec3, f32)>> {
     let (lo, hi) = window.bounds();
     if p.cmplt(lo).any() || p.cmpgt(hi).any() {
         return None;
@@ -368,18 +383,12 @@ pub fn sample_faces(window: &ProbeWindow, faces: impl Fn(UVec3) -> [Vec3; 6], p:
     let stp = ((p - lo) / (hi - lo) * r).clamp(Vec3::splat(0.5), r - Vec3::splat(0.5)) - Vec3::splat(0.5);
     let base = stp.floor().as_uvec3().min(window.counts - UVec3::ONE);
     let f = stp - base.as_vec3();
-    let mut e = [Vec3::ZERO; 6];
-    for corner in 0..8u32 {
+    let last = window.counts - UVec3::ONE;
+    Some((0..8u32).filter_map(move |corner| {
         let o = UVec3::new(corner & 1, (corner >> 1) & 1, corner >> 2);
         let w = Vec3::select(o.cmpeq(UVec3::ONE), f, Vec3::ONE - f).element_product();
-        if w > 0.0 {
-            let probe = faces((base + o).min(window.counts - UVec3::ONE));
-            for k in 0..PROBE_FACES.len() {
-                e[k] += w * probe[k];
-            }
-        }
-    }
-    Some(e)
+        (w > 0.0).then(|| ((base + o).min(last), w))
+    }))
 }
 
 #[cfg(test)]

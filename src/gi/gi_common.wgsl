@@ -3,6 +3,7 @@
 // further bounces). CPU twins: `bevy_hao::cpu::lighting` (`PreparedLight`, `pack_rgb9e5`) and
 // `bevy_hao::cpu::probes` (`ProbeWindow`).
 #define_import_path bevy_hao::gi_common
+#import bevy_hao::voxel_grid::{voxel_grid, voxel_occupied, level_position}
 
 // cpu/lighting.rs: LightKind
 const GI_LIGHT_DIRECTIONAL: u32 = 0u;
@@ -150,4 +151,14 @@ fn edge_fade(window: ProbeParams, q: vec3<i32>) -> f32 {
         }
     }
     return weight;
+}
+
+// cpu/probes.rs: occupied_at. Whether the world point `q` lies in an occupied cell of level `level`'s window
+// (outside it, no).
+fn occupied_at(level: u32, q: vec3<f32>) -> bool {
+    let c = floor(level_position(level, q));
+    if any(c < vec3<f32>(0.0)) || any(c >= vec3<f32>(voxel_grid.levels[level].dims)) {
+        return false;
+    }
+    return voxel_occupied(level, vec3<i32>(c), 0u);
 }

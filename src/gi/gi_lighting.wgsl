@@ -7,9 +7,10 @@
 // that the light bounces on, one bounce more each time the voxels and the probes have been updated.
 #import bevy_hao::voxel_grid::{
     voxel_grid, voxel_occupied, voxel_texel, voxel_albedo_at, voxel_normal_at, march_cascades, finest_level_containing,
-    level_position,
 }
-#import bevy_hao::gi_common::{GiLight, light_incident, pack_rgb9e5, ProbeParams, ProbeRecord, window_slot, edge_fade}
+#import bevy_hao::gi_common::{
+    GiLight, light_incident, pack_rgb9e5, ProbeParams, ProbeRecord, window_slot, edge_fade, occupied_at,
+}
 
 // src/gi/lighting.rs: `GpuGiLightingParams`.
 struct GiLightingParams {
@@ -93,11 +94,8 @@ fn probe_visible(level: u32, p: vec3<f32>, n: vec3<f32>, at: vec3<f32>) -> bool 
     if dot(at - p, n) < -BOUNCE_LIFT_CELLS * cell {
         return false;
     }
-    // cpu/probes.rs: occupied_at. A probe that gathered from inside a voxel sees both of its sides.
-    let in_level = finest_level_containing(at);
-    let c = floor(level_position(in_level, at));
-    let inside = all(c >= vec3<f32>(0.0)) && all(c < vec3<f32>(voxel_grid.levels[in_level].dims));
-    if inside && voxel_occupied(in_level, vec3<i32>(c), 0u) {
+    // A probe that gathered from inside a voxel sees both of its sides.
+    if occupied_at(finest_level_containing(at), at) {
         return false;
     }
     let d = distance(p, at);

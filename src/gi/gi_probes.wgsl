@@ -7,7 +7,7 @@
     voxel_grid, MAX_MOVED_OCCLUDERS, voxel_occupied, voxel_texel, voxel_normal_at, march_cascades, level_position,
     finest_level_containing,
 }
-#import bevy_hao::gi_common::{unpack_rgb9e5, ProbeParams, ProbeRecord, window_slot, edge_fade}
+#import bevy_hao::gi_common::{unpack_rgb9e5, ProbeParams, ProbeRecord, window_slot, edge_fade, occupied_at}
 
 @group(0) @binding(0) var<uniform> params: ProbeParams;
 @group(0) @binding(1) var<storage, read_write> records: array<ProbeRecord>;
@@ -74,16 +74,6 @@ fn hit_cell(level: u32, origin: vec3<f32>, dir: vec3<f32>, t: f32) -> vec3<i32> 
     let l = voxel_grid.levels[level];
     let p = level_position(level, origin) + dir * (t / l.cell_size + 1.0e-3);
     return clamp(vec3<i32>(floor(p)), vec3<i32>(0), vec3<i32>(l.dims) - vec3<i32>(1));
-}
-
-// cpu/probes.rs: occupied_at. Whether the world point `q` lies in an occupied cell of level `level`'s window
-// (outside it, no).
-fn occupied_at(level: u32, q: vec3<f32>) -> bool {
-    let c = floor(level_position(level, q));
-    if any(c < vec3<f32>(0.0)) || any(c >= vec3<f32>(voxel_grid.levels[level].dims)) {
-        return false;
-    }
-    return voxel_occupied(level, vec3<i32>(c), 0u);
 }
 
 // cpu/probes.rs: relocate_probe. Where a probe at `p` gathers from: out of an occupied voxel along its
