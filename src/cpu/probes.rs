@@ -7,10 +7,12 @@
 //!   a probe keeps its history while the window scrolls ([`ProbeWindow::slot`]).
 //! * A probe in a voxel moves out of it along the voxel's average normal before it gathers
 //!   ([`relocate_probe`]): a probe inside a floor or a wall would see its own surface from inside.
-//! * A face whose way is shut by a surface within a spacing is gathered from beyond that surface
-//!   ([`face_origin`]): Bevy reads a probe's face for every surface facing that way within a spacing of it,
-//!   and those are behind the surface; gathered from the probe, a thin wall's lit side would light the
-//!   room behind it (light leaking, the known failure of probe grids).
+//! * Each face is gathered where the surfaces that read it are ([`face_origin`]): Bevy reads a probe's face
+//!   for every surface facing that way within a spacing of it. A surface behind the probe that faces that
+//!   way reads it: the face is gathered half a cell in front of it, where that surface's light is (a wall's
+//!   foot beside a sunlit floor). A face whose way is shut by a surface within a spacing is read by the
+//!   surfaces beyond it: it is gathered from there; gathered from the probe, a thin wall's lit side would
+//!   light the room behind it (light leaking, the known failure of probe grids).
 //! * Its rays cover the sphere evenly ([`sphere_direction`]), turned at random on each update
 //!   ([`probe_rotation`]); a ray that stops in a voxel takes the voxel's radiance where the voxel's average
 //!   normal faces it (a voxel seen from behind holds faces the probe does not see), nothing where it does
@@ -221,13 +223,31 @@ pub fn relocate_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, s
     p + n * reach
 }
 
-/// Where a probe at `p` gathers its face along `axis` (one of [`PROBE_FACES`]) from (WGSL `face_origin`): `p`,
-/// unless a run of occupied voxels stops a march from `p` along `axis` within [`FACE_REACH`] spacings; then
-/// the first point past that run, half a cell at a time (at most [`FACE_EXIT_STEPS`]), whose voxel is
-/// empty, or `p` where there is none.
-pub fn face_origin(levels: &[TraceLevel], p: Vec3, axis: Vec3, spacing: f32) -> Vec3 {
+/// Where a probe at `p` gathers its face along `axis` (one of [`PROBE_FACES`]) from (WGSL `face_origin`): where
+/// the surfaces that read that face are. Bevy reads a probe's face for every surface facing that way within a
+/// spacing of it (trilinear, with no visibility test), so:
+/// * a surface behind the probe (a march from `p` against `axis` stops within [`FACE_REACH`] spacings in a
+///   voxel whose average normal, at least [`super::lighting::SHADOW_NORMAL_MIN`] long, faces along `axis`)
+///   reads it: the face gathers from half a cell in front of that voxel, where that surface sees what it sees
+///   (the light a wall takes from the floor at its foot, which a probe half a spacing out sees from behind);
+/// * else a surface ahead (a run of occupied voxels stops a march along `axis` within [`FACE_REACH`]
+///   spacings) stands between the probe and the surfaces facing that way beyond it (a thin wall's other
+///   side), which read it: it gathers from the first point past that run, half a cell at a time (at most
+///   [`FACE_EXIT_STEPS`]), whose voxel is empty;
+/// * where both stop, the nearer of the two; where neither does, or no empty point is found, `p`.
+pub fn face_origin(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, axis: Vec3, spacing: f32) -> Vec3 {
     let start = finest_level_containing(levels, p);
-    let Some((t, level)) = march_cascades(levels, p, axis, start, 0.0, FACE_REACH * spacing, FACE_STEPS) else {
+    let reach = FACE_REACH * spacing;
+    let ahead = march_cascades(levels, p, axis, start, 0.0, reach, FACE_STEPS);
+    if let Some((t, level)) = march_cascades(levels, p, -axis, start, 0.0, reach, FACE_STEPS)
+        && ahead.is_none_or(|(ahead, _)| t < ahead)
+    {
+        let normal = voxels.voxel(level, hit_cell(levels, level, p, -axis, t)).1;
+        if normal.length() >= super::lighting::SHADOW_NORMAL_MIN && normal.dot(axis) > 0.0 {
+            return p - axis * (t - 0.5 * levels[level].cell_size);
+        }
+    }
+    let Some((t, level)) = ahead else {
         return p;
     };
     let l = &levels[level];
@@ -264,7 +284,7 @@ pub fn gather_probe(
     rays: u32,
     rotation: Vec2,
 ) -> [Vec3; 6] {
-    let origins = PROBE_FACES.map(|axis| face_origin(levels, p, axis, spacing));
+    let origins = PROBE_FACES.map(|axis| face_origin(levels, voxels, p, axis, spacing));
     // Each lane's sums of its rays, then the lanes', in the GPU's order.
     let mut faces = [Vec3::ZERO; 6];
     for lane in 0..PROBE_LANES {
@@ -593,7 +613,7 @@ mod tests {
     }
 
     #[test]
-    fn a_face_shut_by_a_wall_within_a_spacing_gathers_from_beyond_it() {
+    fn a_face_gathers_where_the_surfaces_that_read_it_are() {
         // A wall one cell thick (x = 8) across the grid, lit on its +x side only.
         let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(64, 16, 64)).unwrap();
         let occupancy = VoxelOccupancy::new(grid, false);
@@ -613,10 +633,22 @@ mod tests {
         // A probe 0.2 m on the lit side: its -x face looks at the wall's lit side, which the surfaces facing
         // -x within a spacing (the wall's back, in the other room) do not see; it gathers from past the wall.
         let p = Vec3::new(8.45, 2.0, 8.0);
-        let behind = face_origin(&levels, p, Vec3::NEG_X, 0.5);
+        let behind = face_origin(&levels, &LitSide, p, Vec3::NEG_X, 0.5);
         assert!(behind.x < 8.0 && behind.x > 7.5 && (behind.y, behind.z) == (p.y, p.z), "{behind}");
-        assert_eq!(face_origin(&levels, p, Vec3::X, 0.5), p, "nothing within a spacing the other way");
-        assert_eq!(face_origin(&levels, p, Vec3::NEG_X, 0.1), p, "the wall beyond a spacing of 0.1");
+        assert_eq!(face_origin(&levels, &LitSide, p, Vec3::NEG_X, 0.1), p, "the wall beyond a spacing of 0.1");
+        // Its +x face is read by the wall's lit side, which faces +x 0.2 m behind it: gathered half a cell in
+        // front of the wall, where that side is. Nothing within a spacing ahead of it either way.
+        let front = face_origin(&levels, &LitSide, p, Vec3::X, 0.5);
+        assert!((front - Vec3::new(8.375, 2.0, 8.0)).abs().max_element() < 1e-3, "{front}");
+        assert_eq!(face_origin(&levels, &LitSide, p, Vec3::X, 0.1), p, "the wall beyond a spacing of 0.1");
+        // A wall whose voxels face the other way (the probe sees its back) reads no +x face there.
+        struct BackSide;
+        impl LitVoxels for BackSide {
+            fn voxel(&self, _: usize, _: IVec3) -> (Vec3, Vec3) {
+                (Vec3::ONE, Vec3::NEG_X)
+            }
+        }
+        assert_eq!(face_origin(&levels, &BackSide, p, Vec3::X, 0.5), p, "behind it, the back of a wall");
         let faces = gather_probe(&levels, &LitSide, p, 0.5, 1024, Vec2::ZERO);
         assert_eq!(faces[1], Vec3::ZERO, "the -x face sees the other room: no light");
         // Gathered from the probe itself, the -x face would see the lit side: L (a wall filling the

@@ -100,18 +100,29 @@ fn relocate_probe(p: vec3<f32>, spacing: f32) -> vec3<f32> {
     return p + n * reach;
 }
 
-// cpu/probes.rs: face_origin. Where the face along `axis` gathers from: past a run of occupied voxels a
-// march along it meets within FACE_REACH spacings (half a cell at a time), else `p`.
+// cpu/probes.rs: face_origin. Where the face along `axis` gathers from, where the surfaces that read it are:
+// half a cell in front of a voxel facing along `axis` that a march against it meets within FACE_REACH
+// spacings; else past a run of occupied voxels a march along it meets within FACE_REACH spacings (half a
+// cell at a time); where both stop, the nearer; else `p`.
 fn face_origin(p: vec3<f32>, axis: vec3<f32>, spacing: f32) -> vec3<f32> {
     let start = finest_level_containing(p);
-    let hit = march_cascades(p, axis, start, 0.0, FACE_REACH * spacing, FACE_STEPS);
-    if hit.x < 0.0 {
+    let reach = FACE_REACH * spacing;
+    let ahead = march_cascades(p, axis, start, 0.0, reach, FACE_STEPS);
+    let behind = march_cascades(p, -axis, start, 0.0, reach, FACE_STEPS);
+    if behind.x >= 0.0 && (ahead.x < 0.0 || behind.x < ahead.x) {
+        let level = u32(behind.y);
+        let normal = voxel_normal_at(level, hit_cell(level, p, -axis, behind.x));
+        if length(normal) >= SHADOW_NORMAL_MIN && dot(normal, axis) > 0.0 {
+            return p - axis * (behind.x - 0.5 * voxel_grid.levels[level].cell_size);
+        }
+    }
+    if ahead.x < 0.0 {
         return p;
     }
-    let level = u32(hit.y);
+    let level = u32(ahead.y);
     let step = 0.5 * voxel_grid.levels[level].cell_size;
     for (var k = 1u; k <= FACE_EXIT_STEPS; k++) {
-        let q = p + axis * (hit.x + step * f32(k));
+        let q = p + axis * (ahead.x + step * f32(k));
         if !occupied_at(level, q) {
             return q;
         }
