@@ -5,8 +5,9 @@
 //! * The grid: probe `q` (a lattice point, `q * spacing` in world space) for `q` in a window of
 //!   `counts` probes around the camera, snapped to the spacing ([`probe_window`]), stored toroidally so that
 //!   a probe keeps its history while the window scrolls ([`ProbeWindow::slot`]).
-//! * A probe in a voxel moves out of it along the voxel's average normal before it gathers
-//!   ([`relocate_probe`]): a probe inside a floor or a wall would see its own surface from inside.
+//! * A probe in a voxel moves out of it along the average normal of the voxels around it before it gathers
+//!   ([`relocate_probe`], [`neighbourhood_normal`]): a probe inside a floor or a wall would see its own
+//!   surface from inside.
 //! * Each face is gathered where the surfaces that read it are ([`face_origin`]): Bevy reads a probe's face
 //!   for every surface facing that way within a spacing of it. A surface behind the probe that faces that
 //!   way reads it: the face is gathered half a cell in front of it, where that surface's light is (a wall's
@@ -196,9 +197,10 @@ pub fn occupied_at(level: &TraceLevel, q: Vec3) -> bool {
 }
 
 /// Where the probe at lattice position `p` gathers from (WGSL `relocate_probe`): `p` itself, unless it lies
-/// in an occupied voxel of the finest level that holds it whose average normal has a direction (at least
-/// [`super::lighting::SHADOW_NORMAL_MIN`] long); then the first point along that normal, a cell at a time, whose
-/// voxel is empty, at most [`RELOCATE_MAX`] spacings away (there, if none is).
+/// in an occupied voxel of the finest level that holds it whose neighbourhood's normal has a direction
+/// ([`neighbourhood_normal`] at least [`super::lighting::SHADOW_NORMAL_MIN`] long); then the first point
+/// along that normal, a cell at a time, whose voxel is empty, at most [`RELOCATE_MAX`] spacings away (there,
+/// if none is).
 pub fn relocate_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, spacing: f32) -> Vec3 {
     let level = finest_level_containing(levels, p);
     let l = &levels[level];
@@ -206,7 +208,7 @@ pub fn relocate_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, s
     if !occupied(p) {
         return p;
     }
-    let normal = voxels.voxel(level, l.level_position(p).floor().as_ivec3()).1;
+    let normal = neighbourhood_normal(levels, voxels, level, l.level_position(p).floor().as_ivec3());
     if normal.length() < super::lighting::SHADOW_NORMAL_MIN {
         return p;
     }
@@ -221,6 +223,30 @@ pub fn relocate_probe(levels: &[TraceLevel], voxels: &impl LitVoxels, p: Vec3, s
         }
     }
     p + n * reach
+}
+
+/// The mean of the average normals of the occupied cells among cell `cell` of level `level`'s window and its
+/// 26 neighbours (WGSL `neighbourhood_normal`): the way a probe in that cell moves out. A voxel's own normal
+/// is not enough where surfaces meet: in a room's corner the faces hidden in the joint (a wall's bottom face
+/// on the floor's top) cancel part of it, and what is left may point into the floor; the floor's and the
+/// wall's voxels beside it face the room. Both faces of a thin wall cancel in each of its voxels, and the
+/// mean stays short: such a probe does not move.
+pub fn neighbourhood_normal(levels: &[TraceLevel], voxels: &impl LitVoxels, level: usize, cell: IVec3) -> Vec3 {
+    let l = &levels[level];
+    let dims = l.mips.dims().as_ivec3();
+    let (mut sum, mut count) = (Vec3::ZERO, 0u32);
+    for z in -1..=1 {
+        for y in -1..=1 {
+            for x in -1..=1 {
+                let c = cell + IVec3::new(x, y, z);
+                if c.cmpge(IVec3::ZERO).all() && c.cmplt(dims).all() && l.mips.occupied(c) {
+                    sum += voxels.voxel(level, c).1;
+                    count += 1;
+                }
+            }
+        }
+    }
+    sum / count.max(1) as f32
 }
 
 /// Where a probe at `p` gathers its face along `axis` (one of [`PROBE_FACES`]) from (WGSL `face_origin`): where
@@ -474,6 +500,45 @@ mod tests {
         // Moved out, it sees the floor below as a probe over it does.
         let faces = gather_probe(&levels, &Floor(Vec3::ONE), moved, 0.25, 1024, Vec2::ZERO);
         assert!(faces[3].x > 0.9 && faces[2].x == 0.0, "{faces:?}");
+    }
+
+    #[test]
+    fn a_probe_in_a_rooms_corner_moves_into_the_room_even_where_its_own_voxel_points_into_the_floor() {
+        // A floor (cell y = 2, for x <= 32) and a wall on it (cell x = 32, y >= 3), the room on the -x side.
+        let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(64, 16, 64)).unwrap();
+        let occupancy = VoxelOccupancy::new(grid, false);
+        for z in 0..64 {
+            for x in 0..=32 {
+                occupancy.set(UVec3::new(x, 2, z));
+            }
+            for y in 3..16 {
+                occupancy.set(UVec3::new(32, y, z));
+            }
+        }
+        let mips = VoxelMips::new(&occupancy, 4);
+        let levels = [TraceLevel { origin: Vec3::ZERO, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
+        // The joint's voxels (x = 32, y = 2): the wall's bottom face and the floor's top cancel, and what is
+        // left (the floor's underside, say) points down, out of the room. The floor faces up, the wall -x.
+        struct Corner;
+        impl LitVoxels for Corner {
+            fn voxel(&self, _: usize, c: IVec3) -> (Vec3, Vec3) {
+                let normal = match (c.x, c.y) {
+                    (32, 2) => Vec3::new(0.1, -0.6, 0.0),
+                    (_, 2) => Vec3::Y,
+                    _ => Vec3::NEG_X,
+                };
+                (Vec3::ONE, normal)
+            }
+        }
+        let joint = Vec3::new(8.125, 0.625, 8.125);
+        let n = neighbourhood_normal(&levels, &Corner, 0, IVec3::new(32, 2, 32));
+        assert!(n.x < -0.2 && n.y > 0.0 && n.z.abs() < 1e-6, "{n}");
+        // It ends in the room: over the floor, on the wall's room side.
+        let moved = relocate_probe(&levels, &Corner, joint, 1.0);
+        assert!(moved.x < 8.0 && moved.y >= 0.75 && !occupied_at(&levels[0], moved), "{moved}");
+        // By its own voxel's normal alone it would have gone down through the floor, out of the room.
+        let own = Corner.voxel(0, IVec3::new(32, 2, 32)).1.normalize();
+        assert!(!occupied_at(&levels[0], joint + own * 0.25) && (joint + own * 0.25).y < 0.5);
     }
 
     #[test]

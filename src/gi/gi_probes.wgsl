@@ -76,14 +76,34 @@ fn hit_cell(level: u32, origin: vec3<f32>, dir: vec3<f32>, t: f32) -> vec3<i32> 
     return clamp(vec3<i32>(floor(p)), vec3<i32>(0), vec3<i32>(l.dims) - vec3<i32>(1));
 }
 
-// cpu/probes.rs: relocate_probe. Where a probe at `p` gathers from: out of an occupied voxel along its
-// average normal, a cell at a time, at most RELOCATE_MAX spacings.
+// cpu/probes.rs: neighbourhood_normal. The mean of the average normals of the occupied cells among a cell
+// and its 26 neighbours.
+fn neighbourhood_normal(level: u32, cell: vec3<i32>) -> vec3<f32> {
+    let dims = vec3<i32>(voxel_grid.levels[level].dims);
+    var sum = vec3<f32>(0.0);
+    var count = 0u;
+    for (var z = -1; z <= 1; z++) {
+        for (var y = -1; y <= 1; y++) {
+            for (var x = -1; x <= 1; x++) {
+                let c = cell + vec3<i32>(x, y, z);
+                if all(c >= vec3<i32>(0)) && all(c < dims) && voxel_occupied(level, c, 0u) {
+                    sum += voxel_normal_at(level, c);
+                    count += 1u;
+                }
+            }
+        }
+    }
+    return sum / f32(max(count, 1u));
+}
+
+// cpu/probes.rs: relocate_probe. Where a probe at `p` gathers from: out of an occupied voxel along the
+// average normal of the voxels around it, a cell at a time, at most RELOCATE_MAX spacings.
 fn relocate_probe(p: vec3<f32>, spacing: f32) -> vec3<f32> {
     let level = finest_level_containing(p);
     if !occupied_at(level, p) {
         return p;
     }
-    let normal = voxel_normal_at(level, vec3<i32>(floor(level_position(level, p))));
+    let normal = neighbourhood_normal(level, vec3<i32>(floor(level_position(level, p))));
     if length(normal) < SHADOW_NORMAL_MIN {
         return p;
     }
