@@ -453,14 +453,17 @@ mod tests {
 
     /// A grid of 0.25 m cells from the origin with a floor layer at y = 2 (0.5-0.75 m), over all of it.
     fn floor() -> (VoxelMips, Vec3) {
+        (cells_grid((0..64).flat_map(|x| (0..64).map(move |z| UVec3::new(x, 2, z)))), Vec3::ZERO)
+    }
+
+    /// The occupancy pyramid of a grid of 64 x 16 x 64 cells of 0.25 m from the origin with `cells` set.
+    fn cells_grid(cells: impl IntoIterator<Item = UVec3>) -> VoxelMips {
         let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(64, 16, 64)).unwrap();
         let occupancy = VoxelOccupancy::new(grid, false);
-        for x in 0..64 {
-            for z in 0..64 {
-                occupancy.set(UVec3::new(x, 2, z));
-            }
+        for c in cells {
+            occupancy.set(c);
         }
-        (VoxelMips::new(&occupancy, 4), grid.origin)
+        VoxelMips::new(&occupancy, 4)
     }
 
     #[test]
@@ -505,17 +508,9 @@ mod tests {
     #[test]
     fn a_probe_in_a_rooms_corner_moves_into_the_room_even_where_its_own_voxel_points_into_the_floor() {
         // A floor (cell y = 2, for x <= 32) and a wall on it (cell x = 32, y >= 3), the room on the -x side.
-        let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(64, 16, 64)).unwrap();
-        let occupancy = VoxelOccupancy::new(grid, false);
-        for z in 0..64 {
-            for x in 0..=32 {
-                occupancy.set(UVec3::new(x, 2, z));
-            }
-            for y in 3..16 {
-                occupancy.set(UVec3::new(32, y, z));
-            }
-        }
-        let mips = VoxelMips::new(&occupancy, 4);
+        let mips = cells_grid((0..64).flat_map(|z| {
+            (0..=32).map(move |x| UVec3::new(x, 2, z)).chain((3..16).map(move |y| UVec3::new(32, y, z)))
+        }));
         let levels = [TraceLevel { origin: Vec3::ZERO, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
         // The joint's voxels (x = 32, y = 2): the wall's bottom face and the floor's top cancel, and what is
         // left (the floor's underside, say) points down, out of the room. The floor faces up, the wall -x.
@@ -680,14 +675,7 @@ mod tests {
     #[test]
     fn a_face_gathers_where_the_surfaces_that_read_it_are() {
         // A wall one cell thick (x = 8) across the grid, lit on its +x side only.
-        let grid = VoxelGrid::new(Vec3::ZERO, 0.25, UVec3::new(64, 16, 64)).unwrap();
-        let occupancy = VoxelOccupancy::new(grid, false);
-        for y in 0..16 {
-            for z in 0..64 {
-                occupancy.set(UVec3::new(32, y, z));
-            }
-        }
-        let mips = VoxelMips::new(&occupancy, 4);
+        let mips = cells_grid((0..16).flat_map(|y| (0..64).map(move |z| UVec3::new(32, y, z))));
         let levels = [TraceLevel { origin: Vec3::ZERO, cell_size: 0.25, window_min: IVec3::ZERO, mips: &mips }];
         struct LitSide;
         impl LitVoxels for LitSide {
